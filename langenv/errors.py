@@ -1,0 +1,35 @@
+"""Exceptions raised by langenv.
+
+Every error a user can cause with bad input derives from :class:`LangEnvError`, so callers can
+catch the package's errors in one place. Messages name the file, field or argument at fault.
+"""
+
+from __future__ import annotations
+
+
+class LangEnvError(Exception):
+    """Base class of every error langenv raises on bad input."""
+
+
+class ConfigError(LangEnvError, ValueError):
+    """A parameter, keyword argument or configuration value is invalid (names the field)."""
+
+
+class TrajectoryError(ConfigError):
+    """A trajectory or segment is malformed (degenerate segment, discontinuity, ...)."""
+
+
+class PhraseGraphError(LangEnvError, ValueError):
+    """A phrase graph file is malformed (names the file and the phrase)."""
+
+
+class AudioError(LangEnvError, OSError):
+    """A phrase clip cannot be read, synthesised or written (names the file)."""
+
+
+class SessionDataError(LangEnvError, ValueError):
+    """A recorded-session CSV is unreadable or lacks required columns (names the file)."""
+
+
+class ActionError(LangEnvError, ValueError):
+    """An action passed to the environment is NaN, infinite or out of range."""
