@@ -1,0 +1,26 @@
+"""LangCtrl: robots that move and speak in step with a person.
+
+Importing the package registers the Gymnasium environment ``LangCtrl-v0``
+(see :class:`langenv.env.LangCtrlEnv` for its full specification)::
+
+    import gymnasium as gym
+    import langenv  # noqa: F401
+
+    env = gym.make("LangCtrl-v0", users="synthetic", decision_hz=25)
+"""
+
+from __future__ import annotations
+
+from gymnasium.envs.registration import register, registry
+
+__all__ = ["ENV_ID", "__version__"]
+
+__version__ = "0.1.0"
+ENV_ID = "LangCtrl-v0"
+
+if ENV_ID not in registry:
+    register(
+        id=ENV_ID,
+        entry_point="langenv.env:LangCtrlEnv",
+        max_episode_steps=1500,  # 60 s at the default decision_hz=25
+    )

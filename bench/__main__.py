@@ -1,0 +1,150 @@
+"""``python -m bench [--json]``: speed and accuracy figures of LangCtrl, measured in one run.
+
+Figures (all measured here, on this machine, in this process):
+
+| key | meaning |
+|---|---|
+| ``mj_step_us`` | bare ``mj_step`` of our UR5 model (µs) |
+| ``tick_us`` | one full 500 Hz tick: user force, sensor, cooperation, guide (projection + F_virtual), admittance, velocity controller, physics, fast ``t_x`` (µs) |
+| ``tick_ratio`` | ``tick_us / mj_step_us`` (same run) |
+| ``etc_us`` | fast motion ETC per call (µs) |
+| ``etc_rel_err`` | largest relative error of the fast ETC against the 500 Hz reference simulation, over states along the default exercise |
+| ``nominal_s`` | time to complete the default exercise with ``F_ext = 0``, ``p = 1`` (s) |
+| ``plateau_speed`` | highest hand speed in that run (m/s) |
+| ``max_path_dev_m`` | largest distance of the hand from the path in that run (m) |
+| ``audio_rtf`` | seconds of speech rendered by the variable-rate phase vocoder per second of wall time |
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections.abc import Callable
+from typing import Any
+
+import mujoco
+import numpy as np
+
+
+def _best_of(fn: Callable[[], None], n_inner: int, repeats: int = 5) -> float:
+    """Smallest mean time per call (s) over ``repeats`` batches of ``n_inner`` calls."""
+    best = float("inf")
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, (time.perf_counter() - t0) / n_inner)
+    return best
+
+
+def _make_motion() -> Any:
+    from langenv.control.admittance import AdmittanceParams
+    from langenv.control.cooperation import CooperationFilter
+    from langenv.control.trajectory import default_exercise
+    from langenv.motion import GuidedArm
+    from langenv.robot.arm import Arm
+    from langenv.robot.force_sensor import ForceSensor
+
+    return GuidedArm(
+        Arm(), default_exercise(), AdmittanceParams(), ForceSensor(), CooperationFilter()
+    )
+
+
+def measure_physics(n: int = 2000) -> dict[str, float]:
+    """mj_step, full tick and their ratio, measured back to back."""
+    motion = _make_motion()
+    model, data = motion.arm.model, motion.arm.data
+    motion.reset()
+    zero = np.zeros(3)
+
+    def bare() -> None:
+        for _ in range(n):
+            mujoco.mj_step(model, data)
+
+    def ticks() -> None:
+        motion.reset()
+        for _ in range(n):
+            motion.tick(zero, 1.0, 0.0)
+
+    mj = _best_of(bare, n)
+    tick = _best_of(ticks, n)
+    return {"mj_step_us": mj * 1e6, "tick_us": tick * 1e6, "tick_ratio": tick / mj}
+
+
+def measure_nominal(max_time: float = 30.0) -> dict[str, float]:
+    """Default exercise with F_ext = 0 and p = 1 on the full arm."""
+    motion = _make_motion()
+    motion.reset()
+    traj = motion.trajectory
+    zero = np.zeros(3)
+    top_speed = 0.0
+    max_dev = 0.0
+    while not motion.motion_done and motion.time < max_time:
+        motion.tick(zero, 1.0, 0.0)
+        x = motion.hand_position
+        top_speed = max(top_speed, float(np.linalg.norm(motion.hand_velocity)))
+        max_dev = max(max_dev, float(np.linalg.norm(x - traj.position(motion.state.s))))
+    nominal = motion.t_motion_end if motion.t_motion_end is not None else float("nan")
+    return {"nominal_s": nominal, "plateau_speed": top_speed, "max_path_dev_m": max_dev}
+
+
+def measure_etc() -> dict[str, float]:
+    """Fast motion ETC against the 500 Hz reference."""
+    from langenv.control.admittance import AdmittanceParams
+    from langenv.control.motion_etc import etc_agreement
+    from langenv.control.trajectory import default_exercise
+
+    res = etc_agreement(default_exercise(), AdmittanceParams(), np.random.default_rng(0))
+    return {"etc_us": float(res["etc_us"]), "etc_rel_err": float(res["max_rel_err"])}
+
+
+def measure_audio() -> dict[str, float]:
+    """Variable-rate phase vocoder throughput."""
+    from bench.audio import measure_audio_rtf
+
+    return {"audio_rtf": float(measure_audio_rtf())}
+
+
+SECTIONS: dict[str, Callable[[], dict[str, float]]] = {
+    "physics": measure_physics,
+    "nominal": measure_nominal,
+    "etc": measure_etc,
+    "audio": measure_audio,
+}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m bench", description=__doc__.splitlines()[0])
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument(
+        "--only", default=",".join(SECTIONS), help=f"comma-separated sections of {list(SECTIONS)}"
+    )
+    args = parser.parse_args(argv)
+    wanted = [s.strip() for s in args.only.split(",") if s.strip()]
+    unknown = [s for s in wanted if s not in SECTIONS]
+    if unknown:
+        parser.error(f"unknown section(s) {unknown}; known: {list(SECTIONS)}")
+    results: dict[str, float] = {}
+    for name in wanted:
+        if not args.json:
+            print(f"measuring {name} ...", file=sys.stderr)
+        results.update(SECTIONS[name]())
+    rounded = {k: float(f"{v:.4g}") for k, v in results.items()}
+    if args.json:
+        print(json.dumps(rounded))
+    else:
+        from rich.console import Console
+        from rich.table import Table
+
+        table = Table(title="LangCtrl benchmark")
+        table.add_column("figure")
+        table.add_column("value", justify="right")
+        for k, v in rounded.items():
+            table.add_row(k, f"{v:g}")
+        Console().print(table)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

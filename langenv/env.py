@@ -1,0 +1,392 @@
+"""LangCtrl-v0: a UR5 that guides a person's hand along an exercise and talks them through it."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, Literal
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from langenv.control.admittance import AdmittanceParams
+from langenv.control.cooperation import CooperationFilter
+from langenv.control.trajectory import Trajectory, default_exercise
+from langenv.errors import ActionError, ConfigError
+from langenv.motion import GuidedArm
+from langenv.pacing import PaceActuator, PaceLimits, command_from_action
+from langenv.robot.arm import Arm
+from langenv.robot.force_sensor import ForceSensor
+from langenv.speech.audio import ClipLibrary
+from langenv.speech.graph import PhraseGraph
+from langenv.speech.timeline import SpeechTimeline
+from langenv.users import CallableUser, ReplayUser, SyntheticUser, User
+
+__all__ = ["DEFAULT_GRAPHS", "LangCtrlEnv"]
+
+_ASSETS = Path(__file__).resolve().parent / "assets" / "graphs"
+#: The shipped phrase graphs of the default exercise, by controller.
+DEFAULT_GRAPHS: dict[str, Path] = {
+    "lc": _ASSETS / "lc.yaml",
+    "lc-noap": _ASSETS / "lc_noap.yaml",
+    "ac": _ASSETS / "ac.yaml",
+}
+
+PHYSICS_HZ = 500
+T_SCALE = 40.0  # s, normalisation of times in the observation
+MAX_TRAJECTORY_SPEED = 0.25  # m/s, normalisation of the hand speed
+TREND_WINDOW = 0.5  # s, cooperation trend window
+CHOICE_OCTAVES = 2.0  # target-duration action spans t_x * 2**(±2)
+
+
+class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
+    r"""A UR5 guides a person's hand along a therapy exercise and talks them through it.
+
+    The arm (MuJoCo, 500 Hz) follows the exercise under the paper's variable admittance
+    :math:`M_0\dot v = p^2 (F_{ext} + F_{virtual}) - (p D_0 - \tfrac{\dot p}{p} M_0) v`; a simulated
+    person pushes on its handle; the robot speaks phrases from a phrase graph, played at audio
+    pace ``a`` by a phase vocoder. The agent sets the pace commands and chooses the next phrase; the
+    goal (the Language Controller's) is that **speech and motion end together** while both paces
+    stay near 1. The analytic controllers of the paper are policies of this env (``policies/``):
+    at ``decision_hz=500`` the LC policy is exactly the paper's controller.
+
+    ## Action space
+
+    ``Box(-1, 1, (2 + n_choice,), float32)``:
+
+    | index | name | meaning |
+    |---|---|---|
+    | 0 | ``u_p`` | physical pace command: ``p_cmd = 1 + 0.4 u`` for ``u >= 0``, ``1 + 2.5 u`` below (``u = -1`` is -1.5) |
+    | 1 | ``u_a`` | audio pace command, same map |
+    | 2.. | choice | next-phrase choice, used only when a phrase ends (see ``choice_mode``) |
+
+    The env applies ``dp/dt = k_p (p_cmd - p)``, ``da/dt = k_a (a_cmd - a)`` at every tick and clips
+    ``p, a`` to ``[0.6, 1.4]``. ``choice_mode="target"`` (``n_choice = 1``): ``u`` sets a target
+    speech duration ``t_x 2^{2u}`` s and the child whose mid-length ``(t_min + t_max)/2`` is
+    closest to it is said next (``u = 0`` is the paper's rule). ``choice_mode="scores"``
+    (``n_choice = max_children`` of the graph): the valid child with the highest score is said
+    next. An invalid child can never be chosen. NaN/inf or out-of-range actions raise
+    :class:`~langenv.errors.ActionError`.
+
+    ## Observation space
+
+    ``Box(-1, 1, (16 + 3 max_children,), float32)``; times are divided by ``T_SCALE = 40`` s:
+
+    | index | name | unit / scaling |
+    |---|---|---|
+    | 0 | ``t_x`` motion ETC at base pace | s / 40 |
+    | 1 | ``t_a`` speech ETC at base pace | s / 40 |
+    | 2 | misalignment at current paces ``t_a/a - t_x/p`` | s / 40 |
+    | 3 | ``p`` | ``(p - 1)/0.4`` |
+    | 4 | ``a`` | ``(a - 1)/0.4`` |
+    | 5 | cooperation ``c`` | ``2c - 1`` |
+    | 6 | cooperation trend ``dc/dt`` over 0.5 s | 1/s, clipped |
+    | 7 | progress ``d`` along the path | ``2d - 1`` |
+    | 8 | hand speed | m/s / 0.25 |
+    | 9 | share of the current phrase said | ``2f - 1`` |
+    | 10 | rest of the current phrase at ``a = 1`` | s / 40 |
+    | 11 | in the pause after a phrase | ±1 |
+    | 12 | speech over | ±1 |
+    | 13 | motion over | ±1 |
+    | 14 | a phrase boundary is due before the next decision | ±1 |
+    | 15 | elapsed time | s / 60 |
+    | 16 + 3k | child ``k`` is a valid next phrase | ±1 |
+    | 17 + 3k | its ``t_min`` | s / 40 |
+    | 18 + 3k | its ``t_max`` | s / 40 |
+
+    ## Rewards
+
+    Weighted terms, each reported in ``info`` (``reward_em``, ``reward_pace``, ``reward_am``):
+
+    * ``reward_em = -w_em ∫ |t_a/a - t_x/p| dt / T_SCALE`` over the step (misalignment at current
+      paces, while speech or motion goes on);
+    * ``reward_pace = -w_pace ∫ ((p-1)^2 [motion on] + (a-1)^2 [speech on]) dt`` (the paper's
+      objective);
+    * ``reward_am = -w_am |AM|`` (s) once, when the episode ends, ``AM = t_speech_end - t_motion_end``.
+
+    ## Episode end
+
+    Terminates when both speech and motion are over. Truncation through ``max_episode_steps`` at
+    registration (1500 steps = 60 s at the default 25 Hz; pass ``max_episode_steps=60 *
+    decision_hz`` to ``gymnasium.make`` for other rates).
+
+    ## Arguments
+
+    | argument | default | meaning |
+    |---|---|---|
+    | ``users`` | ``"synthetic"`` | ``"synthetic"``, ``"replay"`` (with ``session``), a :class:`~langenv.users.User` or a callable ``f(t, hand_velocity, tangent) -> (3,)`` N |
+    | ``session`` | ``None`` | session CSV (``t, cooperation``) for ``users="replay"`` |
+    | ``phrase_graph`` | LC graph | YAML path or one of ``"lc"``, ``"lc-noap"``, ``"ac"`` |
+    | ``decision_hz`` | 25 | agent decisions per second; must divide 500 |
+    | ``choice_mode`` | ``"target"`` | next-phrase action design: ``"target"`` or ``"scores"`` |
+    | ``w_em``, ``w_pace``, ``w_am`` | 1, 1, 1 | reward weights |
+    | ``sensor_noise`` | 0 | force sensor noise std (N) |
+    | ``deadband`` | 5 | force sensor deadband (N) |
+    | ``admittance`` | SPEC §2 | :class:`~langenv.control.admittance.AdmittanceParams` |
+    | ``paces`` | SPEC §2 | :class:`~langenv.pacing.PaceLimits` (bounds, ``k_p``, ``k_a``) |
+    | ``model_path``, ``handle_site`` | our UR5, ``"handle"`` | another arm MJCF and its handle site |
+    | ``render_mode`` | ``None`` | ``"rgb_array"`` (off-screen; needs ``MUJOCO_GL=egl`` or ``osmesa``) |
+    | ``width``, ``height`` | 640, 480 | render size (pixels) |
+
+    ``reset(options=...)`` accepts ``{"user": User}`` to swap the user for that episode.
+
+    ## Version history
+
+    * v0: initial release.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 25}  # noqa: RUF012
+
+    def __init__(
+        self,
+        *,
+        users: str | User | Callable[..., np.ndarray] = "synthetic",
+        session: str | Path | None = None,
+        phrase_graph: str | Path = "lc",
+        decision_hz: int = 25,
+        choice_mode: Literal["target", "scores"] = "target",
+        w_em: float = 1.0,
+        w_pace: float = 1.0,
+        w_am: float = 1.0,
+        sensor_noise: float = 0.0,
+        deadband: float = 5.0,
+        admittance: AdmittanceParams | None = None,
+        paces: PaceLimits | None = None,
+        trajectory: Trajectory | None = None,
+        model_path: str | Path | None = None,
+        handle_site: str = "handle",
+        render_mode: str | None = None,
+        width: int = 640,
+        height: int = 480,
+        clips: ClipLibrary | None = None,
+    ) -> None:
+        super().__init__()
+        if not isinstance(decision_hz, int) or decision_hz <= 0 or PHYSICS_HZ % decision_hz:
+            raise ConfigError(f"decision_hz must be a positive divisor of 500, got {decision_hz!r}")
+        if choice_mode not in ("target", "scores"):
+            raise ConfigError(f"choice_mode must be 'target' or 'scores', got {choice_mode!r}")
+        for name, w in (("w_em", w_em), ("w_pace", w_pace), ("w_am", w_am)):
+            if not (math.isfinite(w) and w >= 0.0):
+                raise ConfigError(f"{name} must be finite and >= 0, got {w!r}")
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ConfigError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        self.render_mode = render_mode
+        self.width, self.height = int(width), int(height)
+        self.decision_hz = decision_hz
+        self.ticks_per_step = PHYSICS_HZ // decision_hz
+        self.choice_mode = choice_mode
+        self.w_em, self.w_pace, self.w_am = float(w_em), float(w_pace), float(w_am)
+
+        self.user: User = _make_user(users, session)
+        graph_path = DEFAULT_GRAPHS.get(str(phrase_graph), Path(phrase_graph))
+        self.graph = PhraseGraph.load(graph_path, clips=clips)
+        self.max_children = max(1, self.graph.max_children)
+
+        params = admittance if admittance is not None else AdmittanceParams()
+        self.motion = GuidedArm(
+            Arm(model_path, handle_site),
+            trajectory if trajectory is not None else default_exercise(),
+            params,
+            ForceSensor(noise_std=sensor_noise, deadband=deadband),
+            CooperationFilter(),
+        )
+        self.paces = PaceActuator(paces if paces is not None else PaceLimits())
+        self.speech = SpeechTimeline(self.graph)
+        self.dt = self.motion.dt
+        if not math.isclose(self.dt * PHYSICS_HZ, 1.0, rel_tol=1e-9):
+            raise ConfigError(f"the arm model's timestep must be 0.002 s, got {self.dt}")
+
+        n_choice = 1 if choice_mode == "target" else self.max_children
+        self.action_space = spaces.Box(-1.0, 1.0, (2 + n_choice,), np.float32)
+        self.observation_space = spaces.Box(-1.0, 1.0, (16 + 3 * self.max_children,), np.float32)
+        self._obs = np.zeros(self.observation_space.shape, np.float32)
+        self._choice_u = np.zeros(n_choice)
+        self._renderer: Any = None
+        self._reset_episode_state()
+
+    # ------------------------------------------------------------------ gym API
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        super().reset(seed=seed)
+        if options and "user" in options:
+            self.user = _make_user(options["user"], None)
+        self.user.reset(self.np_random)
+        self.motion.reset()
+        self.paces.reset()
+        self.speech.reset()
+        self._reset_episode_state()
+        self._update_speech_eta()
+        return self._observation(), self._info()
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        act = np.asarray(action, dtype=np.float64).reshape(-1)
+        if act.shape != self.action_space.shape:
+            raise ActionError(f"action must have shape {self.action_space.shape}, got {act.shape}")
+        if not np.all(np.isfinite(act)):
+            raise ActionError(f"action must be finite, got {act.tolist()}")
+        if np.any(np.abs(act) > 1.0 + 1e-6):
+            raise ActionError(f"action must lie in [-1, 1], got {act.tolist()}")
+        lim = self.paces.limits
+        p_cmd = command_from_action(float(act[0]), lim.p_max)
+        a_cmd = command_from_action(float(act[1]), lim.a_max)
+        self._choice_u = act[2:]
+
+        em_int = pace_int = 0.0
+        for _ in range(self.ticks_per_step):
+            if self._terminated:
+                break
+            em, pace = self._tick(p_cmd, a_cmd)
+            em_int += em * self.dt
+            pace_int += pace * self.dt
+
+        r_em = -self.w_em * em_int / T_SCALE
+        r_pace = -self.w_pace * pace_int
+        r_am = 0.0
+        if self._terminated and not self._am_paid:
+            r_am = -self.w_am * abs(self.am)
+            self._am_paid = True
+        reward = r_em + r_pace + r_am
+        info = self._info()
+        info.update(reward_em=r_em, reward_pace=r_pace, reward_am=r_am)
+        return self._observation(), float(reward), self._terminated, False, info
+
+    def render(self) -> np.ndarray | None:  # type: ignore[override]
+        if self.render_mode != "rgb_array":
+            return None
+        return self.motion.arm.render(
+            self.width,
+            self.height,
+            path=self.motion.trajectory.sample(200),
+            force=self.motion.f_user,
+        )
+
+    def close(self) -> None:
+        self.motion.arm.close()
+        super().close()
+
+    # ------------------------------------------------------------------ internals
+    def _reset_episode_state(self) -> None:
+        self.time = 0.0
+        self.t_a = 0.0
+        self.t_speech_end: float | None = None
+        self.am = 0.0
+        self._terminated = False
+        self._am_paid = False
+        self._coop_hist = np.ones(max(1, int(round(TREND_WINDOW / self.dt))))
+        self._coop_i = 0
+
+    def _tick(self, p_cmd: float, a_cmd: float) -> tuple[float, float]:
+        """One 2 ms tick; returns the instantaneous misalignment and pace penalty."""
+        motion, speech = self.motion, self.speech
+        self.paces.step(p_cmd, a_cmd, self.dt)
+        p, a = self.paces.p, self.paces.a
+        f_user = self.user.force(self.time, motion.hand_velocity, motion.tangent())
+        motion.tick(f_user, p, self.paces.p_dot, self.np_random)
+        if not speech.done:
+            speech.step(self.dt, a, self._choose)
+        self.time += self.dt
+        self._coop_hist[self._coop_i % self._coop_hist.size] = motion.cooperation
+        self._coop_i += 1
+        self._update_speech_eta()
+        if speech.done and self.t_speech_end is None:
+            self.t_speech_end = self.time
+        motion_on, speech_on = not motion.motion_done, not speech.done
+        em = abs(self.t_a / a - motion.t_x / p) if (motion_on or speech_on) else 0.0
+        pace = ((p - 1.0) ** 2 if motion_on else 0.0) + ((a - 1.0) ** 2 if speech_on else 0.0)
+        if not motion_on and not speech_on:
+            self._terminated = True
+            t_motion = motion.t_motion_end if motion.t_motion_end is not None else self.time
+            t_speech = self.t_speech_end if self.t_speech_end is not None else self.time
+            self.am = t_speech - t_motion
+        return em, pace
+
+    def _choose(self, candidates: tuple[str, ...]) -> str:
+        """Next phrase among ``candidates`` from the latest action (never an invalid child)."""
+        if len(candidates) == 1:
+            return candidates[0]
+        if self.choice_mode == "target":
+            target = self.motion.t_x * 2.0 ** (CHOICE_OCTAVES * float(self._choice_u[0]))
+            mids = [0.5 * (self.graph.t_min(c) + self.graph.t_max(c)) for c in candidates]
+            return candidates[int(np.argmin([abs(target - m) for m in mids]))]
+        scores = self._choice_u[: len(candidates)]
+        return candidates[int(np.argmax(scores))]
+
+    def _update_speech_eta(self) -> None:
+        self.t_a = self.speech.eta(self.motion.t_x)
+
+    def _observation(self) -> np.ndarray:
+        m, sp, obs = self.motion, self.speech, self._obs
+        p, a = self.paces.p, self.paces.a
+        t_x, t_a = m.t_x, self.t_a
+        obs[0] = t_x / T_SCALE
+        obs[1] = t_a / T_SCALE
+        obs[2] = (t_a / a - t_x / p) / T_SCALE
+        obs[3] = (p - 1.0) / 0.4
+        obs[4] = (a - 1.0) / 0.4
+        obs[5] = 2.0 * m.cooperation - 1.0
+        n = self._coop_hist.size
+        newest = self._coop_hist[(self._coop_i - 1) % n]
+        oldest = self._coop_hist[self._coop_i % n] if self._coop_i >= n else 1.0
+        obs[6] = (newest - oldest) / TREND_WINDOW
+        obs[7] = 2.0 * m.progress - 1.0
+        speed = float(np.linalg.norm(m.hand_velocity))
+        obs[8] = speed / MAX_TRAJECTORY_SPEED
+        obs[9] = 2.0 * sp.fraction_said - 1.0
+        obs[10] = sp.remaining_in_phrase / T_SCALE
+        obs[11] = 1.0 if sp.in_pause else -1.0
+        obs[12] = 1.0 if sp.done else -1.0
+        obs[13] = 1.0 if m.motion_done else -1.0
+        horizon = self.ticks_per_step * self.dt
+        obs[14] = 1.0 if sp.boundary_due(horizon, a) else -1.0
+        obs[15] = self.time / 60.0
+        children = sp.candidates
+        for k in range(self.max_children):
+            base = 16 + 3 * k
+            if k < len(children):
+                obs[base] = 1.0
+                obs[base + 1] = self.graph.t_min(children[k]) / T_SCALE
+                obs[base + 2] = self.graph.t_max(children[k]) / T_SCALE
+            else:
+                obs[base : base + 3] = (-1.0, 0.0, 0.0)
+        np.clip(obs, -1.0, 1.0, out=obs)
+        return obs.copy()
+
+    def _info(self) -> dict[str, Any]:
+        m = self.motion
+        return {
+            "time": self.time,
+            "t_x": m.t_x,
+            "t_a": self.t_a,
+            "em": self.t_a - m.t_x,
+            "p": self.paces.p,
+            "a": self.paces.a,
+            "cooperation": m.cooperation,
+            "hand_speed": float(np.linalg.norm(m.hand_velocity)),
+            "progress": m.progress,
+            "phrase": self.speech.phrase,
+            "motion_done": m.motion_done,
+            "speech_done": self.speech.done,
+            "t_motion": m.t_motion_end,
+            "t_speech": self.t_speech_end,
+            "am": self.am if self._terminated else None,
+        }
+
+
+def _make_user(users: Any, session: str | Path | None) -> User:
+    """Build the user model from the ``users`` argument."""
+    if isinstance(users, str):
+        if users == "synthetic":
+            return SyntheticUser()
+        if users == "replay":
+            if session is None:
+                raise ConfigError("users='replay' needs session=PATH to a session CSV")
+            return ReplayUser.from_csv(session)
+        raise ConfigError(f"users must be 'synthetic', 'replay', a User or a callable; got {users!r}")
+    if hasattr(users, "reset") and hasattr(users, "force"):
+        return users  # type: ignore[no-any-return]
+    if callable(users):
+        return CallableUser(users)
+    raise ConfigError(f"users must be 'synthetic', 'replay', a User or a callable; got {users!r}")

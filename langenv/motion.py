@@ -1,0 +1,147 @@
+"""The physical half of one 500 Hz control tick: arm, guide, admittance, sensor, cooperation, ETC.
+
+:class:`GuidedArm` composes the parts of SPEC §1 (Fig. 2 of the paper) that act on the arm:
+
+1. the person's force ``F_user`` acts on the handle and is measured by the force sensor (noise,
+   soft deadband) as ``F~``;
+2. the cooperation model ``Y_c`` filters ``|F~|`` into ``c``;
+3. the guide finds the closest point ``x_d`` (locally), tracks the stops, and gives
+   ``F_virtual = K (x_d - x) + F_prop b``;
+4. the variable admittance ``A(p)`` turns ``F~ + F_virtual`` into ``v_ref``;
+5. the velocity controller ``C`` drives the hand to ``v_ref`` and MuJoCo steps the arm;
+6. the motion ETC ``t_x`` is estimated from the new state.
+
+The paces ``p`` (and its rate) come from outside: they are the aligner's business.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from langenv.control.admittance import AdmittanceParams, VariableAdmittance
+from langenv.control.cooperation import CooperationFilter
+from langenv.control.guide import Guide, GuideState
+from langenv.control.motion_etc import FastETC
+from langenv.control.trajectory import Trajectory
+from langenv.robot.arm import Arm
+from langenv.robot.force_sensor import ForceSensor
+
+__all__ = ["GuidedArm"]
+
+
+class GuidedArm:
+    """A UR5 under the paper's variable admittance, guided along a trajectory.
+
+    Args:
+        arm: The simulated arm (its model's timestep is the tick, 2 ms).
+        trajectory: The exercise path.
+        params: Virtual dynamics and guide parameters.
+        sensor: The handle's force sensor.
+        cooperation: The cooperation filter.
+    """
+
+    def __init__(
+        self,
+        arm: Arm,
+        trajectory: Trajectory,
+        params: AdmittanceParams,
+        sensor: ForceSensor,
+        cooperation: CooperationFilter,
+    ) -> None:
+        self.arm = arm
+        self.trajectory = trajectory
+        self.params = params
+        self.sensor = sensor
+        self.coop = cooperation
+        self.guide = Guide(trajectory, params)
+        self.admittance = VariableAdmittance(params)
+        self.etc = FastETC(self.guide, self.admittance)
+        self.dt: float = arm.dt
+        self.state: GuideState = self.guide.initial_state()
+        self.v_ref = np.zeros(3)
+        self.f_user = np.zeros(3)
+        self.f_measured = np.zeros(3)
+        self.t_x: float = 0.0
+        self.t_motion_end: float | None = None
+        self.time: float = 0.0
+
+    # ------------------------------------------------------------------ state
+    @property
+    def hand_position(self) -> np.ndarray:
+        """Hand (handle site) position, shape (3,), m."""
+        return self.arm.hand_position()
+
+    @property
+    def hand_velocity(self) -> np.ndarray:
+        """Hand (handle site) linear velocity, shape (3,), m/s."""
+        return self.arm.hand_velocity()
+
+    @property
+    def cooperation(self) -> float:
+        """Cooperation ``c`` in [0, 1]."""
+        return float(self.coop.c)
+
+    @property
+    def motion_done(self) -> bool:
+        """Whether the hand has come to rest at the trajectory's end."""
+        return bool(self.state.done)
+
+    @property
+    def progress(self) -> float:
+        """Arc-length progress ``d = s / L`` in [0, 1]."""
+        return float(self.state.s / self.trajectory.length)
+
+    def tangent(self) -> np.ndarray:
+        """Unit path tangent ``b`` at the current closest point, shape (3,)."""
+        return self.trajectory.tangent(self.state.s)
+
+    # ------------------------------------------------------------------ loop
+    def reset(self) -> None:
+        """Put the hand at rest at the trajectory's start; clear filters and timers."""
+        self.arm.reset(self.trajectory.position(0.0))
+        self.coop.reset()
+        self.state = self.guide.initial_state()
+        self.v_ref = np.zeros(3)
+        self.f_user = np.zeros(3)
+        self.f_measured = np.zeros(3)
+        self.time = 0.0
+        self.t_motion_end = None
+        self.t_x = self.etc.etc(self.state, self.arm.hand_position(), self.v_ref)
+
+    def tick(
+        self,
+        f_user: np.ndarray,
+        p: float,
+        p_dot: float,
+        rng: np.random.Generator | None = None,
+    ) -> None:
+        """Advance one control tick.
+
+        Args:
+            f_user: Force the person applies at the handle, shape (3,), N.
+            p: Physical pace during this tick.
+            p_dot: Its time derivative (1/s).
+            rng: Generator for the sensor noise (the env's ``np_random``).
+        """
+        self.f_user = f_user
+        f_meas = self.sensor.measure(f_user, rng)
+        self.f_measured = f_meas
+        self.coop.update(math.sqrt(float(f_meas @ f_meas)), self.dt)
+        x = self.arm.hand_position()
+        if not self.state.done:
+            self.guide.update(self.state, x, self.v_ref)
+        if self.state.done:
+            if self.t_motion_end is None:
+                self.t_motion_end = self.time
+            # motion over: the robot holds still
+            self.v_ref = np.zeros(3)
+            self.arm.step(self.v_ref, f_user)
+            self.t_x = 0.0
+        else:
+            force = f_meas + self.guide.virtual_force(self.state, x, self.v_ref, p)
+            self.v_ref = self.admittance.step(self.v_ref, force, p, p_dot, self.dt)
+            self.arm.step(self.v_ref, f_user)
+            self.t_x = self.etc.etc(self.state, self.arm.hand_position(), self.v_ref)
+        self.time += self.dt

@@ -1,0 +1,116 @@
+"""The pace actuator: first-order laws that move ``p`` and ``a`` towards commanded values.
+
+The env applies ``dp/dt = k_p (p_cmd - p)`` and ``da/dt = k_a (a_cmd - a)`` at every 2 ms tick and
+clips both paces to their bounds (SPEC §1). With ``p_cmd = p*`` and ``a_cmd = a* - (k_c/k_a)(1-c)``
+this is exactly the paper's aligner, so the analytic Language Controller and a learned policy meet
+the plant the same way: through pace *commands*.
+
+Agents send normalised commands ``u`` in [-1, 1]; :func:`command_from_action` maps them
+piecewise-linearly to pace commands: ``u = 0`` is the natural pace 1, ``u = 1`` the upper bound 1.4,
+and ``u = -1`` the lowest command the paper's law can ask for (-1.5: ``a* >= 0`` and the cooperation
+term subtracts at most ``k_c / k_a = 10/7``). Commands below the lower pace bound only make the pace
+approach that bound faster.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from langenv.errors import ConfigError
+
+__all__ = ["PaceActuator", "PaceLimits", "action_from_command", "command_from_action"]
+
+#: Pace command at u = -1 (lowest value the paper's law can ask for).
+COMMAND_MIN = -1.5
+
+
+@dataclass(frozen=True)
+class PaceLimits:
+    """Bounds and gains of the pace laws.
+
+    Attributes:
+        p_min: Lower bound of the physical pace (> 0).
+        p_max: Upper bound of the physical pace.
+        a_min: Lower bound of the audio pace (> 0).
+        a_max: Upper bound of the audio pace.
+        k_p: Physical pace gain (1/s).
+        k_a: Audio pace gain (1/s).
+    """
+
+    p_min: float = 0.6
+    p_max: float = 1.4
+    a_min: float = 0.6
+    a_max: float = 1.4
+    k_p: float = 6.0
+    k_a: float = 7.0
+
+    def __post_init__(self) -> None:
+        for name in ("p_min", "p_max", "a_min", "a_max", "k_p", "k_a"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise ConfigError(f"PaceLimits.{name} must be finite and > 0, got {value!r}")
+        if not self.p_min < 1.0 < self.p_max:
+            raise ConfigError(f"PaceLimits needs p_min < 1 < p_max, got [{self.p_min}, {self.p_max}]")
+        if not self.a_min < 1.0 < self.a_max:
+            raise ConfigError(f"PaceLimits needs a_min < 1 < a_max, got [{self.a_min}, {self.a_max}]")
+
+
+def command_from_action(u: float, upper: float) -> float:
+    """Map a normalised action ``u`` in [-1, 1] to a pace command.
+
+    Args:
+        u: Normalised command.
+        upper: Pace upper bound (the command at ``u = 1``).
+
+    Returns:
+        ``1 + (upper - 1) u`` for ``u >= 0``, ``1 + (1 - COMMAND_MIN) u`` for ``u < 0``.
+    """
+    if u >= 0.0:
+        return 1.0 + (upper - 1.0) * u
+    return 1.0 + (1.0 - COMMAND_MIN) * u
+
+
+def action_from_command(cmd: float, upper: float) -> float:
+    """Inverse of :func:`command_from_action`, clipped to [-1, 1]."""
+    if cmd >= 1.0:
+        u = (cmd - 1.0) / (upper - 1.0)
+    else:
+        u = (cmd - 1.0) / (1.0 - COMMAND_MIN)
+    return min(1.0, max(-1.0, u))
+
+
+class PaceActuator:
+    """State ``(p, a)`` moved by the first-order pace laws at each tick.
+
+    Args:
+        limits: Bounds and gains.
+    """
+
+    def __init__(self, limits: PaceLimits) -> None:
+        self.limits = limits
+        self.p = 1.0
+        self.a = 1.0
+        self.p_dot = 0.0
+
+    def reset(self) -> None:
+        """Both paces back to the natural pace 1."""
+        self.p = 1.0
+        self.a = 1.0
+        self.p_dot = 0.0
+
+    def step(self, p_cmd: float, a_cmd: float, dt: float) -> None:
+        """Advance the paces one tick (explicit Euler, as the lab code's 500 Hz loop).
+
+        Args:
+            p_cmd: Physical pace command.
+            a_cmd: Audio pace command.
+            dt: Tick length (s).
+        """
+        lim = self.limits
+        p_new = self.p + dt * lim.k_p * (p_cmd - self.p)
+        p_new = min(lim.p_max, max(lim.p_min, p_new))
+        self.p_dot = (p_new - self.p) / dt
+        self.p = p_new
+        a_new = self.a + dt * lim.k_a * (a_cmd - self.a)
+        self.a = min(lim.a_max, max(lim.a_min, a_new))

@@ -1,0 +1,91 @@
+"""The paper's controllers as policies of ``LangCtrl-v0``: AC, LC-noAP and LC.
+
+They read only the env's observation and act only through its action (no access to env
+internals). At ``decision_hz=500`` the LC policy is exactly the paper's controller: the env applies
+``dp/dt = k_p (p_cmd - p)``, ``da/dt = k_a (a_cmd - a)`` with ``p_cmd = p*`` and
+``a_cmd = a* - (k_c/k_a)(1 - c)``, and its "target" phrase choice at ``u = 0`` is the paper's rule
+``argmin |t_x - (t_min + t_max)/2|``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from langenv.env import T_SCALE
+from langenv.pacing import PaceLimits, action_from_command
+from policies.aligner import AlignerGains, audio_command, optimal_paces
+
+__all__ = ["AdmittanceController", "LanguageController", "make_analytic"]
+
+# observation indices (see LangCtrlEnv's docstring)
+OBS_T_X, OBS_T_A, OBS_COOP = 0, 1, 5
+
+
+@dataclass
+class AdmittanceController:
+    """AC: fixed admittance (``p = a = 1``), one long utterance started with the motion."""
+
+    name: str = "ac"
+    phrase_graph: str = "ac"
+    decision_hz: int = 25
+    action_dim: int = 3
+
+    def reset(self) -> None:
+        """Stateless."""
+
+    def act(self, observation: np.ndarray) -> np.ndarray:
+        """Natural paces, paper's phrase rule (irrelevant: a single utterance)."""
+        return np.zeros(self.action_dim, np.float32)
+
+
+@dataclass
+class LanguageController:
+    """LC (with a phrase graph) or LC-noAP (a single wording): the paper's aligner.
+
+    Args:
+        name: ``"lc"`` or ``"lc-noap"``.
+        phrase_graph: Graph to speak with (``"lc"`` or ``"lc-noap"`` by default).
+        gains: ``k_c`` of the audio law; ``k_a`` must equal the env's (``PaceLimits.k_a``).
+        limits: The env's pace limits (for the action map).
+        decision_hz: Decision rate; 500 reproduces the paper's 500 Hz loop exactly.
+        action_dim: The env's action size (3 for ``choice_mode="target"``).
+    """
+
+    name: str = "lc"
+    phrase_graph: str = "lc"
+    gains: AlignerGains = field(default_factory=AlignerGains)
+    limits: PaceLimits = field(default_factory=PaceLimits)
+    decision_hz: int = 500
+    action_dim: int = 3
+
+    def reset(self) -> None:
+        """Stateless."""
+
+    def act(self, observation: np.ndarray) -> np.ndarray:
+        """Pace commands from the ETCs and cooperation; the paper's phrase rule."""
+        t_x = max(0.0, float(observation[OBS_T_X]) * T_SCALE)
+        t_a = max(0.0, float(observation[OBS_T_A]) * T_SCALE)
+        c = 0.5 * (float(observation[OBS_COOP]) + 1.0)
+        p_star, a_star = optimal_paces(t_x, t_a)
+        a_cmd = audio_command(a_star, c, self.gains)
+        action = np.zeros(self.action_dim, np.float32)
+        action[0] = action_from_command(p_star, self.limits.p_max)
+        action[1] = action_from_command(a_cmd, self.limits.a_max)
+        return action  # action[2] = 0: target speech duration = t_x (the paper's rule)
+
+
+def make_analytic(name: str, decision_hz: int = 500) -> AdmittanceController | LanguageController:
+    """Build ``"ac"``, ``"lc-noap"`` or ``"lc"``.
+
+    Raises:
+        KeyError: for an unknown name (the message lists the known ones).
+    """
+    if name == "ac":
+        return AdmittanceController(decision_hz=decision_hz)
+    if name == "lc-noap":
+        return LanguageController(name="lc-noap", phrase_graph="lc-noap", decision_hz=decision_hz)
+    if name == "lc":
+        return LanguageController(decision_hz=decision_hz)
+    raise KeyError(f"unknown analytic policy {name!r}; known: ac, lc-noap, lc")
