@@ -1,0 +1,1 @@
+"""Evaluation of LangCtrl policies: episode logs, paper metrics, statistics, figures, reports."""

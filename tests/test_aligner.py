@@ -58,9 +58,7 @@ def test_bad_etc_raises(bad: float) -> None:
 def test_audio_command_reproduces_the_pace_law(a_star: float, c: float, a: float) -> None:
     g = AlignerGains()
     cmd = audio_command(a_star, c, g)
-    assert math.isclose(
-        g.k_a * (cmd - a), g.k_a * (a_star - a) - g.k_c * (1.0 - c), abs_tol=1e-9
-    )
+    assert math.isclose(g.k_a * (cmd - a), g.k_a * (a_star - a) - g.k_c * (1.0 - c), abs_tol=1e-9)
 
 
 def test_gains_validated() -> None:

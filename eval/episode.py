@@ -1,0 +1,401 @@
+"""The log of one evaluated episode: per-step traces, what was said, and the completion times.
+
+An :class:`EpisodeLog` is what the evaluation keeps of one policy guiding one user: the time series
+of the paper's close-up figure (cooperation, hand speed, paces, ETCs, estimated misalignment), the
+phrases said with their time spans, and the motion/speech completion times that define the actual
+misalignment. It is a read-only value object, saved to and loaded from ``.npz`` without pickling.
+
+:class:`EpisodeRecorder` builds one from the ``info`` dicts of ``LangCtrl-v0`` (or from any mapping
+with the same keys), step by step.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+
+from langenv.errors import ConfigError, SessionDataError
+
+__all__ = ["FLAG_TRACES", "FLOAT_TRACES", "EpisodeLog", "EpisodeRecorder", "Utterance"]
+
+FLOAT_TRACES: tuple[str, ...] = ("t", "cooperation", "hand_speed", "p", "a", "t_x", "t_a", "em")
+"""Names of the per-step float traces of :class:`EpisodeLog`, in field order."""
+
+FLAG_TRACES: tuple[str, ...] = ("motion_done", "speech_done")
+"""Names of the per-step boolean traces of :class:`EpisodeLog`."""
+
+_NPZ_FORMAT = 1
+
+
+@dataclass(frozen=True)
+class Utterance:
+    """One phrase said during an episode.
+
+    Attributes:
+        phrase: Id of the phrase-graph vertex (non-empty).
+        text: What the phrase says (may be empty when only audio is known).
+        t_start: Episode time at which the phrase started playing (s).
+        t_end: Episode time at which it stopped playing, before any pause (s), ``>= t_start``.
+    """
+
+    phrase: str
+    text: str
+    t_start: float
+    t_end: float
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.phrase, str) or not self.phrase:
+            raise ConfigError(f"Utterance.phrase must be a non-empty str, got {self.phrase!r}")
+        if not isinstance(self.text, str):
+            raise ConfigError(f"Utterance.text must be a str, got {type(self.text).__name__}")
+        for name in ("t_start", "t_end"):
+            value = getattr(self, name)
+            if not isinstance(value, int | float) or not math.isfinite(value):
+                raise ConfigError(f"Utterance.{name} must be a finite number, got {value!r}")
+            object.__setattr__(self, name, float(value))
+        if self.t_end < self.t_start:
+            raise ConfigError(
+                f"Utterance.t_end ({self.t_end}) must be >= t_start ({self.t_start}) "
+                f"for phrase {self.phrase!r}"
+            )
+
+    @property
+    def duration(self) -> float:
+        """Time the phrase played (s)."""
+        return self.t_end - self.t_start
+
+
+@dataclass(frozen=True, eq=False)
+class EpisodeLog:
+    """Everything the evaluation keeps of one episode (one policy, one user).
+
+    Per-step traces are read-only numpy arrays of shape ``(n,)`` with ``n >= 2``, sampled at the
+    instants ``t`` (any rate: the env's decision rate, 25 Hz, or the 500 Hz tick). Float traces are
+    float64 and finite; flags are bool and, once set, stay set.
+
+    Attributes:
+        policy: Policy name (``"ac"``, ``"lc-noap"``, ``"lc"``, ...).
+        user: User name (``"synthetic-3"``, ``"u4_lc"``, ...).
+        t: Episode time (s), strictly increasing.
+        cooperation: Cooperation ``c`` in [0, 1].
+        hand_speed: Hand speed (m/s), ``>= 0``.
+        p: Physical pace.
+        a: Audio pace.
+        t_x: Motion ETC at base pace (s).
+        t_a: Speech ETC at base pace (s).
+        em: Estimated misalignment ``t_a - t_x`` (s).
+        motion_done: True once the motion is over.
+        speech_done: True once the speech is over.
+        utterances: Phrases said, ordered by start time.
+        t_motion: Time at which the motion ended (s).
+        t_speech: Time at which the speech ended (s).
+        ret: Episode return (sum of rewards).
+
+    Raises:
+        ConfigError: (a ``ValueError``) naming the field, if a trace has the wrong shape, differing
+            length, non-finite values, decreasing time or flags that unset; or if a scalar is not
+            finite, or utterances are not ordered.
+    """
+
+    policy: str
+    user: str
+    t: np.ndarray
+    cooperation: np.ndarray
+    hand_speed: np.ndarray
+    p: np.ndarray
+    a: np.ndarray
+    t_x: np.ndarray
+    t_a: np.ndarray
+    em: np.ndarray
+    motion_done: np.ndarray
+    speech_done: np.ndarray
+    utterances: tuple[Utterance, ...] = ()
+    t_motion: float = 0.0
+    t_speech: float = 0.0
+    ret: float = 0.0
+
+    _scalars: ClassVar[tuple[str, ...]] = ("t_motion", "t_speech", "ret")
+
+    def __post_init__(self) -> None:
+        for name in ("policy", "user"):
+            value = getattr(self, name)
+            if not isinstance(value, str) or not value:
+                raise ConfigError(f"EpisodeLog.{name} must be a non-empty str, got {value!r}")
+        n = self._check_float_traces()
+        self._check_flag_traces(n)
+        for name in self._scalars:
+            value = getattr(self, name)
+            try:
+                number = float(value)
+            except (TypeError, ValueError):
+                raise ConfigError(f"EpisodeLog.{name} must be a number, got {value!r}") from None
+            if not math.isfinite(number):
+                raise ConfigError(f"EpisodeLog.{name} must be finite, got {value!r}")
+            object.__setattr__(self, name, number)
+        for name in ("t_motion", "t_speech"):
+            if getattr(self, name) < 0.0:
+                raise ConfigError(f"EpisodeLog.{name} must be >= 0 s, got {getattr(self, name)}")
+        utterances = tuple(self.utterances)
+        for k, u in enumerate(utterances):
+            if not isinstance(u, Utterance):
+                raise ConfigError(
+                    f"EpisodeLog.utterances[{k}] must be an Utterance, got {type(u).__name__}"
+                )
+            if k and u.t_start < utterances[k - 1].t_start:
+                raise ConfigError(
+                    f"EpisodeLog.utterances must be ordered by t_start: utterances[{k}] "
+                    f"({u.phrase!r}) starts at {u.t_start} s, before utterances[{k - 1}]"
+                )
+        object.__setattr__(self, "utterances", utterances)
+
+    def _check_float_traces(self) -> int:
+        n = -1
+        for name in FLOAT_TRACES:
+            try:
+                arr = np.array(getattr(self, name), dtype=np.float64)
+            except (TypeError, ValueError):
+                raise ConfigError(f"EpisodeLog.{name} must be numeric") from None
+            if arr.ndim != 1:
+                raise ConfigError(f"EpisodeLog.{name} must have shape (n,), got {arr.shape}")
+            if n < 0:
+                n = arr.shape[0]
+                if n < 2:
+                    raise ConfigError(f"EpisodeLog.{name} needs at least 2 samples, got {n}")
+            elif arr.shape[0] != n:
+                raise ConfigError(
+                    f"EpisodeLog.{name} has {arr.shape[0]} samples but t has {n} (equal lengths)"
+                )
+            bad = ~np.isfinite(arr)
+            if bad.any():
+                i = int(np.argmax(bad))
+                raise ConfigError(f"EpisodeLog.{name} must be finite, got {arr[i]} at index {i}")
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+        dt = np.diff(self.t)
+        if (dt <= 0.0).any():
+            i = int(np.argmax(dt <= 0.0))
+            raise ConfigError(
+                f"EpisodeLog.t must be strictly increasing, got t[{i}]={self.t[i]} "
+                f"and t[{i + 1}]={self.t[i + 1]}"
+            )
+        if (self.hand_speed < 0.0).any():
+            raise ConfigError("EpisodeLog.hand_speed must be >= 0 m/s")
+        return n
+
+    def _check_flag_traces(self, n: int) -> None:
+        for name in FLAG_TRACES:
+            raw = np.asarray(getattr(self, name))
+            if raw.ndim != 1 or raw.shape[0] != n:
+                raise ConfigError(
+                    f"EpisodeLog.{name} must have shape ({n},) like t, got {raw.shape}"
+                )
+            if raw.dtype != np.bool_ and not np.isin(raw, (0, 1)).all():
+                raise ConfigError(f"EpisodeLog.{name} must be boolean (or 0/1)")
+            arr = raw.astype(np.bool_)
+            unset = arr[:-1] & ~arr[1:]
+            if unset.any():
+                i = int(np.argmax(unset))
+                raise ConfigError(
+                    f"EpisodeLog.{name} must stay True once set, but goes back to False at "
+                    f"index {i + 1} (t={self.t[i + 1]} s)"
+                )
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+
+    @property
+    def n(self) -> int:
+        """Number of samples."""
+        return int(self.t.shape[0])
+
+    @property
+    def am(self) -> float:
+        """Actual misalignment ``t_speech - t_motion`` (s); positive: motion finished first."""
+        return self.t_speech - self.t_motion
+
+    def save_npz(self, path: str | Path) -> Path:
+        """Write the log to an ``.npz`` file atomically (temp file, then rename).
+
+        Args:
+            path: Destination file; its directory must exist.
+
+        Returns:
+            The path written.
+        """
+        path = Path(path)
+        utt = self.utterances
+        payload: dict[str, Any] = {
+            "format": np.array(_NPZ_FORMAT),
+            "policy": np.array(self.policy),
+            "user": np.array(self.user),
+            "scalars": np.array([self.t_motion, self.t_speech, self.ret]),
+            "utt_phrase": np.array([u.phrase for u in utt], dtype=np.str_),
+            "utt_text": np.array([u.text for u in utt], dtype=np.str_),
+            "utt_span": np.array([(u.t_start, u.t_end) for u in utt], dtype=np.float64).reshape(
+                -1, 2
+            ),
+        }
+        for name in (*FLOAT_TRACES, *FLAG_TRACES):
+            payload[name] = getattr(self, name)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                np.savez_compressed(fh, **payload)
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+        return path
+
+    @classmethod
+    def load_npz(cls, path: str | Path) -> EpisodeLog:
+        """Read a log written by :meth:`save_npz`.
+
+        Raises:
+            SessionDataError: naming the file, if it is unreadable, lacks a field or holds
+                invalid data.
+        """
+        path = Path(path)
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                if int(data["format"]) != _NPZ_FORMAT:
+                    raise SessionDataError(
+                        f"{path}: unsupported episode log format {int(data['format'])}"
+                    )
+                spans = data["utt_span"]
+                utterances = tuple(
+                    Utterance(str(ph), str(tx), float(s0), float(s1))
+                    for ph, tx, (s0, s1) in zip(
+                        data["utt_phrase"], data["utt_text"], spans, strict=True
+                    )
+                )
+                traces = {name: data[name] for name in (*FLOAT_TRACES, *FLAG_TRACES)}
+                t_motion, t_speech, ret = (float(v) for v in data["scalars"])
+                return cls(
+                    policy=str(data["policy"]),
+                    user=str(data["user"]),
+                    utterances=utterances,
+                    t_motion=t_motion,
+                    t_speech=t_speech,
+                    ret=ret,
+                    **traces,
+                )
+        except SessionDataError:
+            raise
+        except KeyError as exc:
+            raise SessionDataError(f"{path}: not an episode log, missing field {exc}") from None
+        except ConfigError as exc:
+            raise SessionDataError(f"{path}: invalid episode log: {exc}") from None
+        except (OSError, ValueError) as exc:
+            raise SessionDataError(f"{path}: cannot read episode log: {exc}") from None
+
+
+@dataclass
+class EpisodeRecorder:
+    """Collects per-step values and builds an :class:`EpisodeLog` at the end of an episode.
+
+    Feed it the env's ``info`` dict after ``reset`` and after every ``step`` (keys ``time`` or
+    ``t``, ``cooperation``, ``hand_speed``, ``p``, ``a``, ``t_x``, ``t_a``, ``em``,
+    ``motion_done``, ``speech_done``, optionally ``phrase``, ``t_motion``, ``t_speech``). Utterances
+    are read off the ``phrase`` key: each run of consecutive samples with the same non-empty phrase
+    id is one utterance, from the time of its first sample to the time of the first sample after it
+    (so its resolution is the sampling interval).
+
+    Attributes:
+        policy: Policy name written into the log.
+        user: User name written into the log.
+    """
+
+    policy: str
+    user: str
+    _values: dict[str, list[float]] = field(default_factory=dict, init=False, repr=False)
+    _phrases: list[str | None] = field(default_factory=list, init=False, repr=False)
+    _last: dict[str, Any] = field(default_factory=dict, init=False, repr=False)
+
+    def append(self, info: Mapping[str, Any]) -> None:
+        """Record one sample.
+
+        Raises:
+            ConfigError: naming the key, if a required key is missing.
+        """
+        row: dict[str, float] = {}
+        for name in (*FLOAT_TRACES, *FLAG_TRACES):
+            key = "time" if name == "t" and "t" not in info else name
+            if key not in info:
+                raise ConfigError(f"EpisodeRecorder.append: info lacks key {key!r}")
+            row[name] = float(info[key])
+        for name, value in row.items():
+            self._values.setdefault(name, []).append(value)
+        phrase = info.get("phrase")
+        self._phrases.append(str(phrase) if phrase else None)
+        self._last = dict(info)
+
+    def __len__(self) -> int:
+        return len(self._phrases)
+
+    def build(
+        self,
+        ret: float,
+        *,
+        texts: Mapping[str, str] | None = None,
+        t_motion: float | None = None,
+        t_speech: float | None = None,
+    ) -> EpisodeLog:
+        """The log of the recorded samples.
+
+        Args:
+            ret: Episode return.
+            texts: Phrase id -> text, for the utterance labels (empty text when absent).
+            t_motion: Motion end (s); default: the last sample's ``t_motion`` key, else the time
+                of the first sample with ``motion_done``.
+            t_speech: Speech end (s); same defaults with ``t_speech`` / ``speech_done``.
+
+        Raises:
+            ConfigError: if fewer than two samples were recorded or a completion time is unknown.
+        """
+        if len(self) < 2:
+            raise ConfigError(f"EpisodeRecorder.build needs >= 2 samples, got {len(self)}")
+        v = {name: np.asarray(vals) for name, vals in self._values.items()}
+        t = v["t"]
+        texts = texts or {}
+        utterances: list[Utterance] = []
+        k = 0
+        while k < len(self._phrases):
+            ph = self._phrases[k]
+            j = k + 1
+            while j < len(self._phrases) and self._phrases[j] == ph:
+                j += 1
+            if ph is not None:
+                t_end = float(t[j]) if j < len(t) else float(t[-1])
+                utterances.append(Utterance(ph, texts.get(ph, ""), float(t[k]), t_end))
+            k = j
+
+        def end_time(given: float | None, key: str, flag: str) -> float:
+            if given is not None:
+                return float(given)
+            last = self._last.get(key)
+            if last is not None:
+                return float(last)
+            done = v[flag].astype(bool)
+            if not done.any():
+                raise ConfigError(f"EpisodeRecorder.build: {key} unknown ({flag} never set)")
+            return float(t[int(np.argmax(done))])
+
+        flags = {name: v[name].astype(bool) for name in FLAG_TRACES}
+        floats = {name: v[name] for name in FLOAT_TRACES}
+        return EpisodeLog(
+            policy=self.policy,
+            user=self.user,
+            utterances=tuple(utterances),
+            t_motion=end_time(t_motion, "t_motion", "motion_done"),
+            t_speech=end_time(t_speech, "t_speech", "speech_done"),
+            ret=float(ret),
+            **floats,
+            **flags,
+        )

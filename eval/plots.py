@@ -1,0 +1,420 @@
+"""The paper's two figures: distributions per controller (violins) and the close-up of one session.
+
+Both draw on a fresh :class:`matplotlib.figure.Figure` with the Agg canvas (no pyplot, no global
+state, no layout engine: the margins are fixed) at :data:`DPI`, and are written atomically.
+
+* :func:`violin_figure`: cooperation ``c``, audio pace ``a``, physical pace ``p``, estimated
+  misalignment EM and actual misalignment AM per controller. ``c``, ``a``, ``p`` and EM are time
+  samples pooled over the sessions, taken on a uniform grid (:func:`eval.metrics.time_samples`)
+  over the part of each session where they matter (``c``, ``p``: motion going on; ``a``: speech
+  going on; EM: either); AM is one value per session, drawn as points over its violin.
+* :func:`session_figure`: stacked panels on a shared time axis: ``c``; hand speed; ``p`` and
+  ``a``; the ETCs ``t_x`` and ``t_a``; EM; and the phrases said, as labelled spans like subtitles;
+  vertical lines at the motion and speech ends, AM annotated.
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.collections import PolyCollection
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Rectangle
+from matplotlib.ticker import MaxNLocator
+
+from eval.episode import EpisodeLog
+from eval.metrics import A_TOLERANCE, Window, time_samples
+from eval.report import AM_TOLERANCE, atomic_write, display_name
+from langenv.errors import ConfigError
+
+__all__ = [
+    "DPI",
+    "SESSION_SIZE",
+    "VIOLIN_SIZE",
+    "policy_color",
+    "session_figure",
+    "violin_figure",
+]
+
+DPI = 100
+"""Resolution of both figures (dots per inch)."""
+
+VIOLIN_SIZE = (15.0, 4.2)
+"""Size of the violin figure (inches): 1500 x 420 px at :data:`DPI`."""
+
+SESSION_SIZE = (11.0, 10.0)
+"""Size of the close-up figure (inches): 1100 x 1000 px at :data:`DPI`."""
+
+PACE_BOUNDS = (0.6, 1.4)
+"""Pace bounds drawn as dotted lines (SPEC §1)."""
+
+# Okabe-Ito colour-blind-safe palette; the paper's controllers get fixed colours.
+_FIXED = {"ac": "#E69F00", "lc-noap": "#56B4E9", "lc": "#009E73"}
+_CYCLE = ("#CC79A7", "#0072B2", "#D55E00", "#F0E442", "#000000", "#999999")
+_PHRASE_COLORS = (
+    "#a6cee3",
+    "#b2df8a",
+    "#fdbf6f",
+    "#cab2d6",
+    "#fb9a99",
+    "#ffff99",
+    "#8dd3c7",
+    "#bebada",
+    "#80b1d3",
+    "#fccde5",
+    "#d9d9d9",
+    "#ccebc5",
+)
+_MOTION_END = "#222222"
+_SPEECH_END = "#C0392B"
+
+
+def policy_color(policy: str, index: int = 0) -> str:
+    """Colour of a controller: fixed for AC, LC-noAP and LC, else by its position ``index``."""
+    return _FIXED.get(policy, _CYCLE[index % len(_CYCLE)])
+
+
+def _save(fig: Figure, path: str | Path) -> Path:
+    FigureCanvasAgg(fig)
+    buf = io.BytesIO()
+    # zlib level 1: ~3x faster to encode than the default 6, files ~20 % larger
+    fig.savefig(buf, format="png", dpi=DPI, pil_kwargs={"compress_level": 1})
+    return atomic_write(path, buf.getvalue())
+
+
+# --------------------------------------------------------------------------- violin figure
+
+_PANELS: tuple[tuple[str, str, Window, str], ...] = (
+    ("cooperation", "cooperation c", "motion", ""),
+    ("a", "audio pace a", "speech", ""),
+    ("p", "physical pace p", "motion", ""),
+    ("em", "estimated misalignment EM", "either", "s"),
+)
+
+
+def _violin(ax: Axes, data: np.ndarray, pos: float, color: str) -> None:
+    """One violin with its median and interquartile box; a bar for (near-)constant data."""
+    if data.size == 0:
+        ax.text(
+            pos,
+            0.5,
+            "no data",
+            ha="center",
+            va="center",
+            fontsize=8,
+            color="0.4",
+            transform=ax.get_xaxis_transform(),
+        )
+        return
+    q1, med, q3 = np.percentile(data, [25.0, 50.0, 75.0])
+    if data.size >= 2 and np.ptp(data) > 1e-9 * max(1.0, float(np.abs(data).max())):
+        parts = ax.violinplot([data], positions=[pos], widths=0.8, showextrema=False, points=80)
+        bodies: list[PolyCollection] = parts["bodies"]  # type: ignore[assignment]
+        for body in bodies:
+            body.set_facecolor(color)
+            body.set_edgecolor(color)
+            body.set_alpha(0.45)
+    else:  # constant: a KDE is undefined, draw the value as a bar
+        ax.hlines(med, pos - 0.35, pos + 0.35, colors=color, linewidth=3.0)
+    ax.vlines(pos, q1, q3, colors="0.15", linewidth=4.0, zorder=3)
+    ax.scatter([pos], [med], s=18, c="white", edgecolors="0.15", linewidths=0.8, zorder=4)
+
+
+def violin_figure(
+    logs_by_policy: Mapping[str, Sequence[EpisodeLog]], path: str | Path, *, hz: float = 50.0
+) -> Path:
+    """Draw the distributions of c, a, p, EM and AM per controller (the paper's summary figure).
+
+    Args:
+        logs_by_policy: Controller name -> its sessions, in the order to draw (left to right).
+        path: Destination PNG (``VIOLIN_SIZE`` at ``DPI``), written atomically.
+        hz: Rate (Hz) of the uniform grid the time samples are pooled on.
+
+    Returns:
+        The path written.
+
+    Raises:
+        ConfigError: if there is no controller or a controller has no session.
+    """
+    if not logs_by_policy:
+        raise ConfigError("logs_by_policy must name at least one controller")
+    for name, logs in logs_by_policy.items():
+        if not logs:
+            raise ConfigError(f"logs_by_policy[{name!r}] has no session")
+    policies = list(logs_by_policy)
+    colors = [policy_color(p, k) for k, p in enumerate(policies)]
+    pos = np.arange(1, len(policies) + 1, dtype=float)
+
+    fig = Figure(figsize=VIOLIN_SIZE, dpi=DPI)
+    axes = fig.subplots(
+        1,
+        5,
+        gridspec_kw={"wspace": 0.32, "left": 0.045, "right": 0.99, "top": 0.86, "bottom": 0.22},
+    )
+    for ax, (name, title, window, unit) in zip(axes[:4], _PANELS, strict=True):
+        for k, p in enumerate(policies):
+            data = np.concatenate(
+                [time_samples(log, name, window, hz) for log in logs_by_policy[p]]
+            )
+            _violin(ax, data, pos[k], colors[k])
+        ax.set_title(title + (f" ({unit})" if unit else ""), fontsize=10)
+    c_ax, a_ax, p_ax, em_ax = axes[:4]
+    c_ax.set_ylim(-0.02, 1.05)
+    for ax in (a_ax, p_ax):
+        ax.axhline(1.0, color="0.5", linestyle="--", linewidth=0.8, zorder=0)
+        for b in PACE_BOUNDS:
+            ax.axhline(b, color="0.6", linestyle=":", linewidth=0.8, zorder=0)
+        ax.set_ylim(PACE_BOUNDS[0] - 0.05, PACE_BOUNDS[1] + 0.05)
+    a_ax.axhspan(1.0 - A_TOLERANCE, 1.0 + A_TOLERANCE, color="0.9", zorder=-1, linewidth=0)
+    em_ax.axhline(0.0, color="0.5", linestyle="--", linewidth=0.8, zorder=0)
+
+    am_ax = axes[4]
+    am_ax.axhspan(-AM_TOLERANCE, AM_TOLERANCE, color="#d8f0e4", zorder=-1, linewidth=0)
+    am_ax.axhline(0.0, color="0.5", linestyle="--", linewidth=0.8, zorder=0)
+    golden = (np.sqrt(5.0) - 1.0) / 2.0
+    for k, p in enumerate(policies):
+        am = np.array([log.am for log in logs_by_policy[p]])
+        _violin(am_ax, am, pos[k], colors[k])
+        jitter = ((np.arange(am.size) * golden) % 1.0 - 0.5) * 0.3  # deterministic spread
+        am_ax.scatter(
+            pos[k] + jitter, am, s=12, c=colors[k], edgecolors="0.2", linewidths=0.5, zorder=5
+        )
+    am_ax.set_title("actual misalignment AM (s)", fontsize=10)
+    lim = max(1.5 * AM_TOLERANCE, *(abs(log.am) for v in logs_by_policy.values() for log in v))
+    am_ax.set_ylim(-1.1 * lim, 1.1 * lim)
+
+    labels = [f"{display_name(p)}\n(n={len(logs_by_policy[p])})" for p in policies]
+    for ax in axes:
+        ax.set_xticks(pos, labels, fontsize=9)
+        for tick, color in zip(ax.get_xticklabels(), colors, strict=True):
+            tick.set_color(color)
+            tick.set_fontweight("bold")
+        ax.set_xlim(0.4, len(policies) + 0.6)
+        ax.tick_params(axis="y", labelsize=8)
+        ax.grid(axis="y", color="0.92", linewidth=0.6, zorder=-2)
+        ax.set_axisbelow(True)
+    fig.suptitle("Language Controller evaluation: distributions per controller", fontsize=12)
+    fig.text(
+        0.5,
+        0.015,
+        f"c, p: pooled {hz:g} Hz time samples while the motion goes on; a: while the speech goes "
+        f"on (grey band: |a-1| <= {A_TOLERANCE:g}); EM: while either goes on.\n"
+        f"AM: one point per session (+: motion ended first; green band: |AM| <= "
+        f"{AM_TOLERANCE:g} s). Black bar: interquartile range; white dot: median.",
+        ha="center",
+        va="bottom",
+        fontsize=8,
+        color="0.3",
+        linespacing=1.4,
+    )
+    return _save(fig, path)
+
+
+# --------------------------------------------------------------------------- session figure
+
+
+def _phrase_labels(
+    ax: Axes, log: EpisodeLog, x_range: tuple[float, float], width_px: float
+) -> None:
+    colors: dict[str, str] = {}
+    if not log.utterances:
+        ax.text(
+            0.5,
+            0.5,
+            "no phrase recorded",
+            ha="center",
+            va="center",
+            fontsize=9,
+            color="0.4",
+            transform=ax.transAxes,
+        )
+        return
+    px_per_s = width_px / (x_range[1] - x_range[0])
+    char_px = 7.5 * DPI / 72.0 * 0.58  # mean glyph width of a 7.5 pt sans font
+    for u in log.utterances:
+        color = colors.setdefault(u.phrase, _PHRASE_COLORS[len(colors) % len(_PHRASE_COLORS)])
+        rect = Rectangle(
+            (u.t_start, 0.08),
+            max(u.duration, 1e-6),
+            0.84,
+            facecolor=color,
+            edgecolor="0.35",
+            linewidth=0.6,
+        )
+        ax.add_patch(rect)
+        fit = int((u.duration * px_per_s - 4.0) / char_px)
+        if fit < 2:
+            continue
+        text = u.text or ""
+        lines = [_clip(u.phrase, fit)]
+        if text:
+            lines.append(_clip(text, fit))
+        label = ax.text(
+            u.t_start + 2.0 / px_per_s,
+            0.5,
+            "\n".join(lines),
+            ha="left",
+            va="center",
+            fontsize=7.5,
+            linespacing=1.15,
+        )
+        label.set_clip_path(rect)
+    ax.set_ylim(0.0, 1.0)
+
+
+def _clip(text: str, n: int) -> str:
+    return text if len(text) <= n else text[: max(1, n - 1)] + "…"
+
+
+def session_figure(log: EpisodeLog, path: str | Path) -> Path:
+    """Draw the close-up figure of one session (the paper's single-session analysis).
+
+    Args:
+        log: The session.
+        path: Destination PNG (``SESSION_SIZE`` at ``DPI``), written atomically.
+
+    Returns:
+        The path written.
+    """
+    left, right = 0.085, 0.985
+    fig = Figure(figsize=SESSION_SIZE, dpi=DPI)
+    axes = fig.subplots(
+        6,
+        1,
+        sharex=True,
+        gridspec_kw={
+            "height_ratios": [1.0, 1.0, 1.2, 1.2, 1.0, 0.9],
+            "hspace": 0.14,
+            "left": left,
+            "right": right,
+            "top": 0.935,
+            "bottom": 0.055,
+        },
+    )
+    c_ax, v_ax, pace_ax, etc_ax, em_ax, say_ax = axes
+    t = log.t
+    t_hi = max(float(t[-1]), log.t_motion, log.t_speech)
+    x_range = (float(t[0]), t_hi + 0.02 * (t_hi - float(t[0])))
+    motion = ~log.motion_done
+    speech = ~log.speech_done
+
+    c_ax.plot(t, log.cooperation, color="#6A3D9A", linewidth=1.2)
+    c_ax.set_ylim(-0.03, 1.05)
+    c_ax.set_ylabel("cooperation c")
+
+    v_ax.plot(t, log.hand_speed, color="0.2", linewidth=1.2)
+    v_ax.set_ylim(bottom=0.0)
+    v_ax.set_ylabel("hand speed (m/s)")
+
+    for b in PACE_BOUNDS:
+        pace_ax.axhline(b, color="0.6", linestyle=":", linewidth=0.8)
+    pace_ax.axhline(1.0, color="0.5", linestyle="--", linewidth=0.8)
+    pace_ax.plot(
+        t, np.where(motion, log.p, np.nan), color="#0072B2", linewidth=1.4, label="physical pace p"
+    )
+    pace_ax.plot(
+        t, np.where(speech, log.a, np.nan), color="#D55E00", linewidth=1.4, label="audio pace a"
+    )
+    pace_ax.set_ylim(PACE_BOUNDS[0] - 0.07, PACE_BOUNDS[1] + 0.07)
+    pace_ax.set_ylabel("pace")
+    pace_ax.legend(loc="lower left", fontsize=8, ncol=2, frameon=False)
+
+    etc_ax.plot(t, log.t_x, color="#0072B2", linewidth=1.4, label="motion ETC $\\hat t_x$")
+    etc_ax.plot(t, log.t_a, color="#D55E00", linewidth=1.4, label="speech ETC $\\hat t_a$")
+    etc_ax.set_ylim(bottom=0.0)
+    etc_ax.set_ylabel("ETC (s)")
+    etc_ax.legend(loc="upper right", fontsize=8, ncol=2, frameon=False)
+
+    em_ax.axhline(0.0, color="0.5", linestyle="--", linewidth=0.8)
+    em_ax.fill_between(
+        t,
+        log.em,
+        0.0,
+        where=log.em >= 0,
+        color="#D55E00",
+        alpha=0.25,
+        linewidth=0,
+        interpolate=True,
+    )
+    em_ax.fill_between(
+        t, log.em, 0.0, where=log.em < 0, color="#0072B2", alpha=0.25, linewidth=0, interpolate=True
+    )
+    em_ax.plot(t, log.em, color="0.15", linewidth=1.2)
+    lim = max(0.5, float(np.abs(log.em).max()) * 1.1)
+    em_ax.set_ylim(-lim, lim)
+    em_ax.set_ylabel("EM (s)")
+
+    say_ax.tick_params(axis="y", left=False, labelleft=False)
+    say_ax.set_ylabel("phrase said")
+    say_ax.set_xlabel("time (s)")
+    width_px = SESSION_SIZE[0] * DPI * (right - left)
+    _phrase_labels(say_ax, log, x_range, width_px)
+
+    for ax in axes:
+        ax.axvline(log.t_motion, color=_MOTION_END, linewidth=1.1, zorder=5)
+        ax.axvline(log.t_speech, color=_SPEECH_END, linewidth=1.1, linestyle="--", zorder=5)
+        ax.grid(color="0.93", linewidth=0.6)
+        ax.set_axisbelow(True)
+        ax.tick_params(labelsize=8)
+        ax.yaxis.label.set_size(9)
+        ax.yaxis.set_major_locator(MaxNLocator(nbins=4))
+    say_ax.grid(False, axis="y")
+    c_ax.set_xlim(*x_range)
+
+    ends = [
+        Line2D([], [], color=_MOTION_END, linewidth=1.1, label=f"motion end {log.t_motion:.2f} s"),
+        Line2D(
+            [],
+            [],
+            color=_SPEECH_END,
+            linewidth=1.1,
+            linestyle="--",
+            label=f"speech end {log.t_speech:.2f} s",
+        ),
+    ]
+    fig.legend(
+        handles=ends,
+        loc="upper right",
+        ncol=2,
+        fontsize=8,
+        frameon=False,
+        bbox_to_anchor=(right, 0.965),
+    )
+    am = log.am
+    if abs(am) > 1e-3:
+        say_ax.annotate(
+            "",
+            xy=(log.t_speech, 0.5),
+            xytext=(log.t_motion, 0.5),
+            xycoords=say_ax.get_xaxis_transform(),
+            arrowprops={"arrowstyle": "<->", "color": "0.1", "linewidth": 1.0},
+            zorder=6,
+        )
+        if abs(am) * width_px / (x_range[1] - x_range[0]) > 70.0:  # room for a label
+            say_ax.text(
+                (log.t_motion + log.t_speech) / 2.0,
+                0.62,
+                f"AM {am:+.2f} s",
+                transform=say_ax.get_xaxis_transform(),
+                ha="center",
+                va="bottom",
+                fontsize=8,
+                zorder=6,
+            )
+    first = "motion ended first" if am > 0 else ("speech ended first" if am < 0 else "together")
+    fig.suptitle(
+        f"{display_name(log.policy)} · user {log.user} · AM = {am:+.2f} s ({first}) · "
+        f"return {log.ret:.2f}",
+        fontsize=12,
+        color=policy_color(log.policy),
+        fontweight="bold",
+        x=left,
+        ha="left",
+    )
+    return _save(fig, path)

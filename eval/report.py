@@ -1,0 +1,465 @@
+"""Tables of an evaluation: ``sessions.csv`` (one row per episode) and ``summary.md``.
+
+``summary.md`` is meant for a paper's supplement: per policy the median and interquartile range of
+every metric, percentile-bootstrap 95 % intervals for the differences against the reference policy
+(LC; paired by user when both ran the same users), and the study's findings checked on the data,
+each with its measured value and PASS/FAIL. Every file is written atomically (to a temporary file
+in the same directory, then renamed), so an error never leaves a partial file behind.
+
+Regenerate a summary from a saved table with ``python -m eval.report DIR/sessions.csv``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import math
+import os
+import tempfile
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from eval.metrics import A_TOLERANCE, METRIC_COLUMNS, METRICS, NUMERIC_METRICS
+from eval.stats import MetricSummary, Stat, SummaryTable, median_iqr, summarise
+from langenv.errors import ConfigError, SessionDataError
+
+__all__ = [
+    "AM_TOLERANCE",
+    "Finding",
+    "atomic_write",
+    "display_name",
+    "read_sessions_csv",
+    "render_summary_md",
+    "study_findings",
+    "write_sessions_csv",
+    "write_summary_md",
+]
+
+AM_TOLERANCE = 1.0
+"""The study's bound on LC's |AM| (s)."""
+
+_NAMES = {"ac": "AC", "lc-noap": "LC-noAP", "lc": "LC", "ppo": "PPO"}
+
+Row = Mapping[str, object]
+
+
+def display_name(policy: str) -> str:
+    """The paper's name of a policy (``"lc-noap"`` -> ``"LC-noAP"``); others unchanged."""
+    return _NAMES.get(policy, policy)
+
+
+def atomic_write(path: str | Path, data: str | bytes) -> Path:
+    """Write ``data`` to ``path`` via a temporary file in the same directory and a rename.
+
+    Args:
+        path: Destination; its directory must exist.
+        data: Text (written as UTF-8) or bytes.
+
+    Returns:
+        The path written.
+    """
+    path = Path(path)
+    payload = data.encode("utf-8") if isinstance(data, str) else data
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(payload)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def _columns(rows: Sequence[Row]) -> list[str]:
+    """:data:`METRIC_COLUMNS` first, then any further keys in order of first appearance."""
+    if not rows:
+        raise ConfigError("rows must not be empty")
+    extra: list[str] = []
+    for i, row in enumerate(rows):
+        missing = [c for c in METRIC_COLUMNS if c not in row]
+        if missing:
+            raise ConfigError(f"rows[{i}] lacks column(s) {', '.join(missing)}")
+        extra.extend(k for k in row if k not in METRIC_COLUMNS and k not in extra)
+    return [*METRIC_COLUMNS, *extra]
+
+
+def write_sessions_csv(rows: Sequence[Row], path: str | Path) -> Path:
+    """Write one row per episode: :data:`~eval.metrics.METRIC_COLUMNS`, then any extra keys.
+
+    Floats are written with full precision (``repr``), NaN as ``nan``.
+
+    Args:
+        rows: Session rows, e.g. from :func:`eval.metrics.episode_metrics`.
+        path: Destination CSV.
+
+    Returns:
+        The path written.
+
+    Raises:
+        ConfigError: if ``rows`` is empty or a row lacks a column.
+    """
+    columns = _columns(rows)
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n", restval="")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({k: row.get(k, "") for k in columns})
+    return atomic_write(path, buf.getvalue())
+
+
+def read_sessions_csv(path: str | Path) -> list[dict[str, float | str]]:
+    """Read a table written by :func:`write_sessions_csv`.
+
+    ``policy`` and ``user`` stay str; every column of :data:`~eval.metrics.NUMERIC_METRICS` is
+    parsed as float (empty or ``nan`` -> NaN); other columns are parsed as float when they all
+    are numbers, else kept as str.
+
+    Raises:
+        SessionDataError: naming the file, if it is unreadable, lacks a column or holds a
+            non-number in a metric column.
+    """
+    path = Path(path)
+    try:
+        with path.open(newline="", encoding="utf-8") as fh:
+            raw = list(csv.DictReader(fh))
+            header = list(raw[0]) if raw else []
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise SessionDataError(f"{path}: cannot read sessions table: {exc}") from None
+    if not raw:
+        raise SessionDataError(f"{path}: no session rows")
+    missing = [c for c in METRIC_COLUMNS if c not in header]
+    if missing:
+        raise SessionDataError(f"{path}: lacks column(s) {', '.join(missing)}")
+
+    def number(text: str | None) -> float:
+        return float("nan") if text is None or text.strip() == "" else float(text)
+
+    numeric = set(NUMERIC_METRICS)
+    for c in header:
+        if c in numeric or c in ("policy", "user"):
+            continue
+        try:
+            for r in raw:
+                number(r[c])
+            numeric.add(c)
+        except ValueError:
+            pass
+    rows: list[dict[str, float | str]] = []
+    for line, r in enumerate(raw, start=2):
+        row: dict[str, float | str] = {}
+        for c in header:
+            if c in numeric:
+                try:
+                    row[c] = number(r[c])
+                except ValueError:
+                    raise SessionDataError(
+                        f"{path}, line {line}: column {c!r} is not a number: {r[c]!r}"
+                    ) from None
+            else:
+                row[c] = r[c] or ""
+        rows.append(row)
+    return rows
+
+
+@dataclass(frozen=True)
+class Finding:
+    """A claim of the study checked on the data.
+
+    Attributes:
+        claim: The claim, in words.
+        measured: What was measured, with numbers and units.
+        passed: True/False, or ``None`` when it cannot be checked (a policy did not run).
+    """
+
+    claim: str
+    measured: str
+    passed: bool | None
+
+    @property
+    def verdict(self) -> str:
+        """``"PASS"``, ``"FAIL"`` or ``"n/a"``."""
+        return "n/a" if self.passed is None else ("PASS" if self.passed else "FAIL")
+
+
+def _column(rows: Sequence[Row], policy: str, metric: str) -> np.ndarray:
+    return np.array(
+        [float(r[metric]) for r in rows if r["policy"] == policy],  # type: ignore[arg-type]
+        dtype=np.float64,
+    )
+
+
+def study_findings(
+    rows: Sequence[Row], ac: str = "ac", lc_noap: str = "lc-noap", lc: str = "lc"
+) -> list[Finding]:
+    """The study's three findings, measured on session rows.
+
+    1. Median |AM| orders AC > LC-noAP > LC.
+    2. LC's |AM| is at most :data:`AM_TOLERANCE` (1 s) in every session.
+    3. LC speaks within 0.1 of the natural audio pace for a larger share of its speech time than
+       LC-noAP (shares pooled over sessions, each weighted by its speech duration ``t_speech``).
+
+    Args:
+        rows: Session rows with ``policy``, ``abs_am``, ``a_within_0_1`` and ``t_speech``.
+        ac: Name of the AC policy in the rows.
+        lc_noap: Name of the LC-noAP policy.
+        lc: Name of the LC policy.
+
+    Returns:
+        The three :class:`Finding`, in order.
+    """
+    present = {str(r["policy"]) for r in rows}
+    n_ac, n_noap, n_lc = display_name(ac), display_name(lc_noap), display_name(lc)
+    out: list[Finding] = []
+
+    claim = f"median |AM| orders {n_ac} > {n_noap} > {n_lc}"
+    if {ac, lc_noap, lc} <= present:
+        med = [median_iqr(_column(rows, p, "abs_am")).median for p in (ac, lc_noap, lc)]
+        measured = f"{n_ac} {med[0]:.2f} s, {n_noap} {med[1]:.2f} s, {n_lc} {med[2]:.2f} s"
+        out.append(Finding(claim, measured, bool(med[0] > med[1] > med[2])))
+    else:
+        out.append(Finding(claim, _absent({ac, lc_noap, lc} - present), None))
+
+    claim = f"{n_lc}'s |AM| <= {AM_TOLERANCE:g} s in every session"
+    if lc in present:
+        am = _column(rows, lc, "abs_am")
+        ok = int((am <= AM_TOLERANCE).sum())
+        measured = f"max {np.nanmax(am):.2f} s; {ok}/{am.size} sessions within {AM_TOLERANCE:g} s"
+        out.append(Finding(claim, measured, ok == am.size))
+    else:
+        out.append(Finding(claim, _absent({lc}), None))
+
+    claim = (
+        f"{n_lc} keeps |a - 1| <= {A_TOLERANCE:g} for a larger share of speech time than {n_noap}"
+    )
+    if {lc_noap, lc} <= present:
+        shares = []
+        for p in (lc, lc_noap):
+            share, weight = _column(rows, p, "a_within_0_1"), _column(rows, p, "t_speech")
+            keep = np.isfinite(share) & (weight > 0.0)
+            total = float(weight[keep].sum())
+            shares.append(float(np.dot(share[keep], weight[keep]) / total) if total else math.nan)
+        measured = f"{n_lc} {100 * shares[0]:.1f} % vs {n_noap} {100 * shares[1]:.1f} %"
+        out.append(Finding(claim, measured, bool(shares[0] > shares[1])))
+    else:
+        out.append(Finding(claim, _absent({lc_noap, lc} - present), None))
+    return out
+
+
+def _absent(policies: set[str]) -> str:
+    names = ", ".join(sorted(display_name(p) for p in policies))
+    return f"not checked: no sessions of {names}"
+
+
+def _fmt(value: float, metric: str, signed: bool = False) -> str:
+    spec = METRICS[metric]
+    if not math.isfinite(value):
+        return "n/a"
+    if spec.unit == "%":
+        value *= 100.0
+    value = round(value, spec.decimals) + 0.0  # + 0.0: no "-0.00" in tables
+    return f"{value:+.{spec.decimals}f}" if signed else f"{value:.{spec.decimals}f}"
+
+
+def _label(metric: str) -> str:
+    spec = METRICS[metric]
+    return f"{spec.label} ({spec.unit})" if spec.unit else spec.label
+
+
+def _spread_cell(cell: MetricSummary) -> str:
+    s = cell.spread
+    if s.n == 0:
+        return "n/a"
+    return f"{_fmt(s.median, cell.metric)} [{_fmt(s.q1, cell.metric)}, {_fmt(s.q3, cell.metric)}]"
+
+
+def _diff_cell(cell: MetricSummary) -> str:
+    d = cell.diff
+    if d is None or not math.isfinite(d.estimate):
+        return "n/a"
+    mark = " *" if d.excludes_zero else ""
+    m = cell.metric
+    return f"{_fmt(d.estimate, m, True)} [{_fmt(d.lo, m, True)}, {_fmt(d.hi, m, True)}]{mark}"
+
+
+def _cell(text: str) -> str:
+    """Escape a table cell: a bare ``|`` would end the cell."""
+    return text.replace("|", "\\|")
+
+
+def _table(header: Sequence[str], body: Sequence[Sequence[str]]) -> list[str]:
+    lines = [
+        "| " + " | ".join(_cell(h) for h in header) + " |",
+        "|" + "|".join([":---"] * len(header)) + "|",
+    ]
+    lines.extend("| " + " | ".join(_cell(c) for c in r) + " |" for r in body)
+    return lines
+
+
+def render_summary_md(
+    rows: Sequence[Row],
+    reference: str = "lc",
+    *,
+    rng: np.random.Generator,
+    policies: Sequence[str] | None = None,
+    metrics: Sequence[str] = NUMERIC_METRICS,
+    stat: Stat = "median",
+    n_boot: int = 10_000,
+    level: float = 0.95,
+    figure: str | None = None,
+) -> str:
+    """The text of ``summary.md`` (see :func:`write_summary_md`)."""
+    table: SummaryTable = summarise(
+        rows, metrics, reference, rng=rng, policies=policies, stat=stat, n_boot=n_boot, level=level
+    )
+    names = [display_name(p) for p in table.policies]
+    users = sorted({str(r["user"]) for r in rows if str(r["policy"]) in table.policies})
+    ref_name = display_name(reference)
+    pct = f"{100 * level:g} %"
+    boot = f"{n_boot:,}".replace(",", " ")
+    counts = ", ".join(f"{display_name(p)} {table.n_sessions[p]}" for p in table.policies)
+    lines = [
+        "# LangCtrl evaluation summary",
+        "",
+        f"{sum(table.n_sessions.values())} sessions ({counts}) with {len(users)} distinct users. "
+        f"Differences are taken against **{ref_name}** with percentile-bootstrap {pct} intervals "
+        f"({boot} resamples per interval).",
+        "",
+    ]
+    if figure:
+        lines += [f"![Distributions per controller]({figure})", ""]
+
+    lines += ["## Findings of the study, checked on these sessions", ""]
+    body = [
+        [str(k), f.claim, f.measured, f"**{f.verdict}**"]
+        for k, f in enumerate(study_findings(rows), start=1)
+    ]
+    lines += _table(["#", "finding (paper)", "measured here", "result"], body)
+    lines.append("")
+
+    lines += ["## Per controller: median [Q1, Q3] over sessions", ""]
+    header = [
+        "metric",
+        *(f"{n} (n={table.n_sessions[p]})" for n, p in zip(names, table.policies, strict=True)),
+    ]
+    body = [[_label(m), *(_spread_cell(table[p, m]) for p in table.policies)] for m in metrics]
+    lines += _table(header, body)
+    lines.append("")
+
+    others = [p for p in table.policies if p != reference]
+    what = "median of per-user differences" if stat == "median" else "mean difference"
+    lines += [f"## Differences against {ref_name}: {what} [{pct} CI]", ""]
+    if not any(str(r["policy"]) == reference for r in rows):
+        lines.append(f"No sessions of the reference {ref_name}: no differences computed.")
+    elif not others:
+        lines.append(f"No other controller to compare with {ref_name}.")
+    else:
+        header = ["metric"]
+        for p in others:
+            kind = "paired by user" if table[p, metrics[0]].paired else "unpaired"
+            header.append(f"{display_name(p)} - {ref_name} ({kind})")
+        body = [[_label(m), *(_diff_cell(table[p, m]) for p in others)] for m in metrics]
+        lines += _table(header, body)
+    lines.append("")
+
+    lines += [
+        "## How to read this",
+        "",
+        "AM (actual misalignment) is the speech end minus the motion end of a session: positive "
+        "when the motion finished first, and the closer to 0 the better aligned. EM is the "
+        "controller's running estimate t_a - t_x of it; mean |EM| averages it over the time "
+        "motion or speech was still going on. Audio pace a and physical pace p are relative to "
+        "the natural pace 1 (a is averaged while speaking, p and the cooperation c while moving); "
+        f"'|a-1| <= {A_TOLERANCE:g}' is the share of speech time spent near the natural pace. "
+        "Per-controller cells give the median and the interquartile range [Q1, Q3] over "
+        f"sessions. Difference cells give controller minus {ref_name} with a percentile-bootstrap "
+        f"{pct} interval; when both ran the same users the sessions are paired by user and the "
+        "cell is the statistic of the per-user differences. An asterisk marks an interval that "
+        "excludes 0. n/a: not defined for those sessions (e.g. no speech) or not run. The "
+        "findings are recomputed from these sessions on every run, never copied from the paper.",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def write_summary_md(
+    rows: Sequence[Row],
+    path: str | Path,
+    reference: str = "lc",
+    *,
+    rng: np.random.Generator,
+    policies: Sequence[str] | None = None,
+    metrics: Sequence[str] = NUMERIC_METRICS,
+    stat: Stat = "median",
+    n_boot: int = 10_000,
+    level: float = 0.95,
+    figure: str | None = None,
+) -> Path:
+    """Write ``summary.md``: findings, per-controller spreads and differences against a reference.
+
+    Args:
+        rows: Session rows (``policy``, ``user`` and the metric columns).
+        path: Destination markdown file (written atomically).
+        reference: Policy the differences are taken against.
+        rng: Source of randomness for the bootstrap.
+        policies: Order and selection of the controllers (default: order of first appearance).
+        metrics: Metrics to tabulate (default: all of :data:`~eval.metrics.NUMERIC_METRICS`).
+        stat: Statistic of the differences.
+        n_boot: Bootstrap resamples per interval.
+        level: Confidence level.
+        figure: Relative path of the violin figure to embed (e.g. ``"summary.png"``), if any.
+
+    Returns:
+        The path written.
+
+    Raises:
+        ConfigError: for empty rows, missing columns or a requested policy without sessions.
+    """
+    text = render_summary_md(
+        rows,
+        reference,
+        rng=rng,
+        policies=policies,
+        metrics=metrics,
+        stat=stat,
+        n_boot=n_boot,
+        level=level,
+        figure=figure,
+    )
+    return atomic_write(path, text)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m eval.report SESSIONS_CSV [--out MD] [--reference lc] [--seed 0]``."""
+    parser = argparse.ArgumentParser(
+        prog="python -m eval.report", description="Write summary.md from a sessions.csv."
+    )
+    parser.add_argument("sessions", type=Path, help="sessions.csv written by eval.compare")
+    parser.add_argument("--out", type=Path, default=None, help="default: summary.md beside it")
+    parser.add_argument("--reference", default="lc")
+    parser.add_argument("--policies", default=None, help="comma-separated order")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--n-boot", type=int, default=10_000)
+    args = parser.parse_args(argv)
+    rows = read_sessions_csv(args.sessions)
+    out = args.out or args.sessions.with_name("summary.md")
+    fig = out.with_name("summary.png")
+    write_summary_md(
+        rows,
+        out,
+        args.reference,
+        rng=np.random.default_rng(args.seed),
+        policies=args.policies.split(",") if args.policies else None,
+        n_boot=args.n_boot,
+        figure=fig.name if fig.exists() else None,
+    )
+    print(out)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,676 @@
+"""The robot arm: MuJoCo model and data, the velocity controller C and F_ext at the handle.
+
+:class:`Arm` loads an MJCF (our UR5 by default), finds the handle site, the arm joints and their
+velocity actuators by name, and runs one 500 Hz control tick per :meth:`Arm.step`:
+
+1. **Cartesian command.** ``v_ref`` is clipped to ``max_hand_speed``. A reference point
+   ``x_ref`` integrates the commanded velocity and a proportional term ``position_gain *
+   (x_ref - x)`` (clamped to ``max_tracking_error``, which also bounds wind-up) removes the drift
+   a pure velocity servo would accumulate under a steady ``F_ext``. The orientation held since
+   :meth:`Arm.reset` gives an angular velocity command ``orientation_gain * e_R`` with
+   ``e_R = 1/2 sum_i r_i x r0_i`` (``r_i``, ``r0_i``: columns of the current and held rotation;
+   equal to the rotation vector for small errors). ``e_R`` is linear in the current rotation
+   matrix, so it is one precomputed (3, 9) matrix-vector product per tick.
+2. **Damped least squares.** ``qdot = J^T (J J^T + lambda^2 I)^-1 xdot`` on the (6, n) site
+   Jacobian (one ``mj_jacSite`` per tick); the 6x6 system is solved in place with MuJoCo's
+   Cholesky routines (no allocation, ~1 us).
+3. **Joint limits.** A joint within ``joint_limit_margin`` of a limit and moving towards it is
+   slowed linearly to zero at the limit: the system is solved again with that joint's Jacobian
+   column weighted by ``distance / margin``, so the other joints take over its share of the motion.
+4. **Joint speed limit.** If any ``|qdot_i| > max_joint_speed_i``, all joints are scaled by the
+   same factor (the hand keeps its direction, only slower).
+5. **Actuation.** ``qdot`` is the ``ctrl`` of one MuJoCo ``<velocity>`` actuator per joint
+   (``force = kv (ctrl - qdot)``, limited to the joint torque limits). The implicitfast
+   integrator treats the ``kv`` damping implicitly, so stiff servos are stable at the 2 ms step
+   without a hand-written computed-torque loop.
+6. **F_ext.** ``qfrc_applied = J_p^T F_ext``: exactly what ``mj_applyFT`` computes for a force at
+   the site point, reusing the Jacobian already at hand (overwritten, hence cleared, every tick).
+
+The tick is split as ``mj_step2`` (integrate the state the controller saw) followed by
+``mj_step1`` and ``mj_jacSite`` for the new state, so after :meth:`Arm.step` (and
+:meth:`Arm.reset`) the kinematics, :meth:`Arm.hand_position` and :meth:`Arm.hand_velocity` are
+those of the current state, and the cost is one ``mj_step`` plus the controller. If you change
+``data.qpos``/``data.qvel`` yourself, call :meth:`Arm.forward` before the next step.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import mujoco
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from langenv.errors import ActionError, ConfigError
+
+if TYPE_CHECKING:
+    from langenv.robot.camera import SceneRenderer
+
+UR5_XML = Path(__file__).with_name("ur5.xml")
+"""Path of our UR5 (CB-series) MJCF."""
+
+UR5_JOINTS: tuple[str, ...] = (
+    "shoulder_pan",
+    "shoulder_lift",
+    "elbow",
+    "wrist_1",
+    "wrist_2",
+    "wrist_3",
+)
+"""Joint names of the UR5 model, base to flange."""
+
+_IK_MAX_ITER = 300
+_IK_TOL = 1e-9  # m / rad, convergence of the IK step
+_IK_ACCEPT = 1e-4  # m, largest accepted position residual
+_IK_MAX_STEP = 0.05  # m, largest Cartesian step per IK iteration (stays on the home branch)
+_LIMIT_CHECK_MAX = 25  # ticks, longest interval between two joint-limit checks
+
+
+def _finite_positive(name: str, value: float, *, allow_zero: bool = False) -> float:
+    """Validate a scalar keyword argument.
+
+    Args:
+        name: argument name, used in the error message.
+        value: the value.
+        allow_zero: accept 0.
+
+    Returns:
+        ``value`` as float.
+
+    Raises:
+        ConfigError: if not finite, negative, or zero when not allowed.
+    """
+    try:
+        v = float(value)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"{name} must be a number, got {value!r}") from exc
+    if not math.isfinite(v) or v < 0.0 or (v == 0.0 and not allow_zero):
+        bound = ">= 0" if allow_zero else "> 0"
+        raise ConfigError(f"{name} must be finite and {bound}, got {value!r}")
+    return v
+
+
+def _vec3(value: ArrayLike, name: str, error: type[Exception]) -> NDArray[np.float64]:
+    """Convert to a finite float64 (3,) array or raise ``error`` naming the argument."""
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise error(f"{name} must be a (3,) array of floats, got {value!r}") from exc
+    if arr.shape != (3,):
+        raise error(f"{name} must have shape (3,), got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise error(f"{name} must be finite, got {arr.tolist()}")
+    return np.ascontiguousarray(arr)
+
+
+def _rotation_error_matrix(r_held: NDArray[np.float64], gain: float) -> NDArray[np.float64]:
+    """The (3, 9) matrix B with ``B @ R.ravel() = gain * 1/2 sum_i r_i x r0_i``.
+
+    Args:
+        r_held: (3, 3) rotation to hold (columns ``r0_i``), world frame.
+        gain: scale folded into B (1/s for an angular-velocity command).
+
+    Returns:
+        (3, 9) float64; ``R.ravel()`` is row-major, so entry ``3 a + i`` is ``R[a, i]``.
+    """
+    b = np.zeros((3, 9))
+    for a in range(3):
+        e_a = np.zeros(3)
+        e_a[a] = 1.0
+        for i in range(3):
+            b[:, 3 * a + i] = 0.5 * gain * np.cross(e_a, r_held[:, i])
+    return b
+
+
+def _rotation_vector(r_from: NDArray[np.float64], r_to: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Rotation vector (axis * angle, rad, world frame) taking ``r_from`` to ``r_to``."""
+    quat = np.empty(4)
+    mujoco.mju_mat2Quat(quat, (r_to @ r_from.T).ravel())
+    vel = np.empty(3)
+    mujoco.mju_quat2Vel(vel, quat, 1.0)
+    return vel
+
+
+class Arm:
+    """A MuJoCo arm whose handle tracks a commanded Cartesian velocity (the paper's controller C).
+
+    Args:
+        model_path: MJCF file; ``None`` loads our UR5 (:data:`UR5_XML`).
+        handle_site: name of the site where the human force acts and whose velocity is controlled.
+        max_hand_speed: hand speed limit (m/s); ``|v_ref|`` is clipped to it.
+        joints: names of the controlled joints (hinge or slide); ``None`` takes every 1-dof joint
+            on the kinematic chain from the world to the handle site, base first.
+        actuators: names of the velocity actuators driving ``joints`` (same order); ``None``
+            finds, for each joint, the actuator whose transmission is that joint.
+        home_keyframe: keyframe loaded by :meth:`reset` before its IK; ``None`` uses ``qpos0``.
+        hold_orientation: hold the handle orientation captured at reset (6-D task); ``False``
+            controls the position only (3-D task, e.g. planar arms with fewer than 6 joints).
+        max_joint_speed: joint speed limit (rad/s or m/s), scalar or one per joint. Default: the
+            UR5's 180 deg/s.
+        position_gain: gain (1/s) of the correction towards the integrated reference point.
+        orientation_gain: gain (1/s) of the orientation hold.
+        damping: damping ``lambda`` of the least-squares solve (m; must be > 0).
+        joint_limit_margin: distance to a joint limit (rad or m) below which motion towards the
+            limit is slowed linearly to zero.
+        max_tracking_error: clamp (m) on ``|x_ref - x|``; bounds the correction and its wind-up.
+        kv_scale: multiplies the velocity gains ``kv`` of the actuators (0 leaves the arm limp,
+            moved by ``F_ext`` alone: a fully compliant robot).
+
+    Attributes:
+        model: the ``mujoco.MjModel`` (owned by this arm).
+        data: the ``mujoco.MjData``.
+        dt: control and physics period (s), the model timestep.
+        path: the MJCF file loaded.
+        joint_names: names of the controlled joints.
+        actuator_names: names of their actuators.
+        max_hand_speed: hand speed limit (m/s).
+
+    Raises:
+        ConfigError: unreadable MJCF, missing site/joint/actuator/keyframe (naming it and the
+            file), an actuator that is not a velocity actuator, or an invalid keyword argument.
+    """
+
+    def __init__(
+        self,
+        model_path: str | Path | None = None,
+        handle_site: str = "handle",
+        *,
+        max_hand_speed: float = 0.5,
+        joints: Sequence[str] | None = None,
+        actuators: Sequence[str] | None = None,
+        home_keyframe: str | None = "home",
+        hold_orientation: bool = True,
+        max_joint_speed: float | ArrayLike = math.pi,
+        position_gain: float = 10.0,
+        orientation_gain: float = 10.0,
+        damping: float = 0.01,
+        joint_limit_margin: float = 0.1,
+        max_tracking_error: float = 0.01,
+        kv_scale: float = 1.0,
+    ) -> None:
+        self.path = Path(UR5_XML if model_path is None else model_path)
+        if not self.path.is_file():
+            raise ConfigError(f"model_path {str(self.path)!r} is not a file")
+        try:
+            self.model = mujoco.MjModel.from_xml_path(str(self.path))
+        except ValueError as exc:
+            raise ConfigError(f"model_path {str(self.path)!r} is not a valid MJCF: {exc}") from exc
+        self.data = mujoco.MjData(self.model)
+        m = self.model
+        self.dt = float(m.opt.timestep)
+
+        self.max_hand_speed = _finite_positive("max_hand_speed", max_hand_speed)
+        self._kp = _finite_positive("position_gain", position_gain, allow_zero=True)
+        self._kr = _finite_positive("orientation_gain", orientation_gain, allow_zero=True)
+        self._lambda2 = _finite_positive("damping", damping) ** 2
+        self._margin = _finite_positive("joint_limit_margin", joint_limit_margin, allow_zero=True)
+        self._emax = _finite_positive("max_tracking_error", max_tracking_error)
+        self._emax2 = self._emax * self._emax
+        self._limit_countdown = 0
+        kv_scale = _finite_positive("kv_scale", kv_scale, allow_zero=True)
+        self.hold_orientation = bool(hold_orientation)
+
+        self.site_id = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, handle_site)
+        if self.site_id < 0:
+            raise ConfigError(f"handle_site {handle_site!r} not found in {self.path}")
+        self.handle_site = handle_site
+
+        joint_ids = self._find_joints(joints)
+        self.joint_names = tuple(m.joint(j).name for j in joint_ids)
+        act_ids = self._find_actuators(joint_ids, actuators)
+        self.actuator_names = tuple(m.actuator(a).name for a in act_ids)
+        n = len(joint_ids)
+        self.n_joints = n
+
+        # Velocity gains (kv_scale) of the actuators.
+        m.actuator_gainprm[act_ids, 0] *= kv_scale
+        m.actuator_biasprm[act_ids, 2] *= kv_scale
+
+        self._home_key: int | None = None
+        if home_keyframe is not None:
+            key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, home_keyframe)
+            if key < 0:
+                raise ConfigError(f"home_keyframe {home_keyframe!r} not found in {self.path}")
+            self._home_key = key
+
+        qdmax = np.broadcast_to(np.asarray(max_joint_speed, dtype=np.float64), (n,)).copy()
+        if not np.all(np.isfinite(qdmax)) or np.any(qdmax <= 0.0):
+            raise ConfigError(f"max_joint_speed must be finite and > 0, got {max_joint_speed!r}")
+        self._inv_qdmax = 1.0 / qdmax
+
+        dofs = m.jnt_dofadr[joint_ids].astype(np.intp)
+        qadr = m.jnt_qposadr[joint_ids].astype(np.intp)
+        self._dofs = dofs
+        self._qadr = qadr
+        limited = m.jnt_limited[joint_ids].astype(bool)
+        self._lo = np.where(limited, m.jnt_range[joint_ids, 0], -np.inf)
+        self._hi = np.where(limited, m.jnt_range[joint_ids, 1], np.inf)
+        self._lo_m = self._lo + self._margin
+        self._hi_m = self._hi - self._margin
+        self._has_limits = bool(np.any(limited))
+
+        # Preallocated work arrays and views (the hot path allocates nothing).
+        nv = m.nv
+        d = self.data
+        self._task = 6 if self.hold_orientation else 3
+        k = self._task
+        self._jac = np.zeros((6, nv))
+        self._jacp = self._jac[:3]
+        self._jacr = self._jac[3:]
+        self._full_dofs = bool(nv == n and np.array_equal(dofs, np.arange(nv)))
+        self._jac_arm = self._jac[:k] if self._full_dofs else np.zeros((k, n))
+        self._a = np.zeros((k, k))
+        self._a_diag = self._a.reshape(-1)[:: k + 1]
+        self._xdot = np.zeros(k)
+        self._xdot_lin = self._xdot[:3]
+        self._xdot_rot = self._xdot[3:]
+        self._y = np.zeros(k)
+        self._qdot = np.zeros(n)
+        self._tmp_n = np.zeros(n)
+        self._tmp_3 = np.zeros(3)
+        self._err = np.zeros(3)
+        self._x_ref = np.zeros(3)
+        self._rot_b = np.zeros((3, 9))
+        self._r_held = np.eye(3)
+        self._site_xpos = d.site_xpos[self.site_id]
+        self._site_xmat = d.site_xmat[self.site_id]
+        self._qfrc = d.qfrc_applied
+        self._qpos_view: NDArray[np.float64] | None = None
+        if np.array_equal(qadr, np.arange(qadr[0], qadr[0] + n)):
+            self._qpos_view = d.qpos[qadr[0] : qadr[0] + n]
+        self._ctrl_view: NDArray[np.float64] | None = None
+        acts = np.asarray(act_ids, dtype=np.intp)
+        self._act_ids = acts
+        if np.array_equal(acts, np.arange(acts[0], acts[0] + n)):
+            self._ctrl_view = d.ctrl[acts[0] : acts[0] + n]
+        self._renderer: SceneRenderer | None = None
+        self.reset()
+
+    # ------------------------------------------------------------------ set-up helpers
+
+    def _find_joints(self, joints: Sequence[str] | None) -> list[int]:
+        """Joint ids of the controlled joints (by name, or the chain to the handle site)."""
+        m = self.model
+        one_dof = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+        if joints is None:
+            chain: list[int] = []
+            body = int(m.site_bodyid[self.site_id])
+            while body > 0:
+                adr, num = int(m.body_jntadr[body]), int(m.body_jntnum[body])
+                body_joints = [j for j in range(adr, adr + num) if m.jnt_type[j] in one_dof]
+                chain = body_joints + chain
+                body = int(m.body_parentid[body])
+            if not chain:
+                raise ConfigError(
+                    f"no hinge/slide joint on the chain to handle_site {self.handle_site!r} "
+                    f"in {self.path}"
+                )
+            return chain
+        if isinstance(joints, str) or len(joints) == 0:
+            raise ConfigError(f"joints must be a non-empty sequence of names, got {joints!r}")
+        ids: list[int] = []
+        for name in joints:
+            j = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
+            if j < 0:
+                raise ConfigError(f"joint {name!r} not found in {self.path}")
+            if m.jnt_type[j] not in one_dof:
+                raise ConfigError(f"joint {name!r} in {self.path} must be a hinge or slide joint")
+            ids.append(j)
+        if len(set(ids)) != len(ids):
+            raise ConfigError(f"joints has duplicates: {list(joints)!r}")
+        return ids
+
+    def _find_actuators(self, joint_ids: list[int], actuators: Sequence[str] | None) -> list[int]:
+        """Actuator ids driving ``joint_ids`` (same order); checks they are velocity servos."""
+        m = self.model
+        is_joint_trn = m.actuator_trntype == int(mujoco.mjtTrn.mjTRN_JOINT)
+        ids: list[int] = []
+        if actuators is None:
+            for j in joint_ids:
+                found = np.flatnonzero(is_joint_trn & (m.actuator_trnid[:, 0] == j))
+                if found.size == 0:
+                    raise ConfigError(
+                        f"no actuator drives joint {m.joint(j).name!r} in {self.path}"
+                    )
+                ids.append(int(found[0]))
+        else:
+            if isinstance(actuators, str) or len(actuators) != len(joint_ids):
+                raise ConfigError(
+                    f"actuators must name one actuator per joint ({len(joint_ids)}), "
+                    f"got {actuators!r}"
+                )
+            for name, j in zip(actuators, joint_ids, strict=True):
+                a = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
+                if a < 0:
+                    raise ConfigError(f"actuator {name!r} not found in {self.path}")
+                if not is_joint_trn[a] or m.actuator_trnid[a, 0] != j:
+                    raise ConfigError(
+                        f"actuator {name!r} in {self.path} does not drive joint {m.joint(j).name!r}"
+                    )
+                ids.append(a)
+        for a in ids:
+            kv = float(m.actuator_gainprm[a, 0])
+            is_velocity = (
+                m.actuator_gaintype[a] == int(mujoco.mjtGain.mjGAIN_FIXED)
+                and m.actuator_biastype[a] == int(mujoco.mjtBias.mjBIAS_AFFINE)
+                and kv > 0.0
+                and m.actuator_biasprm[a, 0] == 0.0
+                and m.actuator_biasprm[a, 1] == 0.0
+                and math.isclose(float(m.actuator_biasprm[a, 2]), -kv)
+                and m.actuator_gear[a, 0] == 1.0
+            )
+            if not is_velocity:
+                raise ConfigError(
+                    f"actuator {m.actuator(a).name!r} in {self.path} must be a velocity actuator "
+                    "(<velocity joint=... kv=...>, gear 1)"
+                )
+        return ids
+
+    # ------------------------------------------------------------------ state
+
+    def forward(self) -> None:
+        """Recompute kinematics and the Jacobian after ``data.qpos``/``data.qvel`` were edited."""
+        mujoco.mj_forward(self.model, self.data)
+        self._limit_countdown = 0
+        self._update_jacobian()
+
+    def _update_jacobian(self) -> None:
+        mujoco.mj_jacSite(self.model, self.data, self._jacp, self._jacr, self.site_id)
+        if not self._full_dofs:
+            np.take(self._jac[: self._task], self._dofs, axis=1, out=self._jac_arm)
+
+    def _hold(self, rotation: NDArray[np.float64]) -> None:
+        """Hold ``rotation`` (3, 3) from now on and restart the reference point at the hand."""
+        self._r_held = rotation.copy()
+        self._rot_b = _rotation_error_matrix(self._r_held, self._kr)
+        self._x_ref[:] = self._site_xpos
+
+    def reset(self, hand_position: ArrayLike | None = None) -> None:
+        """Load the home keyframe and, if given, move the handle to ``hand_position`` by IK.
+
+        The IK keeps the home orientation of the handle (when ``hold_orientation``) and the home
+        branch (elbow up); joint velocities, controls and applied forces are zeroed.
+
+        Args:
+            hand_position: (3,) target of the handle site (m, base frame), or ``None`` for home.
+
+        Raises:
+            ConfigError: ``hand_position`` is not a finite (3,) vector, is out of reach with the
+                home orientation (residual > 0.1 mm), or puts the arm in contact.
+        """
+        m, d = self.model, self.data
+        if self._home_key is not None:
+            mujoco.mj_resetDataKeyframe(m, d, self._home_key)
+        else:
+            mujoco.mj_resetData(m, d)
+        mujoco.mj_forward(m, d)
+        if hand_position is not None:
+            target = _vec3(hand_position, "hand_position", ConfigError)
+            residual = self._solve_ik(target, self._site_xmat.reshape(3, 3).copy())
+            if residual > _IK_ACCEPT:
+                raise ConfigError(
+                    f"hand_position {target.tolist()} is out of reach of {self.path.name} with "
+                    f"the home orientation (residual {residual:.3g} m)"
+                )
+            d.qvel[:] = 0.0
+            d.ctrl[:] = 0.0
+            d.qfrc_applied[:] = 0.0
+            mujoco.mj_forward(m, d)
+            if d.ncon > 0:
+                g1, g2 = int(d.contact.geom1[0]), int(d.contact.geom2[0])
+                raise ConfigError(
+                    f"hand_position {target.tolist()} puts {self.path.name} in contact "
+                    f"(geoms {m.geom(g1).name!r} and {m.geom(g2).name!r})"
+                )
+        d.qfrc_applied[:] = 0.0
+        self._limit_countdown = 0
+        self._update_jacobian()
+        self._hold(self._site_xmat.reshape(3, 3))
+
+    def _solve_ik(self, target: NDArray[np.float64], rotation: NDArray[np.float64]) -> float:
+        """Damped Gauss-Newton IK of the handle site from the current ``qpos``.
+
+        Args:
+            target: (3,) site position (m).
+            rotation: (3, 3) site orientation to keep (ignored without ``hold_orientation``).
+
+        Returns:
+            Final position residual (m).
+        """
+        m, d = self.model, self.data
+        k = self._task
+        err = np.zeros(k)
+        residual = math.inf
+        for _ in range(_IK_MAX_ITER):
+            mujoco.mj_kinematics(m, d)
+            mujoco.mj_comPos(m, d)
+            self._update_jacobian()
+            err[:3] = target - self._site_xpos
+            residual = float(np.linalg.norm(err[:3]))
+            step = err[:3] * min(1.0, _IK_MAX_STEP / max(residual, 1e-300))
+            err[:3] = step
+            if k == 6:
+                err[3:] = _rotation_vector(self._site_xmat.reshape(3, 3), rotation)
+            if float(np.linalg.norm(err)) < _IK_TOL:
+                break
+            jac = self._jac_arm
+            a = jac @ jac.T + 1e-8 * np.eye(k)
+            dq = jac.T @ np.linalg.solve(a, err)
+            q = d.qpos[self._qadr] + dq
+            d.qpos[self._qadr] = np.clip(q, self._lo, self._hi)
+        mujoco.mj_kinematics(m, d)
+        return float(np.linalg.norm(target - self._site_xpos))
+
+    def hand_position(self) -> NDArray[np.float64]:
+        """Handle site position.
+
+        Returns:
+            (3,) float64, m, base frame (a copy).
+        """
+        return self._site_xpos.copy()
+
+    def hand_velocity(self) -> NDArray[np.float64]:
+        """Handle site linear velocity ``J_p qdot``.
+
+        Returns:
+            (3,) float64, m/s, base frame.
+        """
+        return self._jacp @ self.data.qvel
+
+    def hand_rotation(self) -> NDArray[np.float64]:
+        """Handle site orientation.
+
+        Returns:
+            (3, 3) float64 rotation matrix, columns = site axes in the base frame (a copy).
+        """
+        return self._site_xmat.reshape(3, 3).copy()
+
+    def orientation_error(self) -> float:
+        """Angle (rad) between the handle orientation and the one held since :meth:`reset`."""
+        return float(np.linalg.norm(_rotation_vector(self._site_xmat.reshape(3, 3), self._r_held)))
+
+    def joint_positions(self) -> NDArray[np.float64]:
+        """Positions of the controlled joints, (n,) rad or m (a copy)."""
+        return self.data.qpos[self._qadr].copy()
+
+    def joint_velocities(self) -> NDArray[np.float64]:
+        """Velocities of the controlled joints, (n,) rad/s or m/s (a copy)."""
+        return self.data.qvel[self._dofs].copy()
+
+    @property
+    def reference_position(self) -> NDArray[np.float64]:
+        """The integrated reference point ``x_ref`` the controller corrects towards, (3,) m."""
+        return self._x_ref.copy()
+
+    # ------------------------------------------------------------------ control tick
+
+    def step(self, v_ref: NDArray[np.float64], f_ext: NDArray[np.float64]) -> None:
+        """One control tick: controller C, F_ext at the handle, one physics step of ``dt``.
+
+        Args:
+            v_ref: (3,) commanded handle velocity (m/s, base frame); clipped to max_hand_speed.
+            f_ext: (3,) external (human) force on the handle (N, base frame).
+
+        Raises:
+            ActionError: ``v_ref`` or ``f_ext`` is not a finite (3,) vector (names which).
+        """
+        if (
+            type(v_ref) is not np.ndarray
+            or v_ref.shape != (3,)
+            or v_ref.dtype != np.float64
+            or not v_ref.flags.c_contiguous
+        ):
+            v_ref = _vec3(v_ref, "v_ref", ActionError)
+        if (
+            type(f_ext) is not np.ndarray
+            or f_ext.shape != (3,)
+            or f_ext.dtype != np.float64
+            or not f_ext.flags.c_contiguous
+        ):
+            f_ext = _vec3(f_ext, "f_ext", ActionError)
+        s2 = v_ref.dot(v_ref)
+        f2 = f_ext.dot(f_ext)
+        if not (s2 < math.inf and f2 < math.inf):  # NaN fails the comparison too
+            _vec3(v_ref, "v_ref", ActionError)
+            _vec3(f_ext, "f_ext", ActionError)
+        m, d = self.model, self.data
+        vmax = self.max_hand_speed
+        if s2 > vmax * vmax:
+            v_ref = v_ref * (vmax / math.sqrt(s2))
+
+        # Cartesian command: v_ref + kp (x_ref - x), orientation hold.
+        err = self._err
+        x_ref = self._x_ref
+        xdot_lin = self._xdot_lin
+        np.subtract(x_ref, self._site_xpos, out=err)
+        e2 = err.dot(err)
+        if e2 > self._emax2:
+            err *= self._emax / math.sqrt(e2)
+            np.add(self._site_xpos, err, out=x_ref)  # anti-wind-up
+        np.multiply(err, self._kp, out=xdot_lin)
+        xdot_lin += v_ref
+        if self._task == 6:
+            np.matmul(self._rot_b, self._site_xmat, out=self._xdot_rot)
+
+        # Damped least squares on the cached site Jacobian.
+        jac = self._jac_arm
+        a = self._a
+        qdot = self._qdot
+        mujoco.mju_mulMatMatT(a, jac, jac)
+        self._a_diag += self._lambda2
+        mujoco.mju_cholFactor(a, 0.0)
+        mujoco.mju_cholSolve(self._y, a, self._xdot)
+        mujoco.mju_mulMatTVec(qdot, jac, self._y)
+
+        # Joint-limit margins: checked only when a joint could have reached one.
+        self._limit_countdown -= 1
+        if self._limit_countdown <= 0:
+            self._check_limits()
+
+        # Uniform joint speed limit (the 2-norm bounds the max-norm: exact check only if > 1).
+        tmp = self._tmp_n
+        np.multiply(qdot, self._inv_qdmax, out=tmp)
+        scale = self.dt
+        if tmp.dot(tmp) > 1.0:
+            ratio = float(np.abs(tmp).max())
+            if ratio > 1.0:
+                qdot *= 1.0 / ratio
+                scale /= ratio
+        np.multiply(v_ref, scale, out=self._tmp_3)
+        x_ref += self._tmp_3
+
+        if self._ctrl_view is not None:
+            self._ctrl_view[:] = qdot
+        else:
+            d.ctrl[self._act_ids] = qdot
+
+        # F_ext at the handle site: qfrc_applied = J_p^T F (same as mj_applyFT at the site).
+        mujoco.mju_mulMatTVec(self._qfrc, self._jacp, f_ext)
+
+        mujoco.mj_step2(m, d)
+        mujoco.mj_step1(m, d)
+        self._update_jacobian()
+
+    def _check_limits(self) -> None:
+        """Apply joint-limit avoidance if a joint is inside a margin; schedule the next check.
+
+        Joints outside every margin cannot enter one within ``slack / (bound * dt)`` ticks, where
+        ``bound`` is a generous bound on the joint speeds (twice the larger of the joint speed
+        limit and the current joint speed), so the check (a few microseconds) is skipped until
+        then, but for at most ``_LIMIT_CHECK_MAX`` ticks. Inside a margin it runs every tick.
+        """
+        if not self._has_limits:
+            self._limit_countdown = 1 << 62
+            return
+        q = self._qpos_view if self._qpos_view is not None else self.data.qpos[self._qadr]
+        slack = float(np.min(np.minimum(q - self._lo_m, self._hi_m - q)))
+        if slack <= 0.0:
+            self._avoid_limits(q)
+            self._limit_countdown = 1
+            return
+        qvel = np.abs(self.data.qvel[self._dofs]) * self._inv_qdmax
+        bound = 2.0 * max(1.0, float(qvel.max())) * float(np.max(1.0 / self._inv_qdmax))
+        self._limit_countdown = max(1, min(_LIMIT_CHECK_MAX, int(slack / (bound * self.dt))))
+
+    def _avoid_limits(self, q: NDArray[np.float64]) -> None:
+        """Re-solve with the columns of joints moving into a limit margin weighted down."""
+        qdot = self._qdot
+        # Weight 1 at the margin, 0 a hair (2 % of the margin) inside the limit, so actuator lag
+        # cannot carry the joint onto MuJoCo's limit constraint.
+        margin = max(self._margin, 1e-12)
+        buffer = 0.02 * margin
+        w = np.ones_like(qdot)
+        up = (qdot > 0.0) & (q > self._hi_m)
+        lo = (qdot < 0.0) & (q < self._lo_m)
+        w[up] = np.clip((self._hi[up] - buffer - q[up]) / (margin - buffer), 0.0, 1.0)
+        w[lo] = np.clip((q[lo] - self._lo[lo] - buffer) / (margin - buffer), 0.0, 1.0)
+        if not (np.any(up) or np.any(lo)):
+            return
+        jw = self._jac_arm * w
+        a = jw @ jw.T
+        a[np.diag_indices_from(a)] += self._lambda2
+        qdot[:] = w * (jw.T @ np.linalg.solve(a, self._xdot))
+
+    # ------------------------------------------------------------------ rendering
+
+    def render(
+        self,
+        width: int = 640,
+        height: int = 480,
+        camera: str = "overview",
+        path: ArrayLike | None = None,
+        force: ArrayLike | None = None,
+    ) -> NDArray[np.uint8]:
+        """Render the scene off-screen (needs an OpenGL backend, e.g. ``MUJOCO_GL=egl``).
+
+        Args:
+            width: image width (px).
+            height: image height (px).
+            camera: name of a camera in the model.
+            path: optional (N, 3) points (m) drawn as a thin polyline (the exercise path).
+            force: optional (3,) force (N) drawn as an arrow at the handle (1 cm per N).
+
+        Returns:
+            (height, width, 3) uint8 RGB image.
+
+        Raises:
+            ConfigError: unknown camera, bad size, or malformed ``path``/``force``.
+        """
+        from langenv.robot.camera import SceneRenderer
+
+        if self._renderer is None or self._renderer.size != (width, height):
+            if self._renderer is not None:
+                self._renderer.close()
+            self._renderer = SceneRenderer(self.model, width, height)
+        return self._renderer.render(
+            self.data, camera, path=path, force=force, force_at=self._site_xpos
+        )
+
+    def close(self) -> None:
+        """Release the renderer's GL context, if any."""
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None

@@ -1,0 +1,233 @@
+"""Command line: check a phrase graph, or render a session's speech to a sound file.
+
+    python -m langenv.speech check GRAPH.yaml
+    python -m langenv.speech render GRAPH.yaml TRACE.csv OUT.wav
+
+Exit status 0 on success, 1 on a bad graph, trace or audio (messages on stderr), 2 on bad usage.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import os
+import sys
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from langenv.errors import LangEnvError, SessionDataError
+from langenv.speech.audio import DEFAULT_RATE, DEFAULT_SR, DEFAULT_VOICE, ClipLibrary
+from langenv.speech.graph import GRAPHS_DIR, PhraseGraph
+
+_PROGRESS_AFTER = 5.0  # s of trace: longer renders show a progress bar (on a terminal)
+_FORMATS = {".wav": ("WAV", "PCM_16"), ".flac": ("FLAC", "PCM_16")}
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="python -m langenv.speech",
+        description="Check LangCtrl phrase graphs and render speech at a varying audio pace.",
+        epilog="GRAPH is a phrase-graph YAML file (see docs/speech.md) or the name of a shipped "
+        f"graph ({', '.join(sorted(p.stem for p in GRAPHS_DIR.glob('*.yaml')))}).",
+    )
+    tts = argparse.ArgumentParser(add_help=False)
+    g = tts.add_argument_group("phrase audio (text-to-speech with eSpeak NG)")
+    g.add_argument(
+        "--sr", type=int, default=DEFAULT_SR, help="sample rate, Hz (default %(default)s)"
+    )
+    g.add_argument("--voice", default=DEFAULT_VOICE, help="eSpeak NG voice (default %(default)s)")
+    g.add_argument(
+        "--rate",
+        type=int,
+        default=DEFAULT_RATE,
+        help="speaking rate, words/min (default %(default)s)",
+    )
+    g.add_argument(
+        "--cache-dir",
+        type=Path,
+        default=None,
+        help="TTS cache directory (default $LANGCTRL_CACHE or ~/.cache/langctrl/tts)",
+    )
+    g.add_argument("--no-cache", action="store_true", help="do not read or write the TTS cache")
+
+    sub = p.add_subparsers(dest="command", required=True, metavar="{check,render}")
+    c = sub.add_parser(
+        "check",
+        parents=[tts],
+        help="validate a phrase graph and summarise it in one line",
+        description="Validate a phrase graph (ids, cycles, dead ends, audio) and print one line: "
+        "phrases, paths, and the shortest and longest speech at audio pace 1. Exit 1 with every "
+        "problem on stderr when it is invalid.",
+    )
+    c.add_argument("graph", metavar="GRAPH", help="phrase graph YAML file or shipped graph name")
+    c.add_argument("--paths", action="store_true", help="also list every path with its length")
+
+    r = sub.add_parser(
+        "render",
+        parents=[tts],
+        help="render the speech of a pace trace to a sound file",
+        description="Render the speech a session says along a trace: a CSV with columns t (s), "
+        "audio_pace and optionally t_x (s, the motion's time to completion; with it, phrases "
+        "follow the paper's choice rule, without it the shortest path). Extra columns are "
+        "ignored, so the study's session CSVs work as traces. OUT (.wav or .flac) is written "
+        "only on success.",
+    )
+    r.add_argument("graph", metavar="GRAPH", help="phrase graph YAML file or shipped graph name")
+    r.add_argument(
+        "trace", metavar="TRACE", type=Path, help="CSV with columns t, audio_pace[, t_x]"
+    )
+    r.add_argument("out", metavar="OUT", type=Path, help="sound file to write (.wav or .flac)")
+    r.add_argument("--no-t-x", action="store_true", help="ignore a t_x column: shortest path")
+    return p
+
+
+def _graph_path(arg: str) -> Path:
+    path = Path(arg)
+    if not path.exists() and path.suffix == "" and (GRAPHS_DIR / f"{arg}.yaml").is_file():
+        return GRAPHS_DIR / f"{arg}.yaml"
+    return path
+
+
+def read_trace(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Read a pace trace CSV: columns ``t``, ``audio_pace`` and optionally ``t_x``.
+
+    Returns:
+        ``(t, a, t_x)``, each of shape ``(n,)``; ``t_x`` is None without that column.
+
+    Raises:
+        SessionDataError: naming the file (and the column and row) when it is unreadable, lacks a
+            column, has a non-numeric or non-finite value, a non-increasing ``t``, a pace <= 0, or
+            fewer than two rows.
+    """
+    try:
+        with path.open(newline="", encoding="utf-8") as f:
+            rows = list(csv.reader(f))
+    except (OSError, UnicodeDecodeError) as exc:
+        reason = getattr(exc, "strerror", None) or exc
+        raise SessionDataError(f"{path}: cannot read trace: {reason}") from None
+    rows = [r for r in rows if any(cell.strip() for cell in r)]
+    if not rows:
+        raise SessionDataError(f"{path}: empty trace (expected a header t,audio_pace[,t_x])")
+    header = [h.strip() for h in rows[0]]
+    for col in ("t", "audio_pace"):
+        if col not in header:
+            raise SessionDataError(f"{path}: missing column {col!r} (header: {header})")
+    wanted = ["t", "audio_pace"] + (["t_x"] if "t_x" in header else [])
+    cols = {name: header.index(name) for name in wanted}
+    values = {name: np.empty(len(rows) - 1) for name in wanted}
+    for i, row in enumerate(rows[1:]):
+        for name, j in cols.items():
+            cell = row[j].strip() if j < len(row) else ""
+            try:
+                v = float(cell)
+            except ValueError:
+                raise SessionDataError(
+                    f"{path}: row {i + 2}, column {name!r}: not a number: {cell!r}"
+                ) from None
+            if not math.isfinite(v):
+                raise SessionDataError(f"{path}: row {i + 2}, column {name!r}: not finite: {cell}")
+            values[name][i] = v
+    t, a = values["t"], values["audio_pace"]
+    if t.size < 2:
+        raise SessionDataError(f"{path}: a trace needs at least 2 rows, got {t.size}")
+    bad = np.flatnonzero(np.diff(t) <= 0.0)
+    if bad.size:
+        raise SessionDataError(f"{path}: row {bad[0] + 3}, column 't': times must increase")
+    bad = np.flatnonzero(a <= 0.0)
+    if bad.size:
+        raise SessionDataError(f"{path}: row {bad[0] + 2}, column 'audio_pace': must be > 0")
+    return t, a, values.get("t_x")
+
+
+def _n(k: int, word: str) -> str:
+    return f"{k} {word}" + ("" if k == 1 else "s")
+
+
+def _clips(args: argparse.Namespace) -> ClipLibrary:
+    return ClipLibrary(
+        args.sr, args.cache_dir, voice=args.voice, rate=args.rate, disk_cache=not args.no_cache
+    )
+
+
+def _check(args: argparse.Namespace) -> int:
+    graph = PhraseGraph.load(_graph_path(args.graph), _clips(args))
+    start = graph.start
+    unreachable = sorted(set(graph.phrases) - graph.reachable())
+    if unreachable:
+        print(
+            f"warning: {graph.path}: phrases never said (not reachable from {start!r}): "
+            f"{unreachable}",
+            file=sys.stderr,
+        )
+    if args.paths:
+        for path in graph.paths(limit=10_000):
+            print(f"{graph.path_length(path):6.2f} s  {' > '.join(path)}")
+    print(
+        f"{graph.path}: OK, {_n(len(graph), 'phrase')}, {_n(graph.count_paths(), 'path')}, speech "
+        f"{graph.t_min(start):.2f}-{graph.t_max(start):.2f} s at a = 1 "
+        f"(shortest-longest, pause {graph.pause:g} s)"
+    )
+    return 0
+
+
+def _render(args: argparse.Namespace) -> int:
+    out: Path = args.out
+    fmt = _FORMATS.get(out.suffix.lower())
+    if fmt is None:
+        print(
+            f"error: {out}: unsupported output type; use one of {sorted(_FORMATS)}", file=sys.stderr
+        )
+        return 1
+    if not out.parent.is_dir():
+        print(f"error: {out}: directory {out.parent} does not exist", file=sys.stderr)
+        return 1
+    clips = _clips(args)
+    graph = PhraseGraph.load(_graph_path(args.graph), clips)
+    t, a, t_x = read_trace(args.trace)
+    if args.no_t_x:
+        t_x = None
+    try:
+        from langenv.speech.vocoder import VariableRateVocoder  # noqa: F401
+    except ImportError as exc:
+        print(f"error: rendering needs langenv.speech.vocoder: {exc}", file=sys.stderr)
+        return 1
+    from langenv.speech.render import plan_speech, render_history
+
+    plan = plan_speech(graph, t, a, t_x)
+    progress = None if t[-1] - t[0] > _PROGRESS_AFTER else False
+    y = render_history(graph, clips, [u.phrase for u in plan], t, a, progress=progress)
+    y = np.clip(y, -1.0, 1.0)
+
+    import soundfile as sf
+
+    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.stem}.", suffix=out.suffix + ".part")
+    os.close(fd)
+    try:
+        sf.write(tmp, y, clips.sr, format=fmt[0], subtype=fmt[1])
+        os.replace(tmp, out)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    said = " > ".join(u.phrase for u in plan)
+    end = f"speech ends at {plan[-1].t_end:.2f} s" if plan else "nothing said"
+    print(f"wrote {out}: {y.size / clips.sr:.2f} s at {clips.sr} Hz, {end}; said: {said}")
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit status."""
+    args = _parser().parse_args(argv)
+    try:
+        return _check(args) if args.command == "check" else _render(args)
+    except (LangEnvError, OSError) as exc:
+        for line in str(exc).splitlines():
+            print(f"error: {line}", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

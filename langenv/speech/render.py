@@ -1,0 +1,267 @@
+"""Render a session's speech to audio: phrases at a time-varying audio pace, pitch preserved.
+
+A *trace* gives the audio pace ``a`` (and optionally the motion ETC ``t_x``) at increasing times
+``t`` (s); between samples the pace is linear in time, and it is held at its last value after the
+trace. Speech starts at ``t[0]``; the output covers ``[t[0], t[-1]]`` (silence after the speech
+ends) and is longer only when the speech is not over by ``t[-1]``: then it goes on at the last pace
+until it is.
+
+* :func:`render_speech` chooses the phrases as a live session would: at each phrase boundary, the
+  graph's rule with the trace's ``t_x`` at that time, or the shortest path without ``t_x``.
+* :func:`render_history` renders phrases already chosen (a finished env session's history).
+
+Both stream the content (clips and pauses, at base pace) block by block through
+:class:`~langenv.speech.vocoder.VariableRateVocoder`.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Iterator, Sequence
+from typing import Any, Protocol
+
+import numpy as np
+
+from langenv.errors import ConfigError
+from langenv.speech.audio import ClipLibrary
+from langenv.speech.graph import PhraseGraph
+from langenv.speech.timeline import SpeechTimeline, Utterance
+
+__all__ = ["plan_speech", "render_history", "render_speech"]
+
+_PLAN_DT = 0.002  # s, timeline step when planning beyond the trace's samples
+_BLOCK = 512  # output samples per vocoder pull
+
+
+class _HasPhrase(Protocol):
+    @property
+    def phrase(self) -> str: ...
+
+
+def _trace(t: Any, a: Any, t_x: Any = None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Validate a trace: 1-D, same length, finite, ``t`` increasing, ``a > 0``."""
+    tt = np.asarray(t, dtype=np.float64)
+    aa = np.asarray(a, dtype=np.float64)
+    if tt.ndim != 1 or tt.size < 2:
+        raise ConfigError(f"t must be 1-D with at least 2 samples, got shape {tt.shape}")
+    if aa.shape != tt.shape:
+        raise ConfigError(f"a must have the shape of t {tt.shape}, got {aa.shape}")
+    if not np.all(np.isfinite(tt)) or np.any(np.diff(tt) <= 0.0):
+        raise ConfigError("t must be finite and strictly increasing")
+    if not np.all(np.isfinite(aa)) or np.any(aa <= 0.0):
+        bad = int(np.flatnonzero(~(np.isfinite(aa) & (aa > 0.0)))[0])
+        raise ConfigError(f"a must be finite and > 0, got a[{bad}] = {aa[bad]!r}")
+    xx = None
+    if t_x is not None:
+        xx = np.asarray(t_x, dtype=np.float64)
+        if xx.shape != tt.shape:
+            raise ConfigError(f"t_x must have the shape of t {tt.shape}, got {xx.shape}")
+        if not np.all(np.isfinite(xx)):
+            bad = int(np.flatnonzero(~np.isfinite(xx))[0])
+            raise ConfigError(f"t_x must be finite, got t_x[{bad}] = {xx[bad]!r}")
+    return tt, aa, xx
+
+
+def plan_speech(
+    graph: PhraseGraph, t: Any, a: Any, t_x: Any = None, *, max_extra: float = 600.0
+) -> list[Utterance]:
+    """The phrases a live session would say along a trace, with their times.
+
+    At each phrase boundary the next phrase follows the graph's rule with the trace's ``t_x``
+    (linearly interpolated) at that time; without ``t_x``, the shortest path. The pace over each
+    interval ``[t_i, t_{i+1}]`` is the mean of its end values (exact for the linear pace).
+
+    Args:
+        graph: The phrase graph.
+        t: Sample times (s), shape ``(n,)``, strictly increasing.
+        a: Audio pace at those times, shape ``(n,)``, > 0.
+        t_x: Motion ETC at those times (s), shape ``(n,)``, or None.
+        max_extra: Longest time the speech may go on after ``t[-1]`` at the last pace (s).
+
+    Returns:
+        The utterances in order, times in the trace's clock (the first starts at ``t[0]``).
+
+    Raises:
+        ConfigError: naming the argument, for a malformed trace.
+    """
+    tt, aa, xx = _trace(t, a, t_x)
+    tl = SpeechTimeline(graph)
+    shortest = graph.shortest_path()
+    on_shortest = dict(itertools.pairwise(shortest))
+
+    def shortest_child(kids: tuple[str, ...]) -> str:
+        u = tl.phrase
+        v = on_shortest.get(u) if u is not None else None
+        if v is not None and v in kids:
+            return v
+        return min(kids, key=graph.t_min)
+
+    choice = shortest_child if xx is None else None
+    for i in range(tt.size - 1):
+        if tl.done:
+            break
+        tl.step(
+            float(tt[i + 1] - tt[i]),
+            0.5 * float(aa[i] + aa[i + 1]),
+            choice,
+            None if xx is None else float(xx[i]),
+        )
+    extra = 0.0
+    while not tl.done and extra < max_extra:
+        tl.step(_PLAN_DT, float(aa[-1]), choice, None if xx is None else float(xx[-1]) - extra)
+        extra += _PLAN_DT
+    t0 = float(tt[0])
+    return [Utterance(u.phrase, u.t_start + t0, u.t_end + t0) for u in tl.utterances()]
+
+
+def _content(graph: PhraseGraph, clips: ClipLibrary, ids: Sequence[str]) -> Iterator[np.ndarray]:
+    """Base-pace content: each clip, with the graph's pause between consecutive phrases."""
+    gap = np.zeros(round(graph.pause * clips.sr), np.float32)
+    for k, u in enumerate(ids):
+        yield clips.clip(graph.phrases[u])
+        if k + 1 < len(ids) and gap.size:
+            yield gap
+
+
+def render_history(
+    graph: PhraseGraph,
+    clips: ClipLibrary,
+    history: Sequence[str | _HasPhrase],
+    t: Any,
+    a: Any,
+    *,
+    progress: bool | None = False,
+    vocoder_kw: dict[str, Any] | None = None,
+) -> np.ndarray:
+    """Render phrases already chosen, at the trace's audio pace.
+
+    Args:
+        graph: The phrase graph the phrases come from.
+        clips: Their audio (its sample rate is the output's).
+        history: Phrase ids said, in order, or objects with a ``phrase`` attribute
+            (:class:`~langenv.speech.timeline.Utterance`, the evaluation's utterances); they must
+            form a path from ``graph.start`` (it may stop before a final phrase).
+        t: Sample times (s), shape ``(n,)``, strictly increasing.
+        a: Audio pace at those times, shape ``(n,)``, > 0.
+        progress: Show a tqdm bar (None: only on a terminal).
+        vocoder_kw: Extra keyword arguments of ``VariableRateVocoder``.
+
+    Returns:
+        Mono ``float32`` audio at ``clips.sr``, ``round((t[-1] - t[0]) sr)`` samples, longer when
+        the speech outlasts the trace.
+
+    Raises:
+        ConfigError: naming the argument, for a malformed trace or a history that is not a path
+            of ``graph`` from its start.
+        AudioError: when a clip cannot be read or synthesised.
+        ImportError: when ``langenv.speech.vocoder`` is not available.
+    """
+    tt, aa, _ = _trace(t, a)
+    ids = [h if isinstance(h, str) else h.phrase for h in history]
+    for k, u in enumerate(ids):
+        if u not in graph.phrases:
+            raise ConfigError(f"history[{k}]: {u!r} is not a phrase of {graph.path}")
+        if k == 0 and u != graph.start:
+            raise ConfigError(f"history[0]: {u!r} is not the start phrase {graph.start!r}")
+        if k and u not in graph.children(ids[k - 1]):
+            raise ConfigError(f"history[{k}]: {u!r} does not follow {ids[k - 1]!r} in the graph")
+    from langenv.speech.vocoder import VariableRateVocoder
+
+    sr = clips.sr
+    voc = VariableRateVocoder(sr, **(vocoder_kw or {}))
+    pieces = _content(graph, clips, ids)
+    total = float(sum(clips.clip(graph.phrases[u]).size for u in ids)) / sr
+    total += graph.pause * max(0, len(ids) - 1)
+    # content kept pushed ahead of the vocoder's read position: its window plus two blocks
+    lookahead = 4.0 * (vocoder_kw or {}).get("n_fft", 1024) / sr + 3.0 * _BLOCK / sr
+    pushed = 0.0
+    finished = False
+
+    def feed(force: bool = False) -> None:
+        nonlocal pushed, finished
+        while not finished and (force or pushed - voc.content_time < lookahead):
+            force = False
+            y = next(pieces, None)
+            if y is None:
+                voc.finish()
+                finished = True
+            else:
+                voc.push(y)
+                pushed += y.size / sr
+
+    n_trace = round((tt[-1] - tt[0]) * sr)
+    # the speech may outlast the trace: at most its content at the last pace, plus slack
+    n_cap = n_trace + int((total / float(aa[-1]) + 1.0) * sr)
+    out = np.zeros(n_trace, np.float32)
+    extra: list[np.ndarray] = []
+    produced = 0
+    from tqdm import tqdm
+
+    with tqdm(
+        total=round(n_trace / sr, 2),
+        unit="s",
+        desc="render",
+        disable=None if progress is None else not progress,
+        bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} s [{elapsed}<{remaining}]",
+    ) as bar:
+        while not voc.done and produced < n_cap:
+            n = min(_BLOCK, n_trace - produced) if produced < n_trace else _BLOCK
+            pace = float(np.interp(tt[0] + (produced + 0.5 * n) / sr, tt, aa))
+            feed()
+            y = voc.pull(n, pace)
+            if y.size < n and not finished:  # starved although content remains: top up
+                parts = [y]
+                got = y.size
+                while got < n and not finished:
+                    feed(force=True)
+                    z = voc.pull(n - got, pace)
+                    parts.append(z)
+                    got += z.size
+                y = np.concatenate(parts)
+            if y.size == 0:
+                break  # finished and drained
+            if produced < n_trace:
+                k = min(y.size, n_trace - produced)
+                out[produced : produced + k] = y[:k]
+                if k < y.size:
+                    extra.append(np.asarray(y[k:], np.float32))
+                bar.update(k / sr)
+            else:
+                extra.append(np.asarray(y, np.float32))
+            produced += y.size
+    if extra:
+        out = np.concatenate([out, *extra])
+    return out
+
+
+def render_speech(
+    graph: PhraseGraph,
+    clips: ClipLibrary,
+    t: Any,
+    a: Any,
+    t_x: Any = None,
+    *,
+    progress: bool | None = False,
+    vocoder_kw: dict[str, Any] | None = None,
+) -> np.ndarray:
+    """Render the speech a live session would say along a trace.
+
+    The phrases follow :func:`plan_speech` (the graph's rule with the trace's ``t_x`` at each
+    boundary, or the shortest path), then play through the vocoder as :func:`render_history`.
+
+    Args:
+        graph: The phrase graph.
+        clips: Phrase audio (its sample rate is the output's).
+        t: Sample times (s), shape ``(n,)``, strictly increasing.
+        a: Audio pace, shape ``(n,)``, > 0.
+        t_x: Motion ETC (s), shape ``(n,)``, or None.
+        progress: Show a tqdm bar (None: only on a terminal).
+        vocoder_kw: Extra keyword arguments of ``VariableRateVocoder``.
+
+    Returns:
+        Mono ``float32`` audio at ``clips.sr`` (see :func:`render_history` for its length).
+    """
+    plan = plan_speech(graph, t, a, t_x)
+    return render_history(
+        graph, clips, [u.phrase for u in plan], t, a, progress=progress, vocoder_kw=vocoder_kw
+    )

@@ -1,0 +1,349 @@
+"""The speech timeline: where the robot is in its speech, played at a varying audio pace.
+
+Speech starts with the graph's ``start`` phrase at ``reset``. Playback content advances at the
+audio pace ``a`` (``a`` seconds of base-pace content per second). Each phrase occupies a *slot*:
+its clip, then (unless it is final) the graph's pause, which also elapses at pace ``a``. When a
+slot ends — this is the *phrase boundary* — the next phrase starts at once: the caller's choice
+if it gave one, else the graph's rule with the motion ETC ``t_x`` the caller passed. Speech is over
+when the clip of a final phrase ends.
+
+Stepping costs a few additions per tick except at the (rare) clip and slot ends, so it can run
+inside a 500 Hz control loop.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from langenv.errors import ActionError, ConfigError
+from langenv.speech.graph import PhraseGraph
+
+__all__ = ["Choice", "SpeechTimeline", "Utterance"]
+
+Choice = str | Callable[[tuple[str, ...]], str] | None
+"""The next phrase at a boundary: a phrase id, a function of the candidate ids, or None."""
+
+
+@dataclass(frozen=True)
+class Utterance:
+    """One phrase said.
+
+    Attributes:
+        phrase: Phrase id.
+        t_start: Time its clip started (s since the timeline's reset).
+        t_end: Time its clip ended (s), pause excluded.
+    """
+
+    phrase: str
+    t_start: float
+    t_end: float
+
+    @property
+    def duration(self) -> float:
+        """How long it played (s)."""
+        return self.t_end - self.t_start
+
+
+class SpeechTimeline:
+    """Playback position in a phrase graph's speech at a time-varying audio pace.
+
+    Args:
+        graph: The phrase graph to speak.
+
+    Attributes (read-only properties): ``t``, ``phrase``, ``in_pause``, ``done``, ``position``,
+    ``remaining_in_phrase``, ``remaining_audio``, ``fraction_said``, ``candidates``, ``history``,
+    ``path``, ``t_end``, ``content_time``, ``a``.
+    """
+
+    __slots__ = (
+        "_a",
+        "_children",
+        "_content_done",
+        "_done",
+        "_dur",
+        "_graph",
+        "_history",
+        "_in_pause",
+        "_mark",
+        "_path",
+        "_phrase",
+        "_pos",
+        "_slot",
+        "_t",
+        "_t_end",
+        "_t_start",
+    )
+
+    def __init__(self, graph: PhraseGraph) -> None:
+        if not isinstance(graph, PhraseGraph):
+            raise ConfigError(f"SpeechTimeline: graph must be a PhraseGraph, got {graph!r}")
+        self._graph = graph
+        self._dur = dict(graph.duration)
+        self._slot = {u: graph.slot(u) for u in graph.phrases}
+        self._children = {u: graph.children(u) for u in graph.phrases}
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to the start of the speech, at time 0."""
+        start = self._graph.start
+        self._t = 0.0
+        self._a = 1.0
+        self._phrase: str | None = start
+        self._pos = 0.0  # base-pace seconds into the current phrase's slot
+        self._in_pause = False
+        self._done = False
+        self._t_start = 0.0
+        self._t_end: float | None = None
+        self._content_done = 0.0  # base-pace seconds of finished slots
+        self._history: list[Utterance] = []
+        self._path: list[str] = [start]
+        self._mark = self._dur[start]  # next content position where something happens
+
+    # ------------------------------------------------------------------ stepping
+    def step(self, dt: float, a: float, choice: Choice = None, t_x: float | None = None) -> None:
+        """Advance by ``dt`` seconds at audio pace ``a``.
+
+        If the current phrase's slot ends during the step, the next phrase is ``choice`` (an id,
+        or ``choice(candidates)`` when it is callable, evaluated only then), else
+        ``graph.choose(phrase, t_x')`` with ``t_x'`` the given ``t_x`` minus the time from the
+        start of the step to the boundary. A phrase with a single child needs neither (``choice``
+        is then not consulted, so a callable is only called when there is a real choice). A second
+        boundary inside the same step (only with slots shorter than ``a * dt``) calls a callable
+        ``choice`` again, else uses the rule, else the first child. After the speech is over,
+        only the time advances.
+
+        Args:
+            dt: Step length (s, > 0).
+            a: Audio pace over the step (>= 0; 1 is the recorded pace).
+            choice: Next phrase at a boundary (see above).
+            t_x: Motion time to completion at the start of the step (s), for the rule.
+
+        Raises:
+            ActionError: naming the argument, for a non-finite or out-of-range ``dt``/``a``, a
+                choice that is not a child of the ending phrase, or a boundary with several
+                candidates and neither ``choice`` nor ``t_x``. The timeline is unchanged then.
+        """
+        if not 0.0 < dt < math.inf:
+            raise ActionError(f"SpeechTimeline.step: dt must be finite and > 0, got {dt!r}")
+        if not 0.0 <= a < math.inf:
+            raise ActionError(f"SpeechTimeline.step: a must be finite and >= 0, got {a!r}")
+        self._a = a
+        if self._done:
+            self._t += dt
+            return
+        adv = a * dt
+        if self._pos + adv < self._mark:  # the common case: nothing happens in this tick
+            self._pos += adv
+            self._t += dt
+            return
+        self._advance(dt, a, adv, choice, t_x)
+
+    def _advance(self, dt: float, a: float, adv: float, choice: Choice, t_x: float | None) -> None:
+        u = self._phrase
+        assert u is not None
+        dur, slot, kids = self._dur[u], self._slot[u], self._children[u]
+        # Resolve the first boundary's choice before changing anything (errors leave no trace).
+        nxt: str | None = None
+        if kids:
+            rem, pos = adv, self._pos
+            if not self._in_pause:
+                rem -= dur - pos
+                pos = dur
+            if rem >= slot - pos:
+                tau = (adv - rem + (slot - pos)) / a if a > 0.0 else 0.0
+                nxt = self._resolve(u, kids, choice, t_x, tau)
+
+        t0 = self._t
+        tau = 0.0  # time from the start of the step
+        rem = adv  # content still to advance in this step
+        while True:
+            u = self._phrase
+            assert u is not None
+            dur, slot, kids = self._dur[u], self._slot[u], self._children[u]
+            if not self._in_pause:
+                need = dur - self._pos
+                if rem < need:
+                    self._pos += rem
+                    break
+                tau += need / a if need > 0.0 else 0.0
+                rem -= need
+                self._pos = dur
+                self._history.append(Utterance(u, self._t_start, t0 + tau))
+                if not kids:
+                    self._done = True
+                    self._phrase = None
+                    self._t_end = t0 + tau
+                    self._content_done += dur
+                    self._pos = 0.0
+                    break
+                self._in_pause = True
+            need = slot - self._pos
+            if rem < need:
+                self._pos += rem
+                break
+            tau += need / a if need > 0.0 else 0.0
+            rem -= need
+            if nxt is None:  # a second boundary in the same step
+                nxt = self._resolve(u, kids, choice if callable(choice) else None, t_x, tau, True)
+            self._content_done += slot
+            self._phrase = nxt
+            self._path.append(nxt)
+            self._pos = 0.0
+            self._in_pause = False
+            self._t_start = t0 + tau
+            nxt = None
+        self._t = t0 + dt
+        if self._phrase is not None:
+            self._mark = self._slot[self._phrase] if self._in_pause else self._dur[self._phrase]
+
+    def _resolve(
+        self,
+        u: str,
+        kids: tuple[str, ...],
+        choice: Choice,
+        t_x: float | None,
+        tau: float,
+        fallback: bool = False,
+    ) -> str:
+        if len(kids) == 1:
+            return kids[0]  # nothing to decide: `choice` is not consulted
+        if choice is not None:
+            v = choice(kids) if callable(choice) else choice
+            if v not in kids:
+                raise ActionError(
+                    f"SpeechTimeline.step: choice {v!r} is not a child of phrase {u!r}; "
+                    f"candidates: {list(kids)}"
+                )
+            return v
+        if t_x is not None:
+            if not math.isfinite(t_x):
+                raise ActionError(f"SpeechTimeline.step: t_x must be finite, got {t_x!r}")
+            return self._graph.choose(u, t_x - tau)
+        if fallback:
+            return kids[0]
+        raise ActionError(
+            f"SpeechTimeline.step: phrase {u!r} ends and has several candidates {list(kids)}; "
+            "pass `choice` or `t_x`"
+        )
+
+    # ------------------------------------------------------------------ queries
+    def boundary_due(self, horizon: float, a: float | None = None) -> bool:
+        """Whether a choice of the next phrase will be needed within ``horizon`` seconds.
+
+        True when the current phrase has children and its slot ends within ``horizon`` seconds
+        at pace ``a`` (default: the pace of the last step). Final phrases never need a choice.
+        """
+        u = self._phrase
+        if u is None or not self._children[u]:
+            return False
+        pace = self._a if a is None else a
+        return self._slot[u] - self._pos <= pace * horizon
+
+    def eta(self, t_x: float) -> float:
+        """Speech time to completion ``t_a`` at a = 1 (s): see :meth:`PhraseGraph.eta`."""
+        u = self._phrase
+        if u is None:
+            return 0.0
+        return self._graph.eta(u, self._slot[u] - self._pos, t_x)
+
+    def said_at(self, t: float) -> str | None:
+        """Id of the phrase audible at time ``t`` (s); None in pauses, before 0, after the end."""
+        u = self._phrase
+        if u is not None and not self._in_pause and self._t_start <= t <= self._t:
+            return u
+        h = self._history
+        i = bisect.bisect_right(h, t, key=lambda x: x.t_start) - 1
+        if i >= 0 and t < h[i].t_end:
+            return h[i].phrase
+        return None
+
+    def utterances(self) -> list[Utterance]:
+        """The history plus the phrase playing now (its ``t_end`` is the current time)."""
+        out = list(self._history)
+        if self._phrase is not None and not self._in_pause:
+            out.append(Utterance(self._phrase, self._t_start, self._t))
+        return out
+
+    @property
+    def graph(self) -> PhraseGraph:
+        """The phrase graph spoken."""
+        return self._graph
+
+    @property
+    def t(self) -> float:
+        """Time since :meth:`reset` (s)."""
+        return self._t
+
+    @property
+    def a(self) -> float:
+        """Audio pace of the last step."""
+        return self._a
+
+    @property
+    def phrase(self) -> str | None:
+        """Current phrase (also during the pause after it); None once the speech is over."""
+        return self._phrase
+
+    @property
+    def in_pause(self) -> bool:
+        """True in the silence after the current phrase's clip."""
+        return self._in_pause
+
+    @property
+    def done(self) -> bool:
+        """True once the final phrase's clip has ended."""
+        return self._done
+
+    @property
+    def position(self) -> float:
+        """Base-pace seconds into the current phrase's slot (0 when done)."""
+        return self._pos
+
+    @property
+    def remaining_in_phrase(self) -> float:
+        """Base-pace seconds until the current slot ends: clip rest + pause (0 when done)."""
+        u = self._phrase
+        return 0.0 if u is None else self._slot[u] - self._pos
+
+    @property
+    def remaining_audio(self) -> float:
+        """Base-pace seconds of the current clip still to play (0 in the pause and when done)."""
+        u = self._phrase
+        return 0.0 if u is None else max(0.0, self._dur[u] - self._pos)
+
+    @property
+    def fraction_said(self) -> float:
+        """Share of the current phrase's clip already played, in [0, 1] (1 in pauses and done)."""
+        u = self._phrase
+        if u is None or self._in_pause:
+            return 1.0
+        return min(1.0, self._pos / self._dur[u])
+
+    @property
+    def candidates(self) -> tuple[str, ...]:
+        """Children of the current phrase: the possible next phrases (empty when done/final)."""
+        u = self._phrase
+        return () if u is None else self._children[u]
+
+    @property
+    def history(self) -> list[Utterance]:
+        """Finished utterances in order (do not modify; see :meth:`utterances`)."""
+        return self._history
+
+    @property
+    def path(self) -> tuple[str, ...]:
+        """Phrases started so far, in order."""
+        return tuple(self._path)
+
+    @property
+    def t_end(self) -> float | None:
+        """Time the speech ended (s), None while it goes on."""
+        return self._t_end
+
+    @property
+    def content_time(self) -> float:
+        """Base-pace seconds of speech content played so far, pauses included (= ∫ a dt)."""
+        return self._content_done + self._pos

@@ -1,0 +1,555 @@
+"""Variable-rate phase vocoder with phase locking, for live (block) and offline rendering.
+
+The speech of the robot is played at an *audio pace* ``a`` that changes over time (``a = 1.2``
+plays the content 20 % faster, so it lasts 1/1.2 as long). :class:`VariableRateVocoder`
+time-scales mono audio with a short-time Fourier transform while keeping its pitch:
+
+* **fixed synthesis hop** ``hop``; the analysis position in the content advances by
+  ``a * hop`` per output frame, at fractional sample positions (analysis is done directly at the
+  position rounded to the nearest sample, so no magnitude interpolation is needed);
+* **instantaneous frequency** of every bin from the derivative-window (reassignment) estimate
+  ``omega = omega_k - Im(X_dh / X_h)``, exact for a stationary sinusoid and free of the
+  phase-unwrapping ambiguity; the phase of a peak advances by ``hop`` times the mean of its
+  instantaneous frequency in the previous and the current frame (trapezoid rule);
+* **phase locking** (Laroche & Dolson 1999): the peaks of the magnitude spectrum (bins larger
+  than their two neighbours on each side) are propagated, with peak tracking (a peak continues
+  the phase of the previous frame's peak whose region contained it, "scaled" locking with
+  ``beta = 1``); every other bin keeps its analysed phase offset to the peak of its region of
+  influence (regions split half-way between peaks), i.e. the whole region is rotated by the
+  peak's phase rotation (identity phase locking);
+* **overlap-add** with Hann analysis and synthesis windows, normalised per output sample by the
+  accumulated sum of the window products, which is exact whatever the hops.
+
+Timing. Output sample ``j`` is played at pace ``a_j`` (the pace of the :meth:`pull` that emitted
+it) and the content time consumed is ``tau(j) = sum_{i<j} a_i`` samples, kept as an exact
+rational number. The output ends at the first sample ``T`` with ``tau(T) >= len(content)``, so the
+rendered duration satisfies ``integral_0^T a dt = len(y) / sr`` to within one sample. The frame
+centred on output sample ``o`` is analysed at content position ``tau(s) + a_s * n_fft / 2``,
+where ``s = o - n_fft / 2`` is the first output sample the frame touches (the pace is only known
+up to the sample being emitted, so it is extrapolated over the half frame); the advance per frame
+is kept within ``[0.5, 2] * a * hop`` so that a sudden change of pace never moves the content
+backwards. Because every quantity depends only on the per-sample pace sequence, the output does
+not depend on how it is split into pulls: a live sound card pulling small blocks and an offline
+render of the same ``a(t)`` give the same samples.
+
+Example::
+
+    voc = VariableRateVocoder(22050)
+    voc.push(clip)                       # content at base pace, float32 mono
+    voc.finish()
+    while not voc.done:
+        out = voc.pull(256, a=current_pace())
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+import librosa
+import numpy as np
+
+from langenv.errors import ActionError, ConfigError
+
+__all__ = ["VariableRateVocoder", "time_stretch"]
+
+#: Per-frame content advance is clamped to ``[_MIN_ADVANCE, _MAX_ADVANCE] * a * hop``.
+_MIN_ADVANCE = 0.5
+_MAX_ADVANCE = 2.0
+#: Instantaneous frequencies are kept within this many bins of their bin (Hann main lobe).
+_MAX_BIN_OFFSET = 2.0
+#: Content buffer prefix (samples) that may be dropped before it is actually trimmed.
+_TRIM_SLACK = 1 << 15
+#: Paces are rounded to multiples of 2**-_PACE_BITS so that content time is summed exactly.
+_PACE_BITS = 40
+_PACE_ONE = 1 << _PACE_BITS
+
+
+def _check_pace(a: float, name: str = "a") -> float:
+    """Return ``a`` as a float after checking that it is finite and positive."""
+    try:
+        value = float(a)
+    except (TypeError, ValueError) as exc:
+        raise ActionError(f"{name} must be a positive finite number, got {a!r}") from exc
+    if not math.isfinite(value) or value <= 0.0:
+        raise ActionError(f"{name} must be a positive finite number, got {a!r}")
+    return value
+
+
+class VariableRateVocoder:
+    """Pitch-preserving, phase-locked time-scaling at a pace that may change between pulls.
+
+    Content is appended with :meth:`push` (mono, at base pace) and the stretched audio is read
+    with :meth:`pull`, which may be called with a different pace every time; state (phases,
+    content read position, overlap-add tail) is carried between pulls, so block boundaries are
+    inaudible. The latency is about ``1.5 * n_fft`` content samples: a pull returns fewer samples
+    than asked only when the content pushed so far does not reach far enough ("starved") or at
+    the end of the content after :meth:`finish`.
+
+    Args:
+        sr: Sample rate (Hz) of content and output.
+        n_fft: Frame length (samples), even, at least 16.
+        hop: Synthesis hop (samples), in ``[1, n_fft // 2]``; ``n_fft // 4`` is the usual choice.
+        phase_lock: Lock the phases of each peak's region of influence (Laroche & Dolson); when
+            false every bin's phase is propagated on its own (classic phase vocoder).
+
+    Raises:
+        ConfigError: If an argument is out of range (the message names it).
+    """
+
+    def __init__(
+        self, sr: int, *, n_fft: int = 1024, hop: int = 256, phase_lock: bool = True
+    ) -> None:
+        if isinstance(sr, bool) or not isinstance(sr, int | np.integer) or sr <= 0:
+            raise ConfigError(f"sr must be a positive integer (Hz), got {sr!r}")
+        if (
+            isinstance(n_fft, bool)
+            or not isinstance(n_fft, int | np.integer)
+            or n_fft < 16
+            or n_fft % 2
+        ):
+            raise ConfigError(f"n_fft must be an even integer >= 16, got {n_fft!r}")
+        if (
+            isinstance(hop, bool)
+            or not isinstance(hop, int | np.integer)
+            or not 1 <= hop <= n_fft // 2
+        ):
+            raise ConfigError(
+                f"hop must be an integer in [1, n_fft // 2 = {n_fft // 2}], got {hop!r}"
+            )
+        self.sr = int(sr)
+        self.n_fft = int(n_fft)
+        self.hop = int(hop)
+        self.phase_lock = bool(phase_lock)
+
+        n = self.n_fft
+        self._half = n // 2
+        self._n_bins = n // 2 + 1
+        window = np.asarray(librosa.filters.get_window("hann", n, fftbins=True), dtype=np.float64)
+        self._window = window
+        # Time derivative of the periodic Hann window (per sample), for reassignment.
+        self._dwindow = (np.pi / n) * np.sin(2.0 * np.pi * np.arange(n) / n)
+        self._window_sq = window * window
+        # (-1)^k turns FFT phases referenced to the frame start into zero-phase (centred) ones.
+        self._center = np.where(np.arange(self._n_bins) % 2 == 0, 1.0, -1.0)
+        self._omega_bin = 2.0 * np.pi * np.arange(self._n_bins) / n
+        self._max_dw = _MAX_BIN_OFFSET * 2.0 * np.pi / n
+        self._frame_offsets = np.arange(-self._half, self._half)
+        # First frame whose span [m*hop - n/2, m*hop + n/2) reaches output sample 0.
+        m0 = -(self._half // self.hop)
+        while m0 * self.hop + self._half <= 0:
+            m0 += 1
+        self._first_frame = m0
+        self._reset_state()
+
+    # ------------------------------------------------------------------ state
+    def _reset_state(self) -> None:
+        self._buf = np.zeros(0, dtype=np.float32)  # content samples [buf_start, buf_start + len)
+        self._buf_start = 0
+        self._pushed = 0  # content samples pushed so far
+        self._finished = False
+        # Content consumed by the emitted output, exact, in units of 2**-_PACE_BITS samples.
+        self._tau = 0
+        self._out_pos = 0  # output samples emitted so far
+        self._next_frame = self._first_frame
+        self._prev_center: float | None = None  # content centre of the last synthesized frame
+        # Overlap-add accumulators for output samples [out_pos, out_pos + len).
+        self._acc = np.zeros(2 * self.n_fft, dtype=np.float64)
+        self._wsum = np.zeros(2 * self.n_fft, dtype=np.float64)
+        # Phase state of the last frame (None before the first frame).
+        # Locked: phase (rad) and frequency (rad/sample) of each peak of the last frame, and the
+        # index of the peak owning each bin; free: phase and frequency of every bin.
+        self._prev_phase: np.ndarray | None = None
+        self._prev_omega: np.ndarray | None = None
+        self._prev_region: np.ndarray | None = None
+
+    # ------------------------------------------------------------------ public API
+    @property
+    def content_time(self) -> float:
+        """Seconds of content consumed by the output emitted so far (base pace)."""
+        return min(self._tau, self._pushed << _PACE_BITS) / _PACE_ONE / self.sr
+
+    @property
+    def output_time(self) -> float:
+        """Seconds of output emitted so far."""
+        return self._out_pos / self.sr
+
+    @property
+    def finished(self) -> bool:
+        """Whether :meth:`finish` has been called."""
+        return self._finished
+
+    @property
+    def done(self) -> bool:
+        """Whether the content is finished, fully consumed and the output fully emitted."""
+        return self._finished and self._tau >= self._pushed << _PACE_BITS
+
+    def push(self, y: np.ndarray) -> None:
+        """Append content at base pace.
+
+        Args:
+            y: Mono audio, shape ``(n,)``, finite; converted to float32.
+
+        Raises:
+            ConfigError: If ``y`` is not a finite 1-D array or :meth:`finish` was called.
+        """
+        if self._finished:
+            raise ConfigError("push() called after finish(): no more content can be added (y)")
+        arr = np.asarray(y)
+        if arr.ndim != 1:
+            raise ConfigError(f"y must be mono audio of shape (n,), got shape {arr.shape}")
+        if arr.size and not np.issubdtype(arr.dtype, np.number):
+            raise ConfigError(f"y must be numeric audio, got dtype {arr.dtype}")
+        arr = arr.astype(np.float32, copy=False)
+        if not np.all(np.isfinite(arr)):
+            raise ConfigError("y must be finite (found NaN or inf samples)")
+        if arr.size:
+            self._buf = np.concatenate([self._buf, arr])
+            self._pushed += arr.size
+
+    def finish(self) -> None:
+        """Declare that no more content will be pushed (the output then ends with the content)."""
+        self._finished = True
+
+    def pull(self, n: int, a: float) -> np.ndarray:
+        """Render up to ``n`` output samples at pace ``a``.
+
+        Args:
+            n: Number of samples wanted (>= 0).
+            a: Audio pace for these samples (> 0, finite): content seconds per output second.
+
+        Returns:
+            Output audio, float32, shape ``(k,)`` with ``k <= n``; ``k < n`` only when the
+            pushed content does not reach far enough yet or the content ends.
+
+        Raises:
+            ActionError: If ``a`` is not a positive finite number.
+            ConfigError: If ``n`` is negative or not an integer.
+        """
+        a = _check_pace(a)
+        if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 0:
+            raise ConfigError(f"n must be a non-negative integer, got {n!r}")
+        n = int(n)
+        a_q = max(1, round(a * _PACE_ONE))  # pace on an exact binary grid
+        a = a_q / _PACE_ONE
+        if self._finished:
+            remaining = (self._pushed << _PACE_BITS) - self._tau
+            if remaining <= 0:
+                return np.zeros(0, dtype=np.float32)
+            n = min(n, -(-remaining // a_q))
+        if n == 0:
+            return np.zeros(0, dtype=np.float32)
+        k = self._synthesize_until(self._out_pos + n, a, a_q) - self._out_pos
+        if k <= 0:
+            return np.zeros(0, dtype=np.float32)
+        wsum = self._wsum[:k]
+        out = np.divide(
+            self._acc[:k], wsum, out=np.zeros(k, dtype=np.float64), where=wsum > 1e-12
+        ).astype(np.float32)
+        self._acc = self._acc[k:]
+        self._wsum = self._wsum[k:]
+        self._out_pos += k
+        self._tau += a_q * k
+        self._trim_content()
+        return out
+
+    # ------------------------------------------------------------------ internals
+    def _synthesize_until(self, end: int, a: float, a_q: int) -> int:
+        """Synthesize every frame starting before output sample ``end`` that the content allows.
+
+        Returns:
+            The output sample up to which (exclusive) the output is complete.
+        """
+        hop, half = self.hop, self._half
+        centres: list[int] = []
+        m = self._next_frame
+        prev_c = self._prev_center
+        ready = end
+        while m * hop - half < end:
+            start = m * hop - half
+            target = (self._tau + a_q * (start - self._out_pos + half)) / _PACE_ONE
+            if prev_c is None:
+                c = target
+            else:
+                c = min(
+                    max(target, prev_c + _MIN_ADVANCE * a * hop), prev_c + _MAX_ADVANCE * a * hop
+                )
+            p = math.floor(c + 0.5)
+            if not self._finished and p + half > self._pushed:
+                ready = max(start, self._out_pos)
+                break
+            centres.append(p)
+            prev_c = c
+            m += 1
+        if centres:
+            self._render_frames(np.asarray(centres, dtype=np.int64), self._next_frame)
+            self._next_frame = m
+            self._prev_center = prev_c
+        return ready
+
+    def _gather(self, centres: np.ndarray) -> np.ndarray:
+        """Content segments ``[p - n/2, p + n/2)`` for each centre ``p``, zeros outside; (F, n)."""
+        n, buf = self.n_fft, self._buf
+        seg = np.zeros((centres.size, n), dtype=np.float64)
+        for i, p in enumerate(centres.tolist()):
+            lo = p - self._half - self._buf_start
+            if lo >= 0 and lo + n <= buf.size:
+                seg[i] = buf[lo : lo + n]
+            else:  # reaches before the start or past the end of the content: zeros there
+                a, b = max(lo, 0), min(lo + n, buf.size)
+                if b > a:
+                    seg[i, a - lo : b - lo] = buf[a:b]
+        return seg
+
+    def _render_frames(self, centres: np.ndarray, first_frame: int) -> None:
+        """Analyse at ``centres`` (content samples), propagate phases, overlap-add the frames.
+
+        Args:
+            centres: Content sample at the centre of each frame's analysis window, shape (F,).
+            first_frame: Index ``m`` of the first frame (centred on output sample ``m * hop``).
+        """
+        n, hop, half = self.n_fft, self.hop, self._half
+        n_frames = centres.size
+        seg = self._gather(centres)
+        spec = np.fft.rfft(np.concatenate([seg * self._window, seg * self._dwindow]), axis=1)
+        spec *= self._center  # zero-phase: phases refer to the frame centre
+        x_h = spec[:n_frames]
+        x_dh = spec[n_frames:]
+        if self.phase_lock:
+            z = self._lock_phases(x_h, x_dh)
+        else:
+            z = self._free_phases(x_h, x_dh)
+        frames = np.fft.irfft(z * self._center, n=n, axis=1)
+        frames *= self._window
+
+        # Overlap-add: frame m covers output samples [m*hop - n/2, m*hop + n/2).
+        first_start = first_frame * hop - half - self._out_pos
+        last_end = first_start + (n_frames - 1) * hop + n
+        if last_end > self._acc.size:
+            grow = last_end - self._acc.size + 4 * n
+            self._acc = np.concatenate([self._acc, np.zeros(grow)])
+            self._wsum = np.concatenate([self._wsum, np.zeros(grow)])
+        for i in range(n_frames):
+            lo = first_start + i * hop
+            if lo >= 0:
+                self._acc[lo : lo + n] += frames[i]
+                self._wsum[lo : lo + n] += self._window_sq
+            else:  # pre-roll frame reaching back before output sample 0
+                self._acc[: lo + n] += frames[i, -lo:]
+                self._wsum[: lo + n] += self._window_sq[-lo:]
+
+    def _inst_freq(self, x_h: np.ndarray, x_dh: np.ndarray, bins: np.ndarray) -> np.ndarray:
+        """Reassigned instantaneous frequency ``omega_k - Im(X_dh / X_h)`` (rad/sample).
+
+        Args:
+            x_h: Hann-windowed spectrum values, any shape.
+            x_dh: Derivative-window spectrum values, same shape.
+            bins: Bin index of each value (broadcastable to the same shape).
+
+        Returns:
+            Frequencies, same shape, kept within ``_MAX_BIN_OFFSET`` bins of each bin.
+        """
+        power = x_h.real * x_h.real + x_h.imag * x_h.imag
+        cross = x_dh.imag * x_h.real - x_dh.real * x_h.imag  # Im(X_dh * conj(X_h))
+        offset = cross / np.maximum(power, 1e-30)
+        return self._omega_bin[bins] - np.clip(offset, -self._max_dw, self._max_dw)
+
+    def _free_phases(self, x_h: np.ndarray, x_dh: np.ndarray) -> np.ndarray:
+        """Classic phase vocoder: every bin advances by ``hop`` times its mean frequency.
+
+        Args:
+            x_h: Hann-windowed zero-phase spectra, shape (F, K).
+            x_dh: Derivative-window spectra, shape (F, K).
+
+        Returns:
+            Synthesis spectra, shape (F, K).
+        """
+        omega = self._inst_freq(x_h, x_dh, np.arange(self._n_bins))
+        steps = np.empty_like(omega)
+        if self._prev_phase is None or self._prev_omega is None:
+            steps[0] = np.angle(x_h[0])
+        else:
+            steps[0] = self._prev_phase + 0.5 * self.hop * (self._prev_omega + omega[0])
+        steps[1:] = 0.5 * self.hop * (omega[1:] + omega[:-1])
+        phase_s = np.mod(np.cumsum(steps, axis=0) + np.pi, 2.0 * np.pi) - np.pi
+        self._prev_phase = phase_s[-1].copy()
+        self._prev_omega = omega[-1].copy()
+        return np.abs(x_h) * np.exp(1j * phase_s)
+
+    def _lock_phases(self, x_h: np.ndarray, x_dh: np.ndarray) -> np.ndarray:
+        """Phase-locked synthesis spectra (Laroche & Dolson 1999) for a batch of frames.
+
+        The peaks (bins larger than their two neighbours on each side) get the phase of the
+        previous frame's peak whose region contained them, advanced by ``hop`` times the mean
+        instantaneous frequency of the two; each region of influence (bins nearest to a peak)
+        is rotated by its peak's phase rotation, which keeps the analysed phase offsets to the
+        peak (identity locking). A frame without peaks (silence) keeps its analysed phases.
+
+        Args:
+            x_h: Hann-windowed zero-phase spectra, shape (F, K).
+            x_dh: Derivative-window spectra, shape (F, K).
+
+        Returns:
+            Synthesis spectra, shape (F, K): each bin of ``x_h`` times a unit rotation.
+        """
+        n_frames, n_bins = x_h.shape
+        power = x_h.real * x_h.real + x_h.imag * x_h.imag
+        mid = power[:, 2:-2]
+        is_peak = np.zeros((n_frames, n_bins), dtype=bool)
+        is_peak[:, 2:-2] = (
+            (mid > power[:, 1:-3])
+            & (mid > power[:, :-4])
+            & (mid >= power[:, 3:-1])
+            & (mid >= power[:, 4:])
+        )
+        rows, cols = np.nonzero(is_peak)  # peaks in frame order, then bin order
+        n_peaks = rows.size
+        per_row = np.bincount(rows, minlength=n_frames)
+        row_first = np.cumsum(per_row) - per_row  # index of each frame's first peak
+        # Region of influence of each bin: index of the nearest peak in its frame (boundaries
+        # half-way between neighbouring peaks), as runs over the flattened (F, K) array.
+        starts = rows * n_bins
+        if n_peaks > 1:
+            same = rows[1:] == rows[:-1]
+            starts[1:] += np.where(same, (cols[:-1] + cols[1:] + 1) // 2, 0)
+        if n_peaks:
+            starts[0] = 0
+            lengths = np.diff(starts, append=n_frames * n_bins)
+            region = np.repeat(np.arange(n_peaks), lengths).reshape(n_frames, n_bins)
+            region[per_row == 0] = n_peaks  # silent frame: the sentinel (no rotation)
+        else:
+            region = np.zeros((n_frames, n_bins), dtype=np.int64)  # all silent: the sentinel
+
+        omega = self._inst_freq(x_h[rows, cols], x_dh[rows, cols], cols)
+        phase_a = np.angle(x_h[rows, cols])
+
+        # Extended arrays: the previous batch's last frame's peaks, this batch's peaks, and a
+        # sentinel (the region index of silent frames points at it; its value is never used).
+        prev_phase, prev_omega, prev_region = self._prev_phase, self._prev_omega, self._prev_region
+        if prev_phase is None or prev_omega is None or prev_region is None:
+            prev_phase = prev_omega = prev_region = None
+            n_prev = 0
+        else:
+            n_prev = prev_phase.size
+        zero = np.zeros(1)
+        ext_phase = np.concatenate([zero[:0] if prev_phase is None else prev_phase, phase_a, zero])
+        ext_omega = np.concatenate([zero[:0] if prev_omega is None else prev_omega, omega, zero])
+        # Source peak (previous frame's peak whose region holds the bin) of every peak.
+        src = np.zeros(n_peaks, dtype=np.int64)
+        linked = np.zeros(n_frames, dtype=bool)
+        later = rows > 0
+        src[later] = region[rows[later] - 1, cols[later]] + n_prev
+        linked[1:] = per_row[:-1] > 0
+        if prev_region is not None:
+            first = rows == 0
+            src[first] = prev_region[cols[first]]
+            linked[0] = True
+        increment = 0.5 * self.hop * (ext_omega[src] + omega)
+        for i in np.flatnonzero(linked & (per_row > 0)).tolist():
+            lo, hi = int(row_first[i]), int(row_first[i] + per_row[i])
+            ext_phase[n_prev + lo : n_prev + hi] = ext_phase[src[lo:hi]] + increment[lo:hi]
+        phase_s = ext_phase[n_prev:-1]
+
+        rotation = np.ones(n_peaks + 1, dtype=np.complex128)
+        rotation[:n_peaks] = np.exp(1j * (phase_s - phase_a))
+        z = x_h * rotation[region]
+
+        if per_row[-1] > 0:
+            lo = int(row_first[-1])
+            self._prev_phase = np.mod(phase_s[lo:] + np.pi, 2.0 * np.pi) - np.pi
+            self._prev_omega = omega[lo:].copy()
+            self._prev_region = region[-1] - lo
+        else:
+            self._prev_phase = self._prev_omega = self._prev_region = None
+        return z
+
+    def _trim_content(self) -> None:
+        """Drop content that no future frame can read (amortised)."""
+        if self._prev_center is None:
+            return
+        keep_from = math.floor(self._prev_center) - self._half - 2
+        drop = keep_from - self._buf_start
+        if drop > _TRIM_SLACK and drop > self._buf.size // 2:
+            drop = min(drop, self._buf.size)
+            self._buf = self._buf[drop:].copy()
+            self._buf_start += drop
+
+
+def time_stretch(
+    y: np.ndarray,
+    sr: int,
+    t: np.ndarray,
+    a: np.ndarray,
+    *,
+    n_fft: int = 1024,
+    hop: int = 256,
+    phase_lock: bool = True,
+    block: int = 512,
+    interp: Literal["linear", "previous"] = "linear",
+) -> np.ndarray:
+    """Render ``y`` at a time-varying pace ``a(t)`` offline (push all, finish, pull in blocks).
+
+    The pace is a function of output time: ``interp="linear"`` interpolates the samples
+    ``(t, a)`` linearly and evaluates them at the middle of each block of ``block`` output
+    samples; ``interp="previous"`` holds each value from output sample ``round(t[i] * sr)`` until
+    the next one (blocks are split there, so a trace recorded from live pulls is reproduced
+    sample for sample). Outside ``[t[0], t[-1]]`` the end values are held. The output lasts
+    ``T`` with ``integral_0^T a(t) dt = len(y) / sr`` (to one sample).
+
+    Args:
+        y: Mono content, shape ``(n,)``.
+        sr: Sample rate (Hz).
+        t: Times of the pace samples (s), shape ``(m,)``, strictly increasing, ``m >= 1``.
+        a: Pace at those times, shape ``(m,)``, each positive and finite.
+        n_fft: Frame length (samples), see :class:`VariableRateVocoder`.
+        hop: Synthesis hop (samples).
+        phase_lock: Use phase locking.
+        block: Output samples per pull (> 0).
+        interp: ``"linear"`` or ``"previous"`` (sample and hold).
+
+    Returns:
+        The stretched audio, float32, shape ``(T * sr,)``.
+
+    Raises:
+        ActionError: If a value of ``a`` is not positive and finite.
+        ConfigError: If ``t``/``a`` shapes or ``t`` ordering, ``block`` or ``interp`` are invalid.
+    """
+    t_arr = np.atleast_1d(np.asarray(t, dtype=np.float64))
+    a_arr = np.atleast_1d(np.asarray(a, dtype=np.float64))
+    if t_arr.ndim != 1 or a_arr.ndim != 1:
+        raise ConfigError("t and a must be 1-D arrays of pace samples (s, pace)")
+    if a_arr.size == 0:
+        raise ActionError("a must contain at least one pace value")
+    if t_arr.shape != a_arr.shape:
+        raise ConfigError(f"t and a must have the same shape, got {t_arr.shape} and {a_arr.shape}")
+    if not np.all(np.isfinite(a_arr)) or np.any(a_arr <= 0.0):
+        raise ActionError("a must contain only positive finite pace values")
+    if not np.all(np.isfinite(t_arr)) or np.any(np.diff(t_arr) <= 0.0):
+        raise ConfigError("t must be finite and strictly increasing (s)")
+    if isinstance(block, bool) or not isinstance(block, int | np.integer) or block <= 0:
+        raise ConfigError(f"block must be a positive integer (samples), got {block!r}")
+    if interp not in ("linear", "previous"):
+        raise ConfigError(f"interp must be 'linear' or 'previous', got {interp!r}")
+
+    voc = VariableRateVocoder(sr, n_fft=n_fft, hop=hop, phase_lock=phase_lock)
+    voc.push(np.asarray(y))
+    voc.finish()
+    breaks = np.rint(t_arr * sr).astype(np.int64)
+    chunks: list[np.ndarray] = []
+    pos = 0
+    while not voc.done:
+        if interp == "previous":
+            i = int(np.searchsorted(breaks, pos, side="right")) - 1
+            pace = float(a_arr[max(i, 0)])
+            size = block
+            if i + 1 < breaks.size:
+                size = min(size, int(breaks[i + 1]) - pos)
+        else:
+            size = block
+            pace = float(np.interp((pos + 0.5 * size) / sr, t_arr, a_arr))
+        chunk = voc.pull(size, pace)
+        if chunk.size == 0:  # cannot happen once finished; guards against an endless loop
+            break
+        chunks.append(chunk)
+        pos += chunk.size
+    return np.concatenate(chunks) if chunks else np.zeros(0, dtype=np.float32)

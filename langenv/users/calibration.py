@@ -1,0 +1,616 @@
+"""Calibration of the synthetic users against the study's recorded sessions.
+
+Run ``python -m langenv.users.calibration [SESSIONS_DIR]`` to repeat the procedure and print the
+fitted parameters and the comparison of recorded and synthetic cooperation quantiles. The
+procedure:
+
+1. Invert every recorded cooperation trace to its post-deadband force ``|F~|(t)``
+   (:func:`~langenv.users.replay.invert_cooperation`, the SPEC §3 inversion).
+2. Cut each force profile into resistance episodes (:func:`extract_episodes`): runs where
+   ``|F~| > on_threshold``, merged across short lulls, dropping blips. For each episode: onset,
+   duration, ramp-up and ramp-down times (to and from 80 % of its peak, scaled to a full linear
+   ramp) and plateau magnitude (mean force between the ramps); and the log-deviation of the
+   plateau force from its mean (the noise).
+3. Fit (:func:`fit_params`): the probability that a session opens inside an episode; log-normal
+   distributions (maximum likelihood) for the first onset, the gaps between episodes, durations
+   and ramps (episodes cut by the start or end of a recording are left out of the duration and
+   ramp fits); the magnitudes as a one-way random-effects model on the log scale (within-session
+   spread ``magnitude.sigma``, between-session spread ``session_sigma``); the noise's standard
+   deviation and its correlation time (lag where the autocorrelation falls below 1/e).
+4. Check (:func:`compare_quantiles`): simulate many synthetic sessions in closed loop with the
+   1-D along-path admittance model (:func:`simulate_loop`; resistance lengthens sessions, which
+   matters for the pooled statistics) and compare the pooled 10/50/90 % quantiles of the
+   cooperation with the recorded ones.
+
+:data:`CALIBRATED_PARAMS` holds the result of this procedure on the study's 24 sessions (values
+rounded to 3 significant digits); :meth:`SyntheticUserParams.calibrated` returns it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+
+from langenv.errors import ConfigError
+from langenv.users.base import DEFAULT_ALPHA, DEFAULT_DEADBAND, DEFAULT_F_MAX
+from langenv.users.replay import invert_cooperation
+from langenv.users.session_csv import Session, load_sessions
+from langenv.users.synthetic import LogNormal, SyntheticUser, SyntheticUserParams
+
+__all__ = [
+    "CALIBRATED_PARAMS",
+    "QUANTILES",
+    "EpisodeStats",
+    "LoopParams",
+    "LoopResult",
+    "QuantileComparison",
+    "compare_quantiles",
+    "extract_episodes",
+    "fit_params",
+    "main",
+    "recorded_quantiles",
+    "simulate_loop",
+    "synthetic_users",
+]
+
+QUANTILES: tuple[float, ...] = (0.1, 0.5, 0.9)
+"""Quantile levels compared between recorded and synthetic cooperation."""
+
+# Fitted by `python -m langenv.users.calibration` on ../shared/sessions (24 sessions).
+CALIBRATED_PARAMS = SyntheticUserParams(
+    p_start_resisting=0.375,
+    first_onset=LogNormal(median=0.934, sigma=0.342),
+    gap=LogNormal(median=1.39, sigma=0.876),
+    duration=LogNormal(median=2.38, sigma=1.12),
+    rise=LogNormal(median=0.446, sigma=1.16),
+    fall=LogNormal(median=0.537, sigma=1.22),
+    magnitude=LogNormal(median=5.67, sigma=0.569),
+    session_sigma=0.277,
+    noise_std=0.725,
+    noise_tau=0.19,
+)
+
+
+# --------------------------------------------------------------------------------------------
+# Episode extraction
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class EpisodeStats:
+    """One resistance episode found in a recorded force profile.
+
+    Attributes:
+        session: Name of the session.
+        onset: Start (s) where the force rises above the threshold (0 if under way at the start).
+        duration: Length (s).
+        rise: Ramp-up time (s) of the equivalent linear ramp.
+        fall: Ramp-down time (s).
+        magnitude: Plateau force above the deadband (N).
+        left_censored: Under way when the recording starts.
+        right_censored: Still under way when the recording ends.
+        log_residual: Log-deviations of the plateau force from ``magnitude``, sampled every
+            ``step`` seconds (for the noise fit).
+    """
+
+    session: str
+    onset: float
+    duration: float
+    rise: float
+    fall: float
+    magnitude: float
+    left_censored: bool
+    right_censored: bool
+    log_residual: np.ndarray = field(repr=False)
+
+    @property
+    def end(self) -> float:
+        """Release time (s)."""
+        return self.onset + self.duration
+
+
+def extract_episodes(
+    session: Session,
+    *,
+    step: float = 0.01,
+    on_threshold: float = 0.3,
+    merge_gap: float = 0.3,
+    min_duration: float = 0.2,
+    min_peak: float = 1.0,
+    ramp_level: float = 0.8,
+    alpha: float = DEFAULT_ALPHA,
+    f_max: float = DEFAULT_F_MAX,
+) -> list[EpisodeStats]:
+    """Invert a session's cooperation and cut the force profile into resistance episodes.
+
+    Args:
+        session: The recorded session.
+        step: Grid step (s) of the inverted force.
+        on_threshold: Post-deadband force (N) above which the person is resisting.
+        merge_gap: Lulls shorter than this (s) do not split an episode.
+        min_duration: Shorter runs (s) are dropped.
+        min_peak: Runs whose peak force (N) is lower are dropped.
+        ramp_level: Fraction of the peak that ends the ramp-up and starts the ramp-down.
+        alpha: Cooperation filter decay factor (per second).
+        f_max: Cooperation filter force scale (N).
+
+    Returns:
+        The episodes, in time order.
+    """
+    grid, f = invert_cooperation(session.t, session.cooperation, alpha=alpha, f_max=f_max, dt=step)
+    active = f > on_threshold
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], active.astype(np.int8), [0]])))
+    runs = [[int(a), int(b)] for a, b in zip(edges[::2], edges[1::2], strict=True)]
+    merged: list[list[int]] = []
+    for run in runs:
+        if merged and (run[0] - merged[-1][1]) * step < merge_gap:
+            merged[-1][1] = run[1]
+        else:
+            merged.append(run)
+    t_start = session.t[0]
+    episodes: list[EpisodeStats] = []
+    for lo, hi in merged:
+        seg = f[lo:hi]
+        peak = float(np.quantile(seg, 0.95))
+        duration = (hi - lo) * step
+        if duration < min_duration or peak < min_peak:
+            continue
+        above = np.flatnonzero(seg >= ramp_level * peak)
+        first, last = int(above[0]), int(above[-1])
+        rise = (first + 1) * step / ramp_level
+        fall = (hi - lo - last) * step / ramp_level
+        plateau = seg[first : last + 1]
+        plateau = plateau[plateau > 0.0]
+        magnitude = float(plateau.mean())
+        episodes.append(
+            EpisodeStats(
+                session=session.name,
+                onset=float(grid[lo]),
+                duration=duration,
+                rise=min(rise, duration),
+                fall=min(fall, duration),
+                magnitude=magnitude,
+                left_censored=bool(grid[lo] <= t_start + step),
+                right_censored=hi >= len(f) - 1,
+                log_residual=np.log(plateau / magnitude),
+            )
+        )
+    return episodes
+
+
+def _correlation_time(series: Sequence[np.ndarray], step: float, max_lag: float = 5.0) -> float:
+    """Lag (s) where the pooled autocorrelation of the zero-mean ``series`` first drops below 1/e."""
+    max_k = int(max_lag / step)
+    num = np.zeros(max_k + 1)
+    den = np.zeros(max_k + 1)
+    for x in series:
+        x = x - x.mean()
+        var = float(np.dot(x, x)) / max(len(x), 1)
+        for k in range(min(max_k + 1, len(x))):
+            num[k] += float(np.dot(x[: len(x) - k], x[k:]))
+            den[k] += (len(x) - k) * var
+    acf = np.divide(num, den, out=np.zeros_like(num), where=den > 0)
+    below = np.flatnonzero(acf < math.exp(-1.0))
+    k = int(below[0]) if below.size else max_k
+    return max(k * step, step)
+
+
+def fit_params(
+    sessions: Sequence[Session], *, step: float = 0.01, **extract_kwargs: float
+) -> tuple[SyntheticUserParams, list[EpisodeStats]]:
+    """Fit :class:`SyntheticUserParams` to recorded sessions (procedure in the module docstring).
+
+    Args:
+        sessions: The recorded sessions.
+        step: Grid step (s) of the inverted force profiles.
+        **extract_kwargs: Passed to :func:`extract_episodes`.
+
+    Returns:
+        The fitted parameters and all the episodes found.
+
+    Raises:
+        ConfigError: if the sessions hold too few episodes to fit (fewer than 2 of a kind).
+    """
+    per_session = [extract_episodes(s, step=step, **extract_kwargs) for s in sessions]
+    episodes = [e for eps in per_session for e in eps]
+    if len(episodes) < 2:
+        raise ConfigError(f"fit_params: found {len(episodes)} resistance episodes, need >= 2")
+    starts_resisting = [bool(eps) and eps[0].left_censored for eps in per_session]
+    first = [eps[0].onset for eps in per_session if eps and not eps[0].left_censored]
+    gaps = [b.onset - a.end for eps in per_session for a, b in zip(eps, eps[1:], strict=False)]
+    cut = np.array([e.left_censored or e.right_censored for e in episodes])
+    logs = [np.log([e.magnitude for e in eps]) for eps in per_session if eps]
+    grand = float(np.concatenate(logs).mean())
+    n_eps = np.array([len(x) for x in logs], dtype=np.float64)
+    within = np.concatenate([x - x.mean() for x in logs])
+    dof = max(len(within) - len(logs), 1)
+    var_w = float(np.dot(within, within)) / dof
+    means = np.array([x.mean() for x in logs])
+    var_b = float(means.var(ddof=1)) - var_w * float(np.mean(1.0 / n_eps)) if len(logs) > 1 else 0.0
+    residuals = [e.log_residual for e in episodes if e.log_residual.size >= 10]
+    noise_std = float(np.concatenate(residuals).std()) if residuals else 0.0
+    params = SyntheticUserParams(
+        p_start_resisting=float(np.mean(starts_resisting)),
+        first_onset=LogNormal.fit(np.asarray(first)),
+        gap=LogNormal.fit(np.asarray(gaps)),
+        duration=LogNormal.fit(np.array([e.duration for e in episodes]), censored=cut),
+        rise=LogNormal.fit(
+            np.array([e.rise for e in episodes]),
+            censored=np.array([e.left_censored for e in episodes]),
+        ),
+        fall=LogNormal.fit(
+            np.array([e.fall for e in episodes]),
+            censored=np.array([e.right_censored for e in episodes]),
+        ),
+        magnitude=LogNormal(median=math.exp(grand), sigma=math.sqrt(var_w)),
+        session_sigma=math.sqrt(max(var_b, 0.0)),
+        noise_std=noise_std,
+        noise_tau=_correlation_time(residuals, step) if residuals else 0.1,
+    )
+    return params, episodes
+
+
+def round_params(params: SyntheticUserParams, digits: int = 3) -> SyntheticUserParams:
+    """``params`` with every float rounded to ``digits`` significant digits."""
+
+    def r(x: float) -> float:
+        return float(f"{x:.{digits}g}")
+
+    def rl(d: LogNormal) -> LogNormal:
+        return LogNormal(median=r(d.median), sigma=r(d.sigma))
+
+    return SyntheticUserParams(
+        count_pmf=None
+        if params.count_pmf is None
+        else tuple(round(x, digits) for x in params.count_pmf),
+        p_start_resisting=r(params.p_start_resisting),
+        first_onset=rl(params.first_onset),
+        gap=rl(params.gap),
+        duration=rl(params.duration),
+        rise=rl(params.rise),
+        fall=rl(params.fall),
+        magnitude=rl(params.magnitude),
+        session_sigma=r(params.session_sigma),
+        noise_std=r(params.noise_std),
+        noise_tau=r(params.noise_tau),
+        max_excess=params.max_excess,
+        deadband=params.deadband,
+        horizon=params.horizon,
+        resolution=params.resolution,
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# 1-D closed loop
+# --------------------------------------------------------------------------------------------
+
+
+class _MagnitudeSource(Protocol):
+    def magnitude_array(self, t: np.ndarray) -> np.ndarray: ...
+
+
+@dataclass(frozen=True)
+class LoopParams:
+    """The 1-D along-path model of the guided exercise (SPEC §2 defaults).
+
+    ``M0 dv/dt = F_prop * taper - D0 v - |F_user|`` along the path (p = 1), plus the guide spring
+    ``K`` pulling back to the segment's end when past it (and to its start when pushed back
+    before it). The propelling force tapers linearly to 0 over the last ``brake_distance``
+    before each stop; a stop is reached when within ``stop_tol_pos`` of it at a speed below
+    ``stop_tol_vel``; then the next segment starts. The cooperation filter runs on the
+    deadbanded user force.
+
+    Attributes:
+        segment_lengths: Arc lengths (m) of the segments, each ending with a stop.
+        mass: M0 (kg). damping: D0 (N s/m). stiffness: K (N/m). propel_force: F_prop (N).
+        brake_distance: Taper length (m). stop_tol_pos: (m). stop_tol_vel: (m/s).
+        alpha: Cooperation decay factor (1/s). f_max: (N). deadband: Sensor deadband (N).
+        dt: Control period (s). max_time: Sessions are cut at this time (s).
+    """
+
+    segment_lengths: tuple[float, ...] = (0.257, 0.252, 0.257)
+    mass: float = 40.0
+    damping: float = 80.0
+    stiffness: float = 120.0
+    propel_force: float = 10.0
+    brake_distance: float = 0.15
+    stop_tol_pos: float = 0.005
+    stop_tol_vel: float = 0.01
+    alpha: float = DEFAULT_ALPHA
+    f_max: float = DEFAULT_F_MAX
+    deadband: float = DEFAULT_DEADBAND
+    dt: float = 0.002
+    max_time: float = 90.0
+    measured_force_drives_motion: bool = True
+
+    def __post_init__(self) -> None:
+        if not self.segment_lengths or any(
+            not (math.isfinite(x) and x > 0.0) for x in self.segment_lengths
+        ):
+            raise ConfigError(
+                f"LoopParams.segment_lengths must be > 0, got {self.segment_lengths!r}"
+            )
+        for name in ("mass", "damping", "propel_force", "brake_distance", "stop_tol_pos"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise ConfigError(f"LoopParams.{name} must be finite and > 0, got {value!r}")
+        for name in ("stiffness", "stop_tol_vel", "f_max", "dt", "max_time"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise ConfigError(f"LoopParams.{name} must be finite and > 0, got {value!r}")
+        if not (0.0 < self.alpha < 1.0):
+            raise ConfigError(f"LoopParams.alpha must lie in (0, 1), got {self.alpha!r}")
+        if not (math.isfinite(self.deadband) and self.deadband >= 0.0):
+            raise ConfigError(f"LoopParams.deadband must be finite and >= 0, got {self.deadband!r}")
+
+
+@dataclass(frozen=True)
+class LoopResult:
+    """Outcome of :func:`simulate_loop` for n sessions.
+
+    Attributes:
+        completion: Time (s) each session's motion ended (n,); ``max_time`` if it did not.
+        finished: Whether it ended before ``max_time`` (n,).
+        sample_times: Times (k,), s, at which ``cooperation`` was sampled.
+        cooperation: Cooperation (n, k) at ``sample_times``; NaN after the session ended.
+    """
+
+    completion: np.ndarray
+    finished: np.ndarray
+    sample_times: np.ndarray
+    cooperation: np.ndarray
+
+    def pooled(self) -> np.ndarray:
+        """All cooperation samples taken while a session was running (flattened)."""
+        c = self.cooperation
+        return c[np.isfinite(c)]
+
+
+def simulate_loop(
+    users: Sequence[_MagnitudeSource],
+    params: LoopParams | None = None,
+    *,
+    sample_dt: float = 0.02,
+    chunk: int = 500,
+) -> LoopResult:
+    """Run the 1-D closed loop (:class:`LoopParams`) for each user, all sessions at once.
+
+    Args:
+        users: Objects with ``magnitude_array(t) -> |F|`` (N), e.g. reset
+            :class:`~langenv.users.synthetic.SyntheticUser` or
+            :class:`~langenv.users.replay.ReplayUser`.
+        params: The model; defaults to :class:`LoopParams`'s defaults.
+        sample_dt: Cooperation sampling period (s), a multiple of ``params.dt``.
+        chunk: Control steps per batch of user-force evaluations.
+
+    Returns:
+        The :class:`LoopResult`.
+    """
+    p = params or LoopParams()
+    n = len(users)
+    if n == 0:
+        raise ConfigError("simulate_loop: users must not be empty")
+    every = round(sample_dt / p.dt)
+    if every < 1 or not math.isclose(every * p.dt, sample_dt, rel_tol=1e-6):
+        raise ConfigError(f"simulate_loop: sample_dt ({sample_dt}) must be a multiple of dt")
+    stops = np.cumsum(p.segment_lengths)
+    starts = np.concatenate([[0.0], stops[:-1]])
+    n_seg = len(stops)
+    beta = p.alpha**p.dt
+    n_steps = math.ceil(p.max_time / p.dt)
+    s = np.zeros(n)
+    v = np.zeros(n)
+    seg = np.zeros(n, dtype=np.int64)
+    done = np.zeros(n, dtype=bool)
+    r = np.zeros(n)
+    completion = np.full(n, p.max_time)
+    samples: list[np.ndarray] = []
+    for k0 in range(0, n_steps, chunk):
+        times = (k0 + np.arange(min(chunk, n_steps - k0))) * p.dt
+        forces = np.stack([u.magnitude_array(times) for u in users])
+        for j, t in enumerate(times):
+            k = k0 + j
+            f_user = forces[:, j]
+            if k % every == 0:
+                samples.append(np.where(done, np.nan, 1.0 - r))
+            seg_c = np.minimum(seg, n_seg - 1)
+            stop = stops[seg_c]
+            start = starts[seg_c]
+            to_go = stop - s
+            f_prop = np.where(
+                to_go >= 0.0,
+                p.propel_force * np.minimum(1.0, to_go / p.brake_distance),
+                p.stiffness * to_go,
+            )
+            f_prop += np.where(s < start, p.stiffness * (start - s), 0.0)
+            f_meas = np.maximum(f_user - p.deadband, 0.0)
+            f_resist = f_meas if p.measured_force_drives_motion else f_user
+            acc = (f_prop - f_resist - p.damping * v) / p.mass
+            v = np.where(done, 0.0, v + acc * p.dt)
+            s = s + v * p.dt
+            reached = (
+                ~done & (np.abs(stops[seg_c] - s) < p.stop_tol_pos) & (np.abs(v) < p.stop_tol_vel)
+            )
+            if reached.any():
+                seg = seg + reached
+                newly = reached & (seg >= n_seg)
+                completion[newly] = t + p.dt
+                done |= newly
+            r = beta * r + (1.0 - beta) * np.minimum(f_meas, p.f_max) / p.f_max
+            if done.all():
+                break
+        if done.all():
+            break
+    coop = np.stack(samples, axis=1)
+    sample_times = np.arange(coop.shape[1]) * (every * p.dt)
+    return LoopResult(
+        completion=completion,
+        finished=done.copy(),
+        sample_times=sample_times,
+        cooperation=coop,
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Comparison
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class QuantileComparison:
+    """Recorded vs synthetic pooled cooperation quantiles.
+
+    Attributes:
+        levels: Quantile levels (q,).
+        recorded: Quantiles of all recorded samples (q,).
+        synthetic: Quantiles of all synthetic samples (q,).
+        recorded_durations: Session lengths (s) of the recordings.
+        synthetic_durations: Completion times (s) of the synthetic sessions.
+        synthetic_episode_counts: Episodes begun before each synthetic session ended.
+    """
+
+    levels: tuple[float, ...]
+    recorded: np.ndarray
+    synthetic: np.ndarray
+    recorded_durations: np.ndarray
+    synthetic_durations: np.ndarray
+    synthetic_episode_counts: np.ndarray
+
+    @property
+    def max_abs_difference(self) -> float:
+        """Largest ``|recorded - synthetic|`` over the levels."""
+        return float(np.max(np.abs(self.recorded - self.synthetic)))
+
+
+def recorded_quantiles(
+    sessions: Sequence[Session], levels: Sequence[float] = QUANTILES
+) -> np.ndarray:
+    """Quantiles (q,) of the cooperation samples of all ``sessions`` pooled."""
+    pooled = np.concatenate([s.cooperation for s in sessions])
+    return np.quantile(pooled, list(levels))
+
+
+def synthetic_users(
+    n: int, rng: np.random.Generator, params: SyntheticUserParams | None = None
+) -> list[SyntheticUser]:
+    """``n`` synthetic users, each reset from ``rng`` in turn."""
+    users = []
+    for _ in range(n):
+        user = SyntheticUser(params)
+        user.reset(rng)
+        users.append(user)
+    return users
+
+
+def compare_quantiles(
+    sessions: Sequence[Session],
+    params: SyntheticUserParams | None = None,
+    *,
+    n_sessions: int = 200,
+    seed: int = 0,
+    loop: LoopParams | None = None,
+    levels: Sequence[float] = QUANTILES,
+) -> QuantileComparison:
+    """Simulate ``n_sessions`` synthetic sessions in closed loop and compare quantiles.
+
+    Args:
+        sessions: The recorded sessions.
+        params: Synthetic user parameters (``None``: :data:`CALIBRATED_PARAMS`).
+        n_sessions: Number of synthetic sessions.
+        seed: Seed of the generator the users are drawn from.
+        loop: The 1-D closed-loop model.
+        levels: Quantile levels.
+    """
+    rng = np.random.default_rng(seed)
+    users = synthetic_users(n_sessions, rng, params or CALIBRATED_PARAMS)
+    result = simulate_loop(users, loop)
+    realised = [
+        sum(e.onset < end for e in u.episodes)
+        for u, end in zip(users, result.completion, strict=True)
+    ]
+    return QuantileComparison(
+        levels=tuple(levels),
+        recorded=recorded_quantiles(sessions, levels),
+        synthetic=np.quantile(result.pooled(), list(levels)),
+        recorded_durations=np.array([s.t[-1] for s in sessions]),
+        synthetic_durations=result.completion,
+        synthetic_episode_counts=np.asarray(realised, dtype=np.int64),
+    )
+
+
+def _format_params(params: SyntheticUserParams) -> str:
+    lines = ["CALIBRATED_PARAMS = SyntheticUserParams("]
+    for name in (
+        "p_start_resisting",
+        "first_onset",
+        "gap",
+        "duration",
+        "rise",
+        "fall",
+        "magnitude",
+        "session_sigma",
+        "noise_std",
+        "noise_tau",
+    ):
+        lines.append(f"    {name}={getattr(params, name)!r},")
+    lines.append(")")
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command line: fit, print the parameters and the recorded vs synthetic comparison."""
+    parser = argparse.ArgumentParser(
+        prog="python -m langenv.users.calibration", description=__doc__.split("\n\n")[0]
+    )
+    default_dir = Path(__file__).resolve().parents[3] / "shared" / "sessions"
+    parser.add_argument("sessions", nargs="?", type=Path, default=default_dir)
+    parser.add_argument("--pattern", default="*.csv")
+    parser.add_argument("--n-sessions", type=int, default=400)
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args(argv)
+    sessions = load_sessions(args.sessions, args.pattern)
+    fitted, episodes = fit_params(sessions)
+    fitted = round_params(fitted)
+    if fitted == CALIBRATED_PARAMS:
+        fitted = CALIBRATED_PARAMS
+    counts = {s.name: 0 for s in sessions}
+    for e in episodes:
+        counts[e.session] += 1
+    print(f"{len(sessions)} sessions from {args.sessions}, {len(episodes)} resistance episodes")
+    print("episodes per session:", " ".join(f"{k}={v}" for k, v in counts.items()))
+    print("\nfitted:\n" + _format_params(fitted))
+    if fitted != CALIBRATED_PARAMS:
+        print(
+            "\nnote: differs from the stored CALIBRATED_PARAMS:\n"
+            + _format_params(CALIBRATED_PARAMS)
+        )
+    for label, params in (("fitted", fitted), ("stored", CALIBRATED_PARAMS)):
+        cmp = compare_quantiles(sessions, params, n_sessions=args.n_sessions, seed=args.seed)
+        print(f"\ncooperation quantiles ({label} params, {args.n_sessions} synthetic sessions):")
+        print("  level   recorded   synthetic   |diff|")
+        for q, a, b in zip(cmp.levels, cmp.recorded, cmp.synthetic, strict=True):
+            print(f"  {q:5.2f}   {a:8.3f}   {b:9.3f}   {abs(a - b):6.3f}")
+        rd, sd = cmp.recorded_durations, cmp.synthetic_durations
+        print(
+            f"  session length (s): recorded median {np.median(rd):.1f} "
+            f"[{rd.min():.1f}, {rd.max():.1f}], synthetic median {np.median(sd):.1f} "
+            f"[10%-90%: {np.quantile(sd, 0.1):.1f}, {np.quantile(sd, 0.9):.1f}]"
+        )
+        print(
+            f"  episodes per session: recorded mean {len(episodes) / len(sessions):.2f}, "
+            f"synthetic mean {cmp.synthetic_episode_counts.mean():.2f}"
+        )
+        if params == CALIBRATED_PARAMS:
+            break
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

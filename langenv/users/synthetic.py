@@ -1,0 +1,336 @@
+"""Synthetic users: seeded, randomised resistance episodes (calibrated in ``calibration.py``).
+
+A synthetic person resists in *episodes*. Each episode is a trapezoid of the force measured after
+the sensor's deadband ("excess" force ``E``, N): it ramps up from 0 over ``rise`` seconds, holds a
+plateau ``magnitude``, and ramps down to 0 over ``fall`` seconds, ``duration`` seconds after its
+onset. The plateau is multiplied by log-normal noise, ``exp(noise_std * xi(t) - noise_std^2 / 2)``
+with ``xi`` a unit Ornstein–Uhlenbeck process of time constant ``noise_tau``. The person pushes
+against the motion with ``|F| = E + deadband`` while an episode is under way and not at all
+otherwise, which is the convention :class:`~langenv.users.replay.ReplayUser` uses for recorded
+sessions, so synthetic and replayed users are comparable.
+
+Episodes follow each other as a renewal process: the first starts at ``t = 0`` with probability
+``p_start_resisting`` (the person already resists when the session starts), otherwise after a
+log-normal delay; each later one starts a log-normal ``gap`` after the previous one ended. By
+default this goes on for as long as the session lasts (up to ``horizon``); with ``count_pmf`` the
+number of episodes is drawn first, and the person cooperates fully after the last one.
+Episode magnitudes are log-normal around a per-session level: ``log magnitude = log median +
+session_sigma * z_session + magnitude.sigma * z_episode``, so some people resist harder than others.
+Everything is drawn from the generator given to :meth:`SyntheticUser.reset`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from langenv.errors import ConfigError
+from langenv.users.base import (
+    DEFAULT_DEADBAND,
+    against_motion,
+    sample_table,
+    sample_table_array,
+)
+
+__all__ = ["Episode", "LogNormal", "SyntheticUser", "SyntheticUserParams"]
+
+
+def _finite(owner: str, name: str, value: float, *, low: float, strict: bool) -> None:
+    ok = math.isfinite(value) and (value > low if strict else value >= low)
+    if not ok:
+        op = ">" if strict else ">="
+        raise ConfigError(f"{owner}.{name} must be finite and {op} {low}, got {value!r}")
+
+
+@dataclass(frozen=True)
+class LogNormal:
+    """Log-normal distribution: ``median * exp(sigma * z)``, ``z ~ N(0, 1)``.
+
+    Attributes:
+        median: Median (> 0), in the unit of the quantity it describes.
+        sigma: Standard deviation of the logarithm (>= 0).
+    """
+
+    median: float
+    sigma: float
+
+    def __post_init__(self) -> None:
+        _finite("LogNormal", "median", self.median, low=0.0, strict=True)
+        _finite("LogNormal", "sigma", self.sigma, low=0.0, strict=False)
+
+    def sample(self, rng: np.random.Generator) -> float:
+        """One draw (one standard normal from ``rng``)."""
+        return self.median * math.exp(self.sigma * float(rng.standard_normal()))
+
+    @property
+    def mean(self) -> float:
+        """Mean ``median * exp(sigma^2 / 2)``."""
+        return self.median * math.exp(0.5 * self.sigma**2)
+
+    @classmethod
+    def fit(cls, samples: np.ndarray, censored: np.ndarray | None = None) -> LogNormal:
+        """Maximum-likelihood fit to positive samples (n,), n >= 2.
+
+        Args:
+            samples: Observations (n,), > 0.
+            censored: Optional mask (n,): ``True`` where the observation is only a lower bound
+                (right-censored, e.g. an episode cut by the end of a recording). Needs at least
+                one uncensored sample.
+
+        Raises:
+            ConfigError: if fewer than 2 samples, any is not finite and > 0, or all are censored.
+        """
+        x = np.asarray(samples, dtype=np.float64)
+        if x.ndim != 1 or x.size < 2 or not np.all(np.isfinite(x) & (x > 0.0)):
+            raise ConfigError("LogNormal.fit: samples must be 1-D, >= 2 of them, finite and > 0")
+        logs = np.log(x)
+        if censored is None or not np.any(censored):
+            return cls(median=float(np.exp(logs.mean())), sigma=float(logs.std()))
+        cens = np.asarray(censored, dtype=bool)
+        if cens.shape != x.shape or np.all(cens):
+            raise ConfigError("LogNormal.fit: censored must match samples and leave one uncensored")
+        from scipy.optimize import minimize
+        from scipy.stats import norm
+
+        obs, low = logs[~cens], logs[cens]
+
+        def nll(theta: np.ndarray) -> float:
+            mu, log_sigma = float(theta[0]), float(theta[1])
+            sigma = math.exp(log_sigma)
+            ll = norm.logpdf(obs, mu, sigma).sum() + norm.logsf(low, mu, sigma).sum()
+            return -float(ll)
+
+        start = np.array([logs.mean(), math.log(max(float(logs.std()), 1e-3))])
+        res = minimize(nll, start, method="Nelder-Mead", options={"xatol": 1e-6, "fatol": 1e-9})
+        return cls(median=float(math.exp(res.x[0])), sigma=float(math.exp(res.x[1])))
+
+
+@dataclass(frozen=True)
+class SyntheticUserParams:
+    """Distributions of a synthetic user's resistance episodes (see the module docstring).
+
+    :meth:`calibrated` returns the values fitted to the study's sessions
+    (:mod:`langenv.users.calibration`).
+
+    Attributes:
+        count_pmf: ``None`` (default): episodes recur until ``horizon``. Otherwise the
+            probabilities of 0, 1, 2, ... episodes per session (sum to 1 within 1e-3).
+        p_start_resisting: Probability that the first episode is under way at ``t = 0``.
+        first_onset: Onset (s) of the first episode otherwise.
+        gap: Time (s) from the end of an episode to the onset of the next.
+        duration: Episode length (s), onset to release, ramps included.
+        rise: Ramp-up time (s). Ramps longer than the episode are scaled down to fit.
+        fall: Ramp-down time (s).
+        magnitude: Plateau force above the deadband (N) of a typical person's episode.
+        session_sigma: Spread (log) of a person's resistance level around ``magnitude.median``.
+        noise_std: Standard deviation (log) of the multiplicative force noise, >= 0.
+        noise_tau: Correlation time (s) of the force noise (Ornstein–Uhlenbeck), > 0.
+        max_excess: Cap (N) on the force above the deadband.
+        deadband: Force sensor deadband (N): the person pushes with ``E + deadband``.
+        horizon: Time (s) up to which the force is tabulated; episodes are cut there.
+        resolution: Step (s) on which the force is tabulated at reset.
+    """
+
+    p_start_resisting: float
+    first_onset: LogNormal
+    gap: LogNormal
+    duration: LogNormal
+    rise: LogNormal
+    fall: LogNormal
+    magnitude: LogNormal
+    session_sigma: float
+    noise_std: float
+    noise_tau: float
+    count_pmf: tuple[float, ...] | None = None
+    max_excess: float = 25.0
+    deadband: float = DEFAULT_DEADBAND
+    horizon: float = 120.0
+    resolution: float = 0.01
+
+    def __post_init__(self) -> None:
+        owner = "SyntheticUserParams"
+        if self.count_pmf is not None:
+            pmf = tuple(float(x) for x in self.count_pmf)
+            if (
+                not pmf
+                or any(not (math.isfinite(x) and x >= 0.0) for x in pmf)
+                or not math.isclose(sum(pmf), 1.0, abs_tol=1e-3)
+            ):
+                raise ConfigError(
+                    f"{owner}.count_pmf must be None or non-negative probabilities summing to 1, "
+                    f"got {self.count_pmf!r}"
+                )
+            object.__setattr__(self, "count_pmf", pmf)
+        if not (math.isfinite(self.p_start_resisting) and 0.0 <= self.p_start_resisting <= 1.0):
+            raise ConfigError(
+                f"{owner}.p_start_resisting must lie in [0, 1], got {self.p_start_resisting!r}"
+            )
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.name in ("first_onset", "gap", "duration", "rise", "fall", "magnitude"):
+                if not isinstance(value, LogNormal):
+                    raise ConfigError(
+                        f"{owner}.{f.name} must be a LogNormal, got {type(value).__name__}"
+                    )
+        for name in ("session_sigma", "noise_std", "deadband"):
+            _finite(owner, name, getattr(self, name), low=0.0, strict=False)
+        for name in ("noise_tau", "max_excess", "horizon", "resolution"):
+            _finite(owner, name, getattr(self, name), low=0.0, strict=True)
+        if self.resolution > self.horizon:
+            raise ConfigError(
+                f"{owner}.resolution ({self.resolution}) must not exceed horizon ({self.horizon})"
+            )
+
+    @classmethod
+    def calibrated(cls, **overrides: object) -> SyntheticUserParams:
+        """The parameters fitted to the study's sessions, with ``overrides`` replaced.
+
+        Raises:
+            ConfigError: on an unknown or invalid override (names the field).
+        """
+        import dataclasses
+
+        from langenv.users.calibration import CALIBRATED_PARAMS
+
+        names = {f.name for f in fields(cls)}
+        unknown = sorted(set(overrides) - names)
+        if unknown:
+            raise ConfigError(f"SyntheticUserParams has no field(s) {', '.join(unknown)}")
+        return dataclasses.replace(CALIBRATED_PARAMS, **overrides)  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True)
+class Episode:
+    """One resistance episode (drawn at reset).
+
+    Attributes:
+        onset: Start time (s).
+        duration: Length (s), ramps included.
+        rise: Ramp-up time (s).
+        fall: Ramp-down time (s); ``rise + fall <= duration``.
+        magnitude: Plateau force above the deadband (N).
+    """
+
+    onset: float
+    duration: float
+    rise: float
+    fall: float
+    magnitude: float
+
+    @property
+    def end(self) -> float:
+        """Release time (s)."""
+        return self.onset + self.duration
+
+    def envelope(self, t: np.ndarray) -> np.ndarray:
+        """Noise-free force above the deadband (N) at times ``t`` (...,), s."""
+        t = np.asarray(t, dtype=np.float64)
+        up = (t - self.onset) / self.rise if self.rise > 0.0 else np.inf
+        down = (self.end - t) / self.fall if self.fall > 0.0 else np.inf
+        shape = np.clip(np.minimum(up, down), 0.0, 1.0)
+        inside = (t > self.onset) & (t < self.end)
+        return np.where(inside, self.magnitude * shape, 0.0)
+
+
+class SyntheticUser:
+    """A seeded random person who resists in episodes (module docstring).
+
+    Args:
+        params: Episode distributions; ``None`` uses :meth:`SyntheticUserParams.calibrated`.
+
+    Attributes:
+        episodes: The episodes drawn at the last :meth:`reset` (empty before the first one).
+        level: The person's resistance level factor drawn at the last reset.
+    """
+
+    def __init__(self, params: SyntheticUserParams | None = None) -> None:
+        if params is None:
+            params = SyntheticUserParams.calibrated()
+        if not isinstance(params, SyntheticUserParams):
+            raise ConfigError(
+                f"SyntheticUser: params must be SyntheticUserParams, got {type(params).__name__}"
+            )
+        self.params = params
+        self.episodes: tuple[Episode, ...] = ()
+        self.level = 1.0
+        n = math.floor(params.horizon / params.resolution + 1e-9) + 1
+        self.grid = np.arange(n, dtype=np.float64) * params.resolution
+        """Tabulation times (m,), s."""
+        self.f_applied = np.zeros(n)
+        """Force magnitude the person applies (m,), N, at :attr:`grid` (after :meth:`reset`)."""
+        self._table: list[float] = self.f_applied.tolist()
+
+    def _draw_episodes(self, rng: np.random.Generator) -> tuple[Episode, ...]:
+        p = self.params
+        self.level = math.exp(p.session_sigma * float(rng.standard_normal()))
+        episodes: list[Episode] = []
+        count: int | None = None
+        if p.count_pmf is not None:
+            pmf = np.asarray(p.count_pmf)
+            count = int(rng.choice(pmf.size, p=pmf / pmf.sum()))
+        if rng.random() < p.p_start_resisting:
+            onset = 0.0
+        else:
+            onset = p.first_onset.sample(rng)
+        while onset < p.horizon and (count is None or len(episodes) < count):
+            duration = p.duration.sample(rng)
+            rise = p.rise.sample(rng)
+            fall = p.fall.sample(rng)
+            if rise + fall > duration:
+                scale = duration / (rise + fall)
+                rise *= scale
+                fall *= scale
+            magnitude = min(self.level * p.magnitude.sample(rng), p.max_excess)
+            episodes.append(Episode(onset, duration, rise, fall, magnitude))
+            onset = onset + duration + p.gap.sample(rng)
+        return tuple(episodes)
+
+    def reset(self, rng: np.random.Generator) -> None:
+        """Draw a new person and session: level, episodes, then the force noise, all from ``rng``.
+
+        Args:
+            rng: The generator to draw from (the env's ``np_random``).
+        """
+        p = self.params
+        self.episodes = self._draw_episodes(rng)
+        grid = self.grid
+        envelope = np.zeros_like(grid)
+        for ep in self.episodes:
+            lo = int(np.searchsorted(grid, ep.onset, side="right"))
+            hi = int(np.searchsorted(grid, ep.end, side="left"))
+            if hi > lo:
+                envelope[lo:hi] = ep.envelope(grid[lo:hi])
+        noise = self._ou_noise(rng, grid.shape[0])
+        excess = np.minimum(
+            envelope * np.exp(p.noise_std * noise - 0.5 * p.noise_std**2), p.max_excess
+        )
+        applied = np.where(envelope > 0.0, excess + p.deadband, 0.0)
+        applied.setflags(write=False)
+        self.f_applied = applied
+        self._table = applied.tolist()
+
+    def _ou_noise(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """Unit-variance Ornstein–Uhlenbeck samples (n,) at :attr:`grid` (exact discretisation)."""
+        from scipy.signal import lfilter
+
+        a = math.exp(-self.params.resolution / self.params.noise_tau)
+        z = rng.standard_normal(n)
+        z[1:] *= math.sqrt(1.0 - a * a)
+        return np.asarray(lfilter([1.0], [1.0, -a], z), dtype=np.float64)
+
+    def magnitude(self, t: float) -> float:
+        """Force magnitude (N) the person applies at time ``t`` (s)."""
+        return sample_table(self._table, self.params.resolution, t)
+
+    def magnitude_array(self, t: np.ndarray) -> np.ndarray:
+        """Vectorised :meth:`magnitude`: ``t`` (...,), s, to magnitudes of the same shape, N."""
+        return sample_table_array(self.f_applied, self.params.resolution, t)
+
+    def force(self, t: float, hand_velocity: np.ndarray, tangent: np.ndarray) -> np.ndarray:
+        """Force (3,), N: :meth:`magnitude` along ``-tangent`` (the hand's velocity is not used)."""
+        return against_motion(self.magnitude(t), tangent)
+
+    def __repr__(self) -> str:
+        return f"SyntheticUser({len(self.episodes)} episodes)"
