@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 import os
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
@@ -57,9 +57,13 @@ class Utterance:
             raise ConfigError(f"Utterance.text must be a str, got {type(self.text).__name__}")
         for name in ("t_start", "t_end"):
             value = getattr(self, name)
-            if not isinstance(value, int | float) or not math.isfinite(value):
+            try:
+                number = float(value)
+            except (TypeError, ValueError):
+                number = math.nan
+            if isinstance(value, str) or not math.isfinite(number):
                 raise ConfigError(f"Utterance.{name} must be a finite number, got {value!r}")
-            object.__setattr__(self, name, float(value))
+            object.__setattr__(self, name, number)
         if self.t_end < self.t_start:
             raise ConfigError(
                 f"Utterance.t_end ({self.t_end}) must be >= t_start ({self.t_start}) "
@@ -302,10 +306,12 @@ class EpisodeRecorder:
 
     Feed it the env's ``info`` dict after ``reset`` and after every ``step`` (keys ``time`` or
     ``t``, ``cooperation``, ``hand_speed``, ``p``, ``a``, ``t_x``, ``t_a``, ``em``,
-    ``motion_done``, ``speech_done``, optionally ``phrase``, ``t_motion``, ``t_speech``). Utterances
-    are read off the ``phrase`` key: each run of consecutive samples with the same non-empty phrase
-    id is one utterance, from the time of its first sample to the time of the first sample after it
-    (so its resolution is the sampling interval).
+    ``motion_done``, ``speech_done``, optionally ``phrase``, ``in_pause``, ``t_motion``,
+    ``t_speech``). Unless :meth:`build` is given the exact utterances (preferred: the speech
+    timeline's ``utterances()``), they are read off the ``phrase`` key: each run of consecutive
+    samples with the same non-empty phrase id, not ``in_pause``, is one utterance, from the time of
+    its first sample to the time of the first sample after it (resolution: the sampling interval;
+    without ``in_pause`` the pause after a phrase counts as part of it).
 
     Attributes:
         policy: Policy name written into the log.
@@ -332,7 +338,7 @@ class EpisodeRecorder:
             row[name] = float(info[key])
         for name, value in row.items():
             self._values.setdefault(name, []).append(value)
-        phrase = info.get("phrase")
+        phrase = None if info.get("in_pause") else info.get("phrase")
         self._phrases.append(str(phrase) if phrase else None)
         self._last = dict(info)
 
@@ -346,6 +352,7 @@ class EpisodeRecorder:
         texts: Mapping[str, str] | None = None,
         t_motion: float | None = None,
         t_speech: float | None = None,
+        utterances: Sequence[Any] | None = None,
     ) -> EpisodeLog:
         """The log of the recorded samples.
 
@@ -355,6 +362,9 @@ class EpisodeRecorder:
             t_motion: Motion end (s); default: the last sample's ``t_motion`` key, else the time
                 of the first sample with ``motion_done``.
             t_speech: Speech end (s); same defaults with ``t_speech`` / ``speech_done``.
+            utterances: The phrases said with exact times, as objects with ``phrase``,
+                ``t_start`` and ``t_end`` (e.g. ``SpeechTimeline.history``); default: read off
+                the recorded ``phrase`` key.
 
         Raises:
             ConfigError: if fewer than two samples were recorded or a completion time is unknown.
@@ -364,23 +374,19 @@ class EpisodeRecorder:
         v = {name: np.asarray(vals) for name, vals in self._values.items()}
         t = v["t"]
         texts = texts or {}
-        utterances: list[Utterance] = []
-        k = 0
-        while k < len(self._phrases):
-            ph = self._phrases[k]
-            j = k + 1
-            while j < len(self._phrases) and self._phrases[j] == ph:
-                j += 1
-            if ph is not None:
-                t_end = float(t[j]) if j < len(t) else float(t[-1])
-                utterances.append(Utterance(ph, texts.get(ph, ""), float(t[k]), t_end))
-            k = j
+        if utterances is not None:
+            said = [
+                Utterance(str(u.phrase), texts.get(str(u.phrase), ""), u.t_start, u.t_end)
+                for u in utterances
+            ]
+        else:
+            said = self._phrase_runs(t, texts)
 
         def end_time(given: float | None, key: str, flag: str) -> float:
             if given is not None:
                 return float(given)
             last = self._last.get(key)
-            if last is not None:
+            if last is not None and math.isfinite(float(last)):
                 return float(last)
             done = v[flag].astype(bool)
             if not done.any():
@@ -392,10 +398,25 @@ class EpisodeRecorder:
         return EpisodeLog(
             policy=self.policy,
             user=self.user,
-            utterances=tuple(utterances),
+            utterances=tuple(said),
             t_motion=end_time(t_motion, "t_motion", "motion_done"),
             t_speech=end_time(t_speech, "t_speech", "speech_done"),
             ret=float(ret),
             **floats,
             **flags,
         )
+
+    def _phrase_runs(self, t: np.ndarray, texts: Mapping[str, str]) -> list[Utterance]:
+        """One utterance per run of samples with the same non-empty phrase id."""
+        utterances: list[Utterance] = []
+        k = 0
+        while k < len(self._phrases):
+            ph = self._phrases[k]
+            j = k + 1
+            while j < len(self._phrases) and self._phrases[j] == ph:
+                j += 1
+            if ph is not None:
+                t_end = float(t[j]) if j < len(t) else float(t[-1])
+                utterances.append(Utterance(ph, texts.get(ph, ""), float(t[k]), t_end))
+            k = j
+        return utterances

@@ -80,6 +80,13 @@ def policy_color(policy: str, index: int = 0) -> str:
     return _FIXED.get(policy, _CYCLE[index % len(_CYCLE)])
 
 
+def _check_dir(path: str | Path) -> None:
+    """Fail before drawing, not after, when the destination directory is missing."""
+    parent = Path(path).parent
+    if not parent.is_dir():
+        raise FileNotFoundError(f"directory {parent} of {path} does not exist")
+
+
 def _save(fig: Figure, path: str | Path) -> Path:
     FigureCanvasAgg(fig)
     buf = io.BytesIO()
@@ -141,7 +148,9 @@ def violin_figure(
 
     Raises:
         ConfigError: if there is no controller or a controller has no session.
+        FileNotFoundError: if the directory of ``path`` does not exist (checked before drawing).
     """
+    _check_dir(path)
     if not logs_by_policy:
         raise ConfigError("logs_by_policy must name at least one controller")
     for name, logs in logs_by_policy.items():
@@ -281,7 +290,11 @@ def session_figure(log: EpisodeLog, path: str | Path) -> Path:
 
     Returns:
         The path written.
+
+    Raises:
+        FileNotFoundError: if the directory of ``path`` does not exist (checked before drawing).
     """
+    _check_dir(path)
     left, right = 0.085, 0.985
     fig = Figure(figsize=SESSION_SIZE, dpi=DPI)
     axes = fig.subplots(

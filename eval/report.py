@@ -322,12 +322,18 @@ def render_summary_md(
     pct = f"{100 * level:g} %"
     boot = f"{n_boot:,}".replace(",", " ")
     counts = ", ".join(f"{display_name(p)} {table.n_sessions[p]}" for p in table.policies)
+    has_ref = any(str(r["policy"]) == reference for r in rows)
+    against = (
+        f"Differences are taken against **{ref_name}** with percentile-bootstrap {pct} "
+        f"intervals ({boot} resamples per interval)."
+        if has_ref
+        else f"No sessions of the reference {ref_name}, so no differences."
+    )
     lines = [
         "# LangCtrl evaluation summary",
         "",
         f"{sum(table.n_sessions.values())} sessions ({counts}) with {len(users)} distinct users. "
-        f"Differences are taken against **{ref_name}** with percentile-bootstrap {pct} intervals "
-        f"({boot} resamples per interval).",
+        + against,
         "",
     ]
     if figure:
@@ -353,7 +359,7 @@ def render_summary_md(
     others = [p for p in table.policies if p != reference]
     what = "median of per-user differences" if stat == "median" else "mean difference"
     lines += [f"## Differences against {ref_name}: {what} [{pct} CI]", ""]
-    if not any(str(r["policy"]) == reference for r in rows):
+    if not has_ref:
         lines.append(f"No sessions of the reference {ref_name}: no differences computed.")
     elif not others:
         lines.append(f"No other controller to compare with {ref_name}.")

@@ -181,7 +181,8 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
 
         self.user: User = _make_user(users, session)
         graph_path = DEFAULT_GRAPHS.get(str(phrase_graph), Path(phrase_graph))
-        self.graph = PhraseGraph.load(graph_path, clips=clips)
+        self.clips = clips if clips is not None else ClipLibrary()
+        self.graph = PhraseGraph.load(graph_path, clips=self.clips)
         self.max_children = max(1, self.graph.max_children)
 
         params = admittance if admittance is not None else AdmittanceParams()
@@ -286,13 +287,14 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         f_user = self.user.force(self.time, motion.hand_velocity, motion.tangent())
         motion.tick(f_user, p, self.paces.p_dot, self.np_random)
         if not speech.done:
-            speech.step(self.dt, a, self._choose)
+            speech.step(self.dt, a, self._choose, motion.t_x)
         self.time += self.dt
         self._coop_hist[self._coop_i % self._coop_hist.size] = motion.cooperation
         self._coop_i += 1
         self._update_speech_eta()
         if speech.done and self.t_speech_end is None:
-            self.t_speech_end = self.time
+            end = speech.t_end
+            self.t_speech_end = end if end is not None else self.time
         motion_on, speech_on = not motion.motion_done, not speech.done
         em = abs(self.t_a / a - motion.t_x / p) if (motion_on or speech_on) else 0.0
         pace = ((p - 1.0) ** 2 if motion_on else 0.0) + ((a - 1.0) ** 2 if speech_on else 0.0)

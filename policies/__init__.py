@@ -1,0 +1,28 @@
+"""Policies of LangCtrl-v0: the paper's analytic controllers and learned aligners.
+
+``load_policy(spec)`` builds one from its command-line name: ``"ac"``, ``"lc-noap"``, ``"lc"`` or
+``"ppo:PATH"`` (a trained model saved by ``python -m train.ppo``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from policies.analytic import AdmittanceController, LanguageController, make_analytic
+from policies.base import Policy
+
+__all__ = ["AdmittanceController", "LanguageController", "Policy", "load_policy"]
+
+
+def load_policy(spec: str) -> Any:
+    """Build a policy from ``ac``, ``lc-noap``, ``lc`` or ``ppo:PATH``.
+
+    Raises:
+        KeyError: unknown policy name.
+        FileNotFoundError: ``ppo:PATH`` whose model file does not exist.
+    """
+    if spec.startswith("ppo:"):
+        from policies.learned import PPOPolicy
+
+        return PPOPolicy.load(spec.removeprefix("ppo:"))
+    return make_analytic(spec)

@@ -10,6 +10,7 @@ internals). At ``decision_hz=500`` the LC policy is exactly the paper's controll
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -31,6 +32,7 @@ class AdmittanceController:
     phrase_graph: str = "ac"
     decision_hz: int = 25
     action_dim: int = 3
+    env_kwargs: dict[str, Any] = field(default_factory=dict)
 
     def reset(self) -> None:
         """Stateless."""
@@ -59,6 +61,7 @@ class LanguageController:
     limits: PaceLimits = field(default_factory=PaceLimits)
     decision_hz: int = 500
     action_dim: int = 3
+    env_kwargs: dict[str, Any] = field(default_factory=dict)
 
     def reset(self) -> None:
         """Stateless."""

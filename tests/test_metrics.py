@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -155,7 +156,9 @@ def test_load_npz_errors_name_the_file(tmp_path: Path) -> None:
 
 def test_recorder_builds_utterances_from_phrase_runs() -> None:
     rec = EpisodeRecorder("lc", "u7")
-    phrases = ["intro", "intro", None, "slide", "slide", "slide", None, None]
+    # the env reports the phrase also during the pause after it; in_pause tells them apart
+    phrases = ["intro", "intro", "intro", "slide", "slide", "slide", None, None]
+    pause = [False, False, True, False, False, True, False, False]
     for k, ph in enumerate(phrases):
         rec.append(
             {
@@ -170,16 +173,44 @@ def test_recorder_builds_utterances_from_phrase_runs() -> None:
                 "motion_done": k >= 6,
                 "speech_done": k >= 6,
                 "phrase": ph,
+                "in_pause": pause[k],
             }
         )
     log = rec.build(ret=-1.0, texts={"intro": "hello"})
     assert log.utterances == (
         Utterance("intro", "hello", 0.0, 1.0),
-        Utterance("slide", "", 1.5, 3.0),
+        Utterance("slide", "", 1.5, 2.5),
     )
     assert log.t_motion == 3.0 and log.t_speech == 3.0 and log.n == len(phrases)
     with pytest.raises(ConfigError, match="cooperation"):
         rec.append({"time": 9.0})
+
+
+def test_recorder_takes_exact_utterances_and_skips_unknown_end_times() -> None:
+    rec = EpisodeRecorder("lc-noap", "u2")
+    for k in range(5):
+        rec.append(
+            {
+                "t": 0.04 * k,
+                "cooperation": 1.0,
+                "hand_speed": 0.0,
+                "p": 1.0,
+                "a": 1.0,
+                "t_x": 0.0,
+                "t_a": 0.0,
+                "em": 0.0,
+                "motion_done": k >= 2,
+                "speech_done": k >= 3,
+                "t_motion": math.nan,
+                "t_speech": None,
+            }
+        )
+    said = [SimpleNamespace(phrase="intro", t_start=np.float32(0.0), t_end=0.11)]
+    log = rec.build(0.0, utterances=said, texts={"intro": "hi"}, t_speech=0.115)
+    assert log.utterances == (Utterance("intro", "hi", 0.0, 0.11),)
+    assert log.t_motion == pytest.approx(0.08) and log.t_speech == 0.115
+    with pytest.raises(ConfigError, match="2 samples"):
+        EpisodeRecorder("lc", "u").build(0.0)
 
 
 # ------------------------------------------------------------------ metrics

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 from typing import TypeAlias
 
 import numpy as np
@@ -220,20 +219,3 @@ def test_utterances_include_the_phrase_in_progress() -> None:
         tl.step(DT, 1.0)
     (u,) = tl.utterances()
     assert u.phrase == "p0" and u.t_end == pytest.approx(0.2)
-
-
-def test_step_is_cheap_enough_for_500_hz() -> None:
-    g = graph(
-        {f"p{i}": (f"p{i + 1}", f"p{i + 2}") for i in range(20)} | {"p20": ("p21",), "p21": ()},
-        {f"p{i}": 0.5 + 0.1 * (i % 3) for i in range(22)},
-    )
-    tl = SpeechTimeline(g)
-    steps = 0
-    t0 = time.perf_counter()
-    while not tl.done:
-        tl.step(DT, 0.9, t_x=8.0)
-        tl.eta(8.0)
-        steps += 1
-    per_tick = (time.perf_counter() - t0) / steps
-    assert steps > 1000
-    assert per_tick < 100e-6  # measured ~3 us with eta; generous for loaded CI machines

@@ -55,7 +55,7 @@ def chirp(seconds: float) -> np.ndarray:
     return _fade(0.5 * scipy.signal.chirp(t, 100.0, seconds, 4000.0, method="logarithmic"))
 
 
-def speech_like(seconds: float, rng: np.random.Generator) -> np.ndarray:
+def speech_like(seconds: float, rng: np.random.Generator, *, bursts: bool = True) -> np.ndarray:
     """Glottal pulse train (f0 120-190 Hz) through moving formants, syllables, noise bursts."""
     n = int(seconds * SR)
     t = np.arange(n) / SR
@@ -78,8 +78,8 @@ def speech_like(seconds: float, rng: np.random.Generator) -> np.ndarray:
             out, state[j] = scipy.signal.lfilter([1 - r], den, source[s:e], zi=state[j])
             y[s:e] += out / (j + 1)
     envelope = np.clip(1.3 * np.sin(np.pi * (t % syllable) / syllable), 0.0, 1.0) ** 0.7
-    bursts = np.sin(np.pi * (t % (3 * syllable)) / (3 * syllable)) > 0.95
-    y = y * envelope + 0.05 * np.max(np.abs(y)) * rng.standard_normal(n) * bursts
+    noisy = np.sin(np.pi * (t % (3 * syllable)) / (3 * syllable)) > 0.95
+    y = y * envelope + 0.05 * np.max(np.abs(y)) * rng.standard_normal(n) * (noisy & bursts)
     return _fade(0.5 * y / np.max(np.abs(y)))
 
 
@@ -101,6 +101,8 @@ def _signal(name: str, seconds: float = 2.0) -> np.ndarray:
         return chirp(seconds)
     if name == "speech_like":
         return speech_like(seconds, np.random.default_rng(7))
+    if name == "voiced":
+        return speech_like(seconds, np.random.default_rng(7), bursts=False)
     y = _espeak_clip()
     if y is None:
         pytest.skip("eSpeak NG is not available")
@@ -259,12 +261,35 @@ def test_unit_pace_reproduces_stationary_signal() -> None:
 # ---------------------------------------------------------------- blocks
 
 
-@pytest.mark.parametrize("name", ["harmonic", "chirp", "speech_like", "espeak"])
+@pytest.mark.parametrize("name", ["harmonic", "chirp", "espeak"])
 def test_no_clicks_at_block_boundaries(name: str) -> None:
+    """Small pulls with a jumping every pull: no jump larger than the original's largest.
+
+    (On pulse trains and noise bursts the vocoder's own phase changes alter the largest jump by a
+    few per cent even offline at constant pace, so there the criterion says nothing about blocks;
+    test_pull_sizes_do_not_matter covers those signals.)
+    """
     y = _signal(name, 2.0)
     paces = np.random.default_rng(11).uniform(0.6, 1.4, size=97)
     out, _, _ = _pull_blocks(y, [64, 100, 257], paces)
     assert np.max(np.abs(np.diff(out))) <= np.max(np.abs(np.diff(y)))
+
+
+@pytest.mark.parametrize("name", ["speech_like", "voiced", "harmonic"])
+def test_pull_sizes_do_not_matter(name: str) -> None:
+    """The output depends on the per-sample pace only, not on where pulls start and end."""
+    y = _signal(name, 1.5)
+    # Pace changes every third pull; pulls of 64, 100 and 257 samples.
+    paces = np.repeat(np.random.default_rng(3).uniform(0.6, 1.4, size=30), 3)
+    small, starts, used = _pull_blocks(y, [64, 100, 257], paces)
+    changes = np.flatnonzero(np.diff(used, prepend=-1.0))
+    # Offline: one pull per constant-pace stretch, up to 4096 samples.
+    big = time_stretch(y, SR, starts[changes], used[changes], interp="previous", block=4096)
+    assert big.size == small.size
+    np.testing.assert_allclose(big, small, atol=1e-5)
+    constant, _, _ = _pull_blocks(y, [64, 100, 257], np.array([0.8]))
+    offline = time_stretch(y, SR, np.array([0.0]), np.array([0.8]), block=3000)
+    np.testing.assert_allclose(offline, constant, atol=1e-5)
 
 
 def test_tone_envelope_is_steady_across_pace_changes() -> None:

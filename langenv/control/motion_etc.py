@@ -153,6 +153,36 @@ def _bilinear(table: np.ndarray, xg: np.ndarray, yg: np.ndarray, x: np.ndarray,
             + a * ((1 - b) * table[i + 1, j] + b * table[i + 1, j + 1]))
 
 
+def _simulate_to_start(e: np.ndarray, u: np.ndarray, params: AdmittanceParams, dt: float,
+                       t_max: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Vectorised 1D loop of a hand pushed back behind the start of its stop interval.
+
+    ``e > 0`` is the distance behind the start: the closest point sits clamped there, so the
+    along-path force is ``F_prop + K e``. Runs until ``e < 0`` (the hand is back on the interval).
+
+    Returns:
+        (time, ``e`` then (<= 0), speed then), flat arrays.
+    """
+    e = np.array(e, dtype=np.float64).ravel()
+    u = np.array(u, dtype=np.float64).ravel()
+    t_out = np.full(e.size, np.inf)
+    e_out = np.zeros(e.size)
+    u_out = np.zeros(e.size)
+    decay = math.exp(-params.damping / params.mass * dt)
+    gain = (1.0 - decay) / params.damping
+    for step in range(int(t_max / dt) + 1):
+        hit = (e < 0.0) & np.isinf(t_out)
+        if hit.any():
+            t_out[hit] = step * dt
+            e_out[hit] = e[hit]
+            u_out[hit] = u[hit]
+            if not np.isinf(t_out).any():
+                break
+        u = u * decay + (params.propel_force + params.stiffness * e) * gain
+        e = e - u * dt
+    return t_out, e_out, u_out
+
+
 class _Grid:
     """A uniform ``(q, u)`` grid: per stop interval, the time to finish from each node.
 
@@ -275,6 +305,15 @@ class FastETC:
         self._fine = _Grid(params, dt, (fq_lo, min(fq_hi, self._q_top)), (fu_lo, fu_hi),
                            fine_step[0], fine_step[1], jump)
         grids = (self._coarse, self._fine)
+        # behind the start of an interval (pushed back past it): time to get back on it
+        pe_step, pu_step = step
+        n_e = int(math.ceil(overshoot / pe_step)) + 1
+        n_pu = int(math.ceil((u_range[1] - u_range[0]) / pu_step)) + 1
+        self._pre = (0.0, pe_step, n_e, float(u_range[0]), pu_step, n_pu)
+        ee, uu = np.meshgrid(pe_step * np.arange(n_e), u_range[0] + pu_step * np.arange(n_pu),
+                             indexing="ij")
+        pre = _simulate_to_start(ee, uu, params, dt, t_max=60.0)
+        self._pre_tabs = [arr.reshape(n_e, n_pu).tolist() for arr in pre]
         self.mixed_fraction = self._coarse.mixed_fraction
         # chain the stop intervals backwards: table j = time to finish everything from (q, u).
         # The rest after stop j depends on the (tiny) state the stop is reached in; it is
@@ -335,14 +374,36 @@ class FastETC:
                 break
         return t
 
+    def _lookup(self, tabs: list[list[list[float]]], spec: tuple[float, float, int, float, float,
+                int], x: float, y: float) -> list[float]:
+        x0, dx, nx, y0, dy, ny = spec
+        fi = (x - x0) / dx
+        fj = (y - y0) / dy
+        hi_i, hi_j = nx - 1.000001, ny - 1.000001
+        fi = 0.0 if fi < 0.0 else (hi_i if fi > hi_i else fi)
+        fj = 0.0 if fj < 0.0 else (hi_j if fj > hi_j else fj)
+        i, k = int(fi), int(fj)
+        a, b = fi - i, fj - k
+        out = []
+        for tab in tabs:
+            r0, r1 = tab[i], tab[i + 1]
+            out.append((1.0 - a) * (r0[k] + b * (r0[k + 1] - r0[k]))
+                       + a * (r1[k] + b * (r1[k + 1] - r1[k])))
+        return out
+
     def _eval(self, j: int, q: float, u: float) -> float:
         """Time to finish the exercise from the 1D state (q, u) of stop interval j."""
-        excess = q - self._q_top
         t = 0.0
+        length = self._lengths[j]
+        if q > length and length >= self._q_top:
+            t, e_back, u = self._lookup(self._pre_tabs, self._pre, q - length, u)
+            q = length + e_back
+        excess = q - self._q_top
         if excess > 0.0:
-            t = self._plateau_time(excess, u)
-            u = self._u_inf + (u - self._u_inf) * math.exp(-t / self._tau)
+            tp = self._plateau_time(excess, u)
+            u = self._u_inf + (u - self._u_inf) * math.exp(-tp / self._tau)
             q = self._q_top
+            t += tp
         g = self._fine
         if not (g.q0 <= q < g.q_hi and g.u0 <= u < g.u_hi):
             g = self._coarse

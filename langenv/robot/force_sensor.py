@@ -50,12 +50,12 @@ class ForceSensor:
         Raises:
             ActionError: ``f`` is not a finite (3,) vector.
         """
-        arr = np.asarray(f, dtype=np.float64)
+        arr = f if type(f) is np.ndarray and f.dtype == np.float64 else np.asarray(f, np.float64)
         if arr.shape != (3,):
             raise ActionError(f"f must have shape (3,), got shape {arr.shape}")
         if rng is not None and self.noise_std > 0.0:
             arr = arr + rng.normal(0.0, self.noise_std, 3)
-        norm2 = float(arr @ arr)
+        norm2 = float(arr.dot(arr))
         if not norm2 < math.inf:
             raise ActionError(f"f must be finite, got {np.asarray(f).tolist()}")
         norm = math.sqrt(norm2)

@@ -262,6 +262,7 @@ class VariableRateVocoder:
         """
         hop, half = self.hop, self._half
         centres: list[int] = []
+        frame_c: list[float] = []
         m = self._next_frame
         prev_c = self._prev_center
         ready = end
@@ -279,12 +280,20 @@ class VariableRateVocoder:
                 ready = max(start, self._out_pos)
                 break
             centres.append(p)
+            frame_c.append(c)
             prev_c = c
             m += 1
-        if centres:
-            self._render_frames(np.asarray(centres, dtype=np.int64), self._next_frame)
-            self._next_frame = m
-            self._prev_center = prev_c
+        # Only frames whose first output sample is emitted now are committed: the pace of that
+        # sample fixes their analysis position (pre-roll frames wait for output sample 0).
+        n_commit = len(centres)
+        while (
+            n_commit and max((self._next_frame + n_commit - 1) * hop - half, self._out_pos) >= ready
+        ):
+            n_commit -= 1
+        if n_commit:
+            self._render_frames(np.asarray(centres[:n_commit], dtype=np.int64), self._next_frame)
+            self._next_frame += n_commit
+            self._prev_center = frame_c[n_commit - 1]
         return ready
 
     def _gather(self, centres: np.ndarray) -> np.ndarray:
@@ -514,8 +523,14 @@ def time_stretch(
         ActionError: If a value of ``a`` is not positive and finite.
         ConfigError: If ``t``/``a`` shapes or ``t`` ordering, ``block`` or ``interp`` are invalid.
     """
-    t_arr = np.atleast_1d(np.asarray(t, dtype=np.float64))
-    a_arr = np.atleast_1d(np.asarray(a, dtype=np.float64))
+    try:
+        a_arr = np.atleast_1d(np.asarray(a, dtype=np.float64))
+    except (TypeError, ValueError) as exc:
+        raise ActionError(f"a must be an array of positive finite paces, got {a!r}") from exc
+    try:
+        t_arr = np.atleast_1d(np.asarray(t, dtype=np.float64))
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"t must be an array of times (s), got {t!r}") from exc
     if t_arr.ndim != 1 or a_arr.ndim != 1:
         raise ConfigError("t and a must be 1-D arrays of pace samples (s, pace)")
     if a_arr.size == 0:

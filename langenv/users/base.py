@@ -120,7 +120,7 @@ def sample_table(table: list[float], step: float, t: float) -> float:
 
 
 def sample_table_array(table: np.ndarray, step: float, t: np.ndarray) -> np.ndarray:
-    """Vectorised :func:`sample_table`: ``table`` (m,), N; ``t`` (...,), s; returns ``t``'s shape."""
+    """Vectorised :func:`sample_table`: ``table`` (m,), N; ``t`` (...,), s; result shaped as t."""
     x = np.asarray(t, dtype=np.float64) / step
     if np.any(~(x >= 0.0)):
         raise ConfigError("t must be >= 0 s and not NaN")

@@ -11,7 +11,8 @@ procedure:
    duration, ramp-up and ramp-down times (to and from 80 % of its peak, scaled to a full linear
    ramp) and plateau magnitude (mean force between the ramps); and the log-deviation of the
    plateau force from its mean (the noise).
-3. Fit (:func:`fit_params`): the probability that a session opens inside an episode; log-normal
+3. Fit (:func:`fit_params`): the probability that a session opens inside an episode (one under
+   way at the first sample); log-normal
    distributions (maximum likelihood) for the first onset, the gaps between episodes, durations
    and ramps (episodes cut by the start or end of a recording are left out of the duration and
    ramp fits); the magnitudes as a one-way random-effects model on the log scale (within-session
@@ -29,6 +30,7 @@ rounded to 3 significant digits); :meth:`SyntheticUserParams.calibrated` returns
 from __future__ import annotations
 
 import argparse
+import itertools
 import math
 import sys
 from collections.abc import Sequence
@@ -56,6 +58,7 @@ __all__ = [
     "fit_params",
     "main",
     "recorded_quantiles",
+    "round_params",
     "simulate_loop",
     "synthetic_users",
 ]
@@ -89,7 +92,8 @@ class EpisodeStats:
 
     Attributes:
         session: Name of the session.
-        onset: Start (s) where the force rises above the threshold (0 if under way at the start).
+        onset: Start (s) where the force rises above the threshold (0 if under way before the
+            recording starts, i.e. its first cooperation sample is below 0.99).
         duration: Length (s).
         rise: Ramp-up time (s) of the equivalent linear ramp.
         fall: Ramp-down time (s).
@@ -177,7 +181,10 @@ def extract_episodes(
                 rise=min(rise, duration),
                 fall=min(fall, duration),
                 magnitude=magnitude,
-                left_censored=bool(grid[lo] <= t_start + step),
+                left_censored=bool(
+                    grid[lo] < t_start
+                    or (grid[lo] <= t_start + step and session.cooperation[0] < 0.99)
+                ),
                 right_censored=hi >= len(f) - 1,
                 log_residual=np.log(plateau / magnitude),
             )
@@ -186,7 +193,7 @@ def extract_episodes(
 
 
 def _correlation_time(series: Sequence[np.ndarray], step: float, max_lag: float = 5.0) -> float:
-    """Lag (s) where the pooled autocorrelation of the zero-mean ``series`` first drops below 1/e."""
+    """Lag (s) where the pooled autocorrelation of ``series`` (centred) first drops below 1/e."""
     max_k = int(max_lag / step)
     num = np.zeros(max_k + 1)
     den = np.zeros(max_k + 1)
@@ -222,9 +229,12 @@ def fit_params(
     episodes = [e for eps in per_session for e in eps]
     if len(episodes) < 2:
         raise ConfigError(f"fit_params: found {len(episodes)} resistance episodes, need >= 2")
-    starts_resisting = [bool(eps) and eps[0].left_censored for eps in per_session]
-    first = [eps[0].onset for eps in per_session if eps and not eps[0].left_censored]
-    gaps = [b.onset - a.end for eps in per_session for a, b in zip(eps, eps[1:], strict=False)]
+    at_start = [
+        bool(eps) and eps[0].onset <= s.t[0] + step
+        for eps, s in zip(per_session, sessions, strict=True)
+    ]
+    first = [eps[0].onset for eps, st in zip(per_session, at_start, strict=True) if eps and not st]
+    gaps = [b.onset - a.end for eps in per_session for a, b in itertools.pairwise(eps)]
     cut = np.array([e.left_censored or e.right_censored for e in episodes])
     logs = [np.log([e.magnitude for e in eps]) for eps in per_session if eps]
     grand = float(np.concatenate(logs).mean())
@@ -237,7 +247,7 @@ def fit_params(
     residuals = [e.log_residual for e in episodes if e.log_residual.size >= 10]
     noise_std = float(np.concatenate(residuals).std()) if residuals else 0.0
     params = SyntheticUserParams(
-        p_start_resisting=float(np.mean(starts_resisting)),
+        p_start_resisting=float(np.mean(at_start)),
         first_onset=LogNormal.fit(np.asarray(first)),
         gap=LogNormal.fit(np.asarray(gaps)),
         duration=LogNormal.fit(np.array([e.duration for e in episodes]), censored=cut),
@@ -578,20 +588,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     sessions = load_sessions(args.sessions, args.pattern)
     fitted, episodes = fit_params(sessions)
     fitted = round_params(fitted)
-    if fitted == CALIBRATED_PARAMS:
-        fitted = CALIBRATED_PARAMS
     counts = {s.name: 0 for s in sessions}
     for e in episodes:
         counts[e.session] += 1
     print(f"{len(sessions)} sessions from {args.sessions}, {len(episodes)} resistance episodes")
     print("episodes per session:", " ".join(f"{k}={v}" for k, v in counts.items()))
     print("\nfitted:\n" + _format_params(fitted))
-    if fitted != CALIBRATED_PARAMS:
+    if fitted != CALIBRATED_PARAMS:  # the stored values are out of date
         print(
             "\nnote: differs from the stored CALIBRATED_PARAMS:\n"
             + _format_params(CALIBRATED_PARAMS)
         )
-    for label, params in (("fitted", fitted), ("stored", CALIBRATED_PARAMS)):
+    same = fitted == CALIBRATED_PARAMS
+    for label, params in (
+        ("fitted = stored" if same else "fitted", fitted),
+        ("stored", CALIBRATED_PARAMS),
+    ):
         cmp = compare_quantiles(sessions, params, n_sessions=args.n_sessions, seed=args.seed)
         print(f"\ncooperation quantiles ({label} params, {args.n_sessions} synthetic sessions):")
         print("  level   recorded   synthetic   |diff|")
@@ -607,7 +619,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"  episodes per session: recorded mean {len(episodes) / len(sessions):.2f}, "
             f"synthetic mean {cmp.synthetic_episode_counts.mean():.2f}"
         )
-        if params == CALIBRATED_PARAMS:
+        if same:
             break
     return 0
 

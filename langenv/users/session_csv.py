@@ -170,7 +170,7 @@ def load_session(path: str | Path) -> Session:
     data = rows[1:]
     wanted = [c for c in REQUIRED_COLUMNS + OPTIONAL_COLUMNS if c in index]
     columns = {c: _parse_column(path, c, index[c], data, len(header)) for c in wanted}
-    return Session(name=path.stem, path=path, **columns)  # type: ignore[arg-type]
+    return Session(name=path.stem, path=path, **columns)
 
 
 def _parse_column(

@@ -1,0 +1,315 @@
+"""Compare aligners on simulated or recorded users: the study's evaluation, reproducible.
+
+Run, for instance::
+
+    python -m eval.compare --policies ac,lc-noap,lc --users synthetic:12 --seed 0 --out out/compare
+    python -m eval.compare --policies lc,ppo:models/ppo_langctrl.zip --sessions ../shared/sessions --out out/replay
+
+Writes (only when every episode ran; nothing partial is left on error):
+
+* ``OUT/sessions.csv``: one row per episode (policy, user and the paper's metrics);
+* ``OUT/summary.md``: per policy median and IQR of each metric, bootstrap 95 % intervals of the
+  differences against LC, and the study's findings checked on the data;
+* ``OUT/summary.png``: the paper's violin figure;
+* ``OUT/sessions/<policy>_<user>.png``: the paper's close-up figure of each session;
+* ``OUT/sessions/<policy>_<user>.wav``: what the robot said, at the paces it used;
+* ``OUT/sessions/<policy>_<user>.npz``: the episode log (``eval.episode.EpisodeLog.load_npz``);
+* ``OUT/config.json``: the arguments of the run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import sys
+import tempfile
+import time
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["CompareArgs", "Job", "main", "parse_args", "run_episode"]
+
+
+@dataclass(frozen=True)
+class CompareArgs:
+    """Arguments of ``python -m eval.compare``.
+
+    Attributes:
+        policies: Comma-separated policies: ``ac``, ``lc-noap``, ``lc``, ``ppo:PATH``.
+        users: ``synthetic:N`` (N seeded synthetic users), or None with ``sessions``.
+        sessions: Directory of session CSVs (at least ``t, cooperation``) to replay, one episode
+            per CSV, the CSV's stem as the user name.
+        pattern: Glob of the session CSVs in ``sessions``.
+        seed: Seed of the first synthetic user (user ``i`` has seed ``seed + i``) and of the
+            bootstrap.
+        out: Output directory.
+        workers: Parallel worker processes.
+        audio: Render each session's speech to WAV.
+        figures: Draw the per-session close-up figures.
+        decision_hz: Override every policy's decision rate (default: each policy's own).
+    """
+
+    policies: str = "ac,lc-noap,lc"
+    users: str | None = "synthetic:12"
+    sessions: Path | None = None
+    pattern: str = "*.csv"
+    seed: int = 0
+    out: Path = Path("out/compare")
+    workers: int = 2
+    audio: bool = True
+    figures: bool = True
+    decision_hz: int | None = None
+
+
+@dataclass(frozen=True)
+class Job:
+    """One episode to run: a policy spec against a user."""
+
+    policy: str
+    user: str
+    seed: int
+    session: str | None
+    out_dir: str
+    audio: bool
+    figures: bool
+    decision_hz: int | None
+
+
+class UsageError(Exception):
+    """Bad command-line arguments (reported without a traceback, exit code 2)."""
+
+
+def parse_args(argv: Sequence[str] | None = None) -> CompareArgs:
+    """Parse the command line into :class:`CompareArgs`."""
+    p = argparse.ArgumentParser(
+        prog="python -m eval.compare",
+        description="Compare aligners (AC, LC-noAP, LC, learned) on simulated or recorded users.",
+    )
+    p.add_argument("--policies", default=CompareArgs.policies, help="e.g. ac,lc-noap,lc,ppo:PATH")
+    p.add_argument("--users", default=None, help="synthetic:N (default synthetic:12)")
+    p.add_argument("--sessions", type=Path, default=None, help="directory of session CSVs")
+    p.add_argument("--pattern", default="*.csv", help="glob of session CSVs (with --sessions)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
+    p.add_argument("--no-audio", action="store_true", help="skip WAV rendering")
+    p.add_argument("--no-figures", action="store_true", help="skip per-session figures")
+    p.add_argument("--decision-hz", type=int, default=None, help="override every policy's rate")
+    ns = p.parse_args(argv)
+    if ns.users is not None and ns.sessions is not None:
+        p.error("give either --users or --sessions, not both")
+    users = ns.users if ns.sessions is None else None
+    if users is None and ns.sessions is None:
+        users = "synthetic:12"
+    if ns.workers < 1:
+        p.error(f"--workers must be >= 1, got {ns.workers}")
+    return CompareArgs(
+        policies=ns.policies,
+        users=users,
+        sessions=ns.sessions,
+        pattern=ns.pattern,
+        seed=ns.seed,
+        out=ns.out,
+        workers=ns.workers,
+        audio=not ns.no_audio,
+        figures=not ns.no_figures,
+        decision_hz=ns.decision_hz,
+    )
+
+
+def _check_policies(spec: str) -> list[str]:
+    from policies import load_policy
+
+    names = [s.strip() for s in spec.split(",") if s.strip()]
+    if not names:
+        raise UsageError("--policies is empty")
+    if len(set(names)) != len(names):
+        raise UsageError(f"--policies lists a policy twice: {spec}")
+    for name in names:
+        try:
+            load_policy(name)
+        except (KeyError, FileNotFoundError, ValueError, OSError) as exc:
+            raise UsageError(f"--policies: {name}: {exc}") from None
+    return names
+
+
+def _users(args: CompareArgs) -> list[tuple[str, int, str | None]]:
+    """(user name, seed, session path) for each user."""
+    if args.sessions is not None:
+        from langenv.errors import SessionDataError
+        from langenv.users import load_session
+
+        if not args.sessions.is_dir():
+            raise UsageError(f"--sessions: {args.sessions} is not a directory")
+        paths = sorted(args.sessions.glob(args.pattern))
+        if not paths:
+            raise UsageError(f"--sessions: no files match {args.pattern} in {args.sessions}")
+        for path in paths:  # validate every CSV before running anything
+            try:
+                load_session(path)
+            except SessionDataError as exc:
+                raise UsageError(f"--sessions: {exc}") from None
+        return [(p.stem, args.seed + i, str(p)) for i, p in enumerate(paths)]
+    assert args.users is not None
+    kind, _, count = args.users.partition(":")
+    if kind != "synthetic" or not count.isdigit() or int(count) < 1:
+        raise UsageError(f"--users must be synthetic:N with N >= 1, got {args.users!r}")
+    return [(f"s{args.seed + i}", args.seed + i, None) for i in range(int(count))]
+
+
+def run_episode(job: Job) -> dict[str, Any]:
+    """Run one episode, write its figure/audio/log into ``job.out_dir``; return its metrics row."""
+    import gymnasium as gym
+    import soundfile as sf
+
+    import langenv
+    from eval.episode import EpisodeRecorder
+    from eval.metrics import episode_metrics
+    from eval.plots import session_figure
+    from langenv.speech.render import render_history
+    from langenv.users import ReplayUser
+    from policies import load_policy
+
+    policy = load_policy(job.policy)
+    hz = job.decision_hz or policy.decision_hz
+    env = gym.make(
+        langenv.ENV_ID,
+        phrase_graph=policy.phrase_graph,
+        decision_hz=hz,
+        max_episode_steps=int(60 * hz),
+        **policy.env_kwargs,
+    )
+    options = {"user": ReplayUser.from_csv(job.session)} if job.session else None
+    obs, info = env.reset(seed=job.seed, options=options)
+    policy.reset()
+    rec = EpisodeRecorder(policy=policy.name, user=job.user)
+    rec.append(info)
+    ret, done = 0.0, False
+    while not done:
+        obs, reward, terminated, truncated, info = env.step(policy.act(obs))
+        ret += float(reward)
+        rec.append(info)
+        done = terminated or truncated
+    base: Any = env.unwrapped
+    graph = base.graph
+    texts = {u: (ph.text or u) for u, ph in graph.phrases.items()}
+    end_t = float(info["time"])
+    log = rec.build(
+        ret,
+        texts=texts,
+        t_motion=info["t_motion"] if info["t_motion"] is not None else end_t,
+        t_speech=info["t_speech"] if info["t_speech"] is not None else end_t,
+    )
+    stem = Path(job.out_dir) / f"{policy.name}_{job.user}"
+    log.save_npz(stem.with_suffix(".npz"))
+    if job.figures:
+        session_figure(log, stem.with_suffix(".png"))
+    if job.audio:
+        clips = base.clips
+        audio = render_history(graph, clips, base.speech.path, log.t, log.a)
+        sf.write(stem.with_suffix(".wav"), audio, clips.sr, subtype="PCM_16")
+    env.close()
+    row = episode_metrics(log)
+    row["truncated"] = float(bool(info.get("TimeLimit.truncated", False)) or not terminated)
+    return row
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point; returns the process exit code."""
+    args = parse_args(argv)
+    t0 = time.perf_counter()
+    try:
+        names = _check_policies(args.policies)
+        users = _users(args)
+    except UsageError as exc:
+        print(f"eval.compare: error: {exc}", file=sys.stderr)
+        return 2
+    out = args.out.resolve()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
+    try:
+        (tmp / "sessions").mkdir()
+        jobs = [
+            Job(n, u, s, sess, str(tmp / "sessions"), args.audio, args.figures, args.decision_hz)
+            for n in names
+            for (u, s, sess) in users
+        ]
+        rows = _run_jobs(jobs, args.workers)
+        _write_outputs(rows, names, tmp, args)
+        cfg = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(args).items()}
+        (tmp / "config.json").write_text(json.dumps(cfg, indent=2) + "\n")
+        _replace_dir(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    print(f"wrote {out} ({len(rows)} episodes in {time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
+def _run_jobs(jobs: list[Job], workers: int) -> list[dict[str, Any]]:
+    from tqdm import tqdm
+
+    bar = tqdm(total=len(jobs), desc="episodes", unit="ep", file=sys.stderr)
+    rows: list[dict[str, Any]] = []
+    try:
+        if workers == 1:
+            for job in jobs:
+                rows.append(run_episode(job))
+                bar.update()
+        else:
+            with ProcessPoolExecutor(max_workers=workers) as pool:
+                for row in pool.map(run_episode, jobs):
+                    rows.append(row)
+                    bar.update()
+    finally:
+        bar.close()
+    return rows
+
+
+def _write_outputs(rows: list[dict[str, Any]], names: list[str], tmp: Path, args: CompareArgs) -> None:
+    from eval.episode import EpisodeLog
+    from eval.plots import violin_figure
+    from eval.report import write_sessions_csv, write_summary_md
+
+    write_sessions_csv(rows, tmp / "sessions.csv")
+    logs: dict[str, list[EpisodeLog]] = {}
+    for row in rows:
+        log = EpisodeLog.load_npz(tmp / "sessions" / f"{row['policy']}_{row['user']}.npz")
+        logs.setdefault(str(row["policy"]), []).append(log)
+    order = [n for n in (_policy_name(s) for s in names) if n in logs]
+    violin_figure({n: logs[n] for n in order}, tmp / "summary.png")
+    reference = "lc" if "lc" in logs else order[0]
+    write_summary_md(
+        rows,
+        tmp / "summary.md",
+        reference,
+        rng=np.random.default_rng(args.seed),
+        policies=order,
+        figure="summary.png",
+    )
+
+
+def _policy_name(spec: str) -> str:
+    return "ppo" if spec.startswith("ppo:") else spec
+
+
+def _replace_dir(tmp: Path, out: Path) -> None:
+    """Move the finished ``tmp`` to ``out``, replacing a previous result only at the very end."""
+    if out.exists():
+        old = out.with_name(f".{out.name}.old-{os.getpid()}")
+        out.rename(old)
+        tmp.rename(out)
+        shutil.rmtree(old, ignore_errors=True)
+    else:
+        tmp.rename(out)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
