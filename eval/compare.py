@@ -206,6 +206,7 @@ def run_episode(job: Job) -> dict[str, Any]:
         texts=texts,
         t_motion=info["t_motion"] if info["t_motion"] is not None else end_t,
         t_speech=info["t_speech"] if info["t_speech"] is not None else end_t,
+        utterances=base.speech.utterances(),
     )
     stem = Path(job.out_dir) / f"{policy.name}_{job.user}"
     log.save_npz(stem.with_suffix(".npz"))

@@ -120,10 +120,10 @@ class EpisodeLog:
     em: np.ndarray
     motion_done: np.ndarray
     speech_done: np.ndarray
-    utterances: tuple[Utterance, ...] = ()
-    t_motion: float = 0.0
-    t_speech: float = 0.0
-    ret: float = 0.0
+    utterances: tuple[Utterance, ...]
+    t_motion: float
+    t_speech: float
+    ret: float
 
     _scalars: ClassVar[tuple[str, ...]] = ("t_motion", "t_speech", "ret")
 

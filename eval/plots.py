@@ -26,7 +26,7 @@ from matplotlib.collections import PolyCollection
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Rectangle
-from matplotlib.ticker import MaxNLocator
+from matplotlib.ticker import FixedLocator, MaxNLocator, NullLocator
 
 from eval.episode import EpisodeLog
 from eval.metrics import A_TOLERANCE, Window, time_samples
@@ -300,7 +300,6 @@ def session_figure(log: EpisodeLog, path: str | Path) -> Path:
     axes = fig.subplots(
         6,
         1,
-        sharex=True,
         gridspec_kw={
             "height_ratios": [1.0, 1.0, 1.2, 1.2, 1.0, 0.9],
             "hspace": 0.14,
@@ -363,22 +362,39 @@ def session_figure(log: EpisodeLog, path: str | Path) -> Path:
     em_ax.set_ylim(-lim, lim)
     em_ax.set_ylabel("EM (s)")
 
-    say_ax.tick_params(axis="y", left=False, labelleft=False)
     say_ax.set_ylabel("phrase said")
     say_ax.set_xlabel("time (s)")
     width_px = SESSION_SIZE[0] * DPI * (right - left)
     _phrase_labels(say_ax, log, x_range, width_px)
 
+    # One time axis for all panels. Tick labels only at the bottom; the other panels get no
+    # ticks at all (tick objects dominate matplotlib's drawing time), only their grid lines.
+    candidates = np.asarray(MaxNLocator(nbins=10, steps=[1, 2, 2.5, 5, 10]).tick_values(*x_range))
+    x_ticks = candidates[(candidates >= x_range[0]) & (candidates <= x_range[1])]
     for ax in axes:
+        ax.set_xlim(*x_range)
         ax.axvline(log.t_motion, color=_MOTION_END, linewidth=1.1, zorder=5)
         ax.axvline(log.t_speech, color=_SPEECH_END, linewidth=1.1, linestyle="--", zorder=5)
-        ax.grid(color="0.93", linewidth=0.6)
-        ax.set_axisbelow(True)
         ax.tick_params(labelsize=8)
         ax.yaxis.label.set_size(9)
-        ax.yaxis.set_major_locator(MaxNLocator(nbins=4))
-    say_ax.grid(False, axis="y")
-    c_ax.set_xlim(*x_range)
+        ax.set_axisbelow(True)
+        if ax is say_ax:
+            ax.xaxis.set_major_locator(FixedLocator(x_ticks.tolist()))
+            ax.yaxis.set_major_locator(NullLocator())
+            ax.grid(color="0.93", linewidth=0.6, axis="x")
+        else:
+            ax.xaxis.set_major_locator(NullLocator())
+            ax.yaxis.set_major_locator(MaxNLocator(nbins=4))
+            ax.grid(color="0.93", linewidth=0.6, axis="y")
+            ax.vlines(
+                x_ticks,
+                0.0,
+                1.0,
+                transform=ax.get_xaxis_transform(),
+                colors="0.93",
+                linewidth=0.6,
+                zorder=0.5,
+            )
 
     ends = [
         Line2D([], [], color=_MOTION_END, linewidth=1.1, label=f"motion end {log.t_motion:.2f} s"),

@@ -369,6 +369,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             "hand_speed": float(np.linalg.norm(m.hand_velocity)),
             "progress": m.progress,
             "phrase": self.speech.phrase,
+            "in_pause": self.speech.in_pause,
             "motion_done": m.motion_done,
             "speech_done": self.speech.done,
             "t_motion": m.t_motion_end,

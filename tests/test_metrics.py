@@ -117,7 +117,7 @@ def test_log_validation_names_the_field(overrides: dict[str, object], field: str
 def test_log_needs_two_samples() -> None:
     z, done = np.zeros(1), np.ones(1, dtype=bool)
     with pytest.raises(ConfigError, match="at least 2"):
-        EpisodeLog("lc", "u", z, z, z, z, z, z, z, z, done, done)
+        EpisodeLog("lc", "u", z, z, z, z, z, z, z, z, done, done, (), 0.0, 0.0, 0.0)
 
 
 def test_utterance_validation() -> None:

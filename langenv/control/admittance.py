@@ -121,8 +121,9 @@ class VariableAdmittance:
         self._p_min = params.p_min
         self._p_max = params.p_max
 
-    def step(self, v: np.ndarray, force: np.ndarray, p: float, p_dot: float,
-             dt: float) -> np.ndarray:
+    def step(
+        self, v: np.ndarray, force: np.ndarray, p: float, p_dot: float, dt: float
+    ) -> np.ndarray:
         """Advance ``M0 dv/dt = p^2 F - (p D0 - (p_dot / p) M0) v`` by one step.
 
         ``force`` and ``p_dot`` are held over the step, so ``p`` moves linearly from ``p`` to

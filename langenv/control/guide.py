@@ -72,7 +72,9 @@ class Guide:
                 f"Guide: trajectory must be a Trajectory, got {type(trajectory).__name__}"
             )
         if not isinstance(params, AdmittanceParams):
-            raise ConfigError(f"Guide: params must be AdmittanceParams, got {type(params).__name__}")
+            raise ConfigError(
+                f"Guide: params must be AdmittanceParams, got {type(params).__name__}"
+            )
         self.trajectory = trajectory
         self.params = params
         stops = [float(s) for s in trajectory.stop_s]
@@ -149,8 +151,9 @@ class Guide:
                 if k + 1 >= self._n_stops:
                     state.done = True
 
-    def virtual_force(self, state: GuideState, x: np.ndarray, v: np.ndarray,
-                      p: float) -> np.ndarray:
+    def virtual_force(
+        self, state: GuideState, x: np.ndarray, v: np.ndarray, p: float
+    ) -> np.ndarray:
         """``F_virtual`` at the current state.
 
         Args:

@@ -168,7 +168,8 @@ class ArcSegment:
         radius = float(np.linalg.norm(radial))
         if radius < MIN_LENGTH:
             raise TrajectoryError(
-                f"ArcSegment.start {start.tolist()} lies on the rotation axis (radius {radius:.3g} m)"
+                f"ArcSegment.start {start.tolist()} lies on the rotation axis "
+                f"(radius {radius:.3g} m)"
             )
         e1 = radial / radius
         e2 = np.cross(a, e1)
@@ -387,8 +388,9 @@ class Trajectory:
         return out
 
     # ------------------------------------------------------------------ closest point
-    def closest(self, x: np.ndarray, s_prev: float, s_lo: float = 0.0,
-                s_hi: float | None = None) -> float:
+    def closest(
+        self, x: np.ndarray, s_prev: float, s_lo: float = 0.0, s_hi: float | None = None
+    ) -> float:
         """Closest point of the curve to ``x``, searched locally around ``s_prev``.
 
         Starting from the segment containing ``s_prev``, the point is projected on that segment;
@@ -419,8 +421,9 @@ class Trajectory:
         x0, x1, x2 = xa.tolist()
         return self._closest(x0, x1, x2, self._check_s(s_prev), lo, hi)
 
-    def _dist2_on(self, i: int, x0: float, x1: float, x2: float, lo: float,
-                  hi: float) -> tuple[float, float]:
+    def _dist2_on(
+        self, i: int, x0: float, x1: float, x2: float, lo: float, hi: float
+    ) -> tuple[float, float]:
         """Projection of x on segment ``i`` restricted to ``[lo, hi]``: (s, squared distance)."""
         seg = self.segments[i]
         s0 = self._starts[i]
@@ -430,8 +433,9 @@ class Trajectory:
         d0, d1, d2 = x0 - p[0], x1 - p[1], x2 - p[2]
         return s, d0 * d0 + d1 * d1 + d2 * d2
 
-    def _closest(self, x0: float, x1: float, x2: float, s_prev: float, lo: float,
-                 hi: float) -> float:
+    def _closest(
+        self, x0: float, x1: float, x2: float, s_prev: float, lo: float, hi: float
+    ) -> float:
         s_prev = lo if s_prev < lo else (hi if s_prev > hi else s_prev)
         i = bisect_right(self._starts, s_prev) - 1
         n = self._n
@@ -461,8 +465,9 @@ class Trajectory:
         return best_s
 
 
-def line(start: Sequence[float] | np.ndarray, end: Sequence[float] | np.ndarray,
-         stop: bool = True) -> Trajectory:
+def line(
+    start: Sequence[float] | np.ndarray, end: Sequence[float] | np.ndarray, stop: bool = True
+) -> Trajectory:
     """A one-segment straight trajectory (for tests and simple exercises).
 
     Args:

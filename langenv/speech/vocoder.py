@@ -56,6 +56,8 @@ __all__ = ["VariableRateVocoder", "time_stretch"]
 #: Per-frame content advance is clamped to ``[_MIN_ADVANCE, _MAX_ADVANCE] * a * hop``.
 _MIN_ADVANCE = 0.5
 _MAX_ADVANCE = 2.0
+#: A peak whose magnitude exceeds this times its source peak's restarts from its analysed phase.
+_ONSET_RATIO = 4.0
 #: Instantaneous frequencies are kept within this many bins of their bin (Hann main lobe).
 _MAX_BIN_OFFSET = 2.0
 #: Content buffer prefix (samples) that may be dropped before it is actually trimmed.
@@ -130,8 +132,11 @@ class VariableRateVocoder:
         # Time derivative of the periodic Hann window (per sample), for reassignment.
         self._dwindow = (np.pi / n) * np.sin(2.0 * np.pi * np.arange(n) / n)
         self._window_sq = window * window
-        # (-1)^k turns FFT phases referenced to the frame start into zero-phase (centred) ones.
-        self._center = np.where(np.arange(self._n_bins) % 2 == 0, 1.0, -1.0)
+        self._windows = np.stack([window, self._dwindow])  # (2, n)
+        # Adding pi*k turns FFT phases referenced to the frame start into zero-phase ones.
+        self._bins = np.arange(self._n_bins)
+        self._center_phase = np.pi * (self._bins % 2)
+        self._flat_bins = np.arange(0)  # grown on demand: flat bin indices of (F, K) batches
         self._omega_bin = 2.0 * np.pi * np.arange(self._n_bins) / n
         self._max_dw = _MAX_BIN_OFFSET * 2.0 * np.pi / n
         self._frame_offsets = np.arange(-self._half, self._half)
@@ -162,6 +167,7 @@ class VariableRateVocoder:
         self._prev_phase: np.ndarray | None = None
         self._prev_omega: np.ndarray | None = None
         self._prev_region: np.ndarray | None = None
+        self._prev_mag: np.ndarray | None = None  # locked: magnitude of each peak
 
     # ------------------------------------------------------------------ public API
     @property
@@ -320,15 +326,15 @@ class VariableRateVocoder:
         n, hop, half = self.n_fft, self.hop, self._half
         n_frames = centres.size
         seg = self._gather(centres)
-        spec = np.fft.rfft(np.concatenate([seg * self._window, seg * self._dwindow]), axis=1)
-        spec *= self._center  # zero-phase: phases refer to the frame centre
-        x_h = spec[:n_frames]
-        x_dh = spec[n_frames:]
+        # Rows 2i and 2i+1: frame i under the Hann window and under its time derivative.
+        spec = np.fft.rfft((seg[:, None, :] * self._windows).reshape(2 * n_frames, n), axis=1)
+        x_h = spec[0::2]
+        x_dh = spec[1::2]
         if self.phase_lock:
             z = self._lock_phases(x_h, x_dh)
         else:
             z = self._free_phases(x_h, x_dh)
-        frames = np.fft.irfft(z * self._center, n=n, axis=1)
+        frames = np.fft.irfft(z, n=n, axis=1)
         frames *= self._window
 
         # Overlap-add: frame m covers output samples [m*hop - n/2, m*hop + n/2).
@@ -360,30 +366,30 @@ class VariableRateVocoder:
         """
         power = x_h.real * x_h.real + x_h.imag * x_h.imag
         cross = x_dh.imag * x_h.real - x_dh.real * x_h.imag  # Im(X_dh * conj(X_h))
-        offset = cross / np.maximum(power, 1e-30)
-        return self._omega_bin[bins] - np.clip(offset, -self._max_dw, self._max_dw)
+        offset = np.clip(cross / np.maximum(power, 1e-30), -self._max_dw, self._max_dw)
+        return self._omega_bin[bins] - offset
 
     def _free_phases(self, x_h: np.ndarray, x_dh: np.ndarray) -> np.ndarray:
         """Classic phase vocoder: every bin advances by ``hop`` times its mean frequency.
 
         Args:
-            x_h: Hann-windowed zero-phase spectra, shape (F, K).
+            x_h: Hann-windowed spectra (phases referenced to the frame start), shape (F, K).
             x_dh: Derivative-window spectra, shape (F, K).
 
         Returns:
-            Synthesis spectra, shape (F, K).
+            Synthesis spectra (phases referenced to the frame start), shape (F, K).
         """
-        omega = self._inst_freq(x_h, x_dh, np.arange(self._n_bins))
+        omega = self._inst_freq(x_h, x_dh, self._bins)
         steps = np.empty_like(omega)
         if self._prev_phase is None or self._prev_omega is None:
-            steps[0] = np.angle(x_h[0])
+            steps[0] = np.arctan2(x_h[0].imag, x_h[0].real) + self._center_phase
         else:
             steps[0] = self._prev_phase + 0.5 * self.hop * (self._prev_omega + omega[0])
         steps[1:] = 0.5 * self.hop * (omega[1:] + omega[:-1])
-        phase_s = np.mod(np.cumsum(steps, axis=0) + np.pi, 2.0 * np.pi) - np.pi
+        phase_s = np.mod(np.cumsum(steps, axis=0) + np.pi, 2.0 * np.pi) - np.pi  # zero-phase
         self._prev_phase = phase_s[-1].copy()
         self._prev_omega = omega[-1].copy()
-        return np.abs(x_h) * np.exp(1j * phase_s)
+        return np.abs(x_h) * np.exp(1j * (phase_s - self._center_phase))
 
     def _lock_phases(self, x_h: np.ndarray, x_dh: np.ndarray) -> np.ndarray:
         """Phase-locked synthesis spectra (Laroche & Dolson 1999) for a batch of frames.
@@ -393,44 +399,47 @@ class VariableRateVocoder:
         instantaneous frequency of the two; each region of influence (bins nearest to a peak)
         is rotated by its peak's phase rotation, which keeps the analysed phase offsets to the
         peak (identity locking). A frame without peaks (silence) keeps its analysed phases.
+        Peak phases are zero-phase (referred to the frame centre), so that a peak moving to
+        another bin keeps its phase.
 
         Args:
-            x_h: Hann-windowed zero-phase spectra, shape (F, K).
+            x_h: Hann-windowed spectra (phases referenced to the frame start), shape (F, K).
             x_dh: Derivative-window spectra, shape (F, K).
 
         Returns:
             Synthesis spectra, shape (F, K): each bin of ``x_h`` times a unit rotation.
         """
         n_frames, n_bins = x_h.shape
-        power = x_h.real * x_h.real + x_h.imag * x_h.imag
-        mid = power[:, 2:-2]
+        mag = np.abs(x_h)
+        mid = mag[:, 2:-2]
         is_peak = np.zeros((n_frames, n_bins), dtype=bool)
         is_peak[:, 2:-2] = (
-            (mid > power[:, 1:-3])
-            & (mid > power[:, :-4])
-            & (mid >= power[:, 3:-1])
-            & (mid >= power[:, 4:])
+            (mid > mag[:, 1:-3]) & (mid > mag[:, :-4]) & (mid >= mag[:, 3:-1]) & (mid >= mag[:, 4:])
         )
-        rows, cols = np.nonzero(is_peak)  # peaks in frame order, then bin order
-        n_peaks = rows.size
+        flat = np.flatnonzero(is_peak)  # peaks in frame order, then bin order
+        n_peaks = flat.size
+        rows, cols = np.divmod(flat, n_bins)
         per_row = np.bincount(rows, minlength=n_frames)
         row_first = np.cumsum(per_row) - per_row  # index of each frame's first peak
         # Region of influence of each bin: index of the nearest peak in its frame (boundaries
-        # half-way between neighbouring peaks), as runs over the flattened (F, K) array.
-        starts = rows * n_bins
-        if n_peaks > 1:
-            same = rows[1:] == rows[:-1]
-            starts[1:] += np.where(same, (cols[:-1] + cols[1:] + 1) // 2, 0)
+        # half-way between neighbouring peaks), from the run starts in the flattened (F, K)
+        # array; the regions of silent frames point at a sentinel (index n_peaks).
+        if self._flat_bins.size < n_frames * n_bins:
+            self._flat_bins = np.arange(2 * n_frames * n_bins)
         if n_peaks:
+            starts = rows * n_bins
+            starts[1:] += np.where(rows[1:] == rows[:-1], (cols[:-1] + cols[1:] + 1) // 2, 0)
             starts[0] = 0
-            lengths = np.diff(starts, append=n_frames * n_bins)
-            region = np.repeat(np.arange(n_peaks), lengths).reshape(n_frames, n_bins)
-            region[per_row == 0] = n_peaks  # silent frame: the sentinel (no rotation)
+            region = np.searchsorted(starts, self._flat_bins[: n_frames * n_bins], "right") - 1
+            region = region.reshape(n_frames, n_bins)
+            if not per_row.all():
+                region[per_row == 0] = n_peaks
         else:
-            region = np.zeros((n_frames, n_bins), dtype=np.int64)  # all silent: the sentinel
+            region = np.zeros((n_frames, n_bins), dtype=np.int64)
 
-        omega = self._inst_freq(x_h[rows, cols], x_dh[rows, cols], cols)
-        phase_a = np.angle(x_h[rows, cols])
+        x_peak = x_h.ravel()[flat]
+        omega = self._inst_freq(x_peak, x_dh.ravel()[flat], cols)
+        phase_a = np.arctan2(x_peak.imag, x_peak.real) + self._center_phase[cols]
 
         # Extended arrays: the previous batch's last frame's peaks, this batch's peaks, and a
         # sentinel (the region index of silent frames points at it; its value is never used).
@@ -443,17 +452,27 @@ class VariableRateVocoder:
         zero = np.zeros(1)
         ext_phase = np.concatenate([zero[:0] if prev_phase is None else prev_phase, phase_a, zero])
         ext_omega = np.concatenate([zero[:0] if prev_omega is None else prev_omega, omega, zero])
-        # Source peak (previous frame's peak whose region holds the bin) of every peak.
-        src = np.zeros(n_peaks, dtype=np.int64)
-        linked = np.zeros(n_frames, dtype=bool)
-        later = rows > 0
-        src[later] = region[rows[later] - 1, cols[later]] + n_prev
+        prev_mag = self._prev_mag if prev_phase is not None else None
+        mag_peak = mag.ravel()[flat]
+        ext_mag = np.concatenate([zero[:0] if prev_mag is None else prev_mag, mag_peak, zero])
+        # Source of every peak: the previous frame's peak whose region holds its bin.
+        src = np.empty(n_peaks, dtype=np.int64)
+        first = int(per_row[0])
+        if n_frames > 1:
+            src[first:] = region.ravel()[flat[first:] - n_bins] + n_prev
+        linked = np.empty(n_frames, dtype=bool)  # frame has a previous frame with peaks
         linked[1:] = per_row[:-1] > 0
+        linked[0] = prev_region is not None
         if prev_region is not None:
-            first = rows == 0
-            src[first] = prev_region[cols[first]]
-            linked[0] = True
+            src[:first] = prev_region[cols[:first]]
+        else:
+            src[:first] = n_prev + n_peaks  # the sentinel; unused
         increment = 0.5 * self.hop * (ext_omega[src] + omega)
+        # Onsets: a peak much louder than its source (or without one) restarts from its
+        # analysed phase, which keeps attacks crisp and stops onset errors from persisting.
+        born = mag_peak > _ONSET_RATIO * ext_mag[src]
+        src[born] = n_prev + np.flatnonzero(born)
+        increment[born] = 0.0
         for i in np.flatnonzero(linked & (per_row > 0)).tolist():
             lo, hi = int(row_first[i]), int(row_first[i] + per_row[i])
             ext_phase[n_prev + lo : n_prev + hi] = ext_phase[src[lo:hi]] + increment[lo:hi]
@@ -466,7 +485,8 @@ class VariableRateVocoder:
         if per_row[-1] > 0:
             lo = int(row_first[-1])
             self._prev_phase = np.mod(phase_s[lo:] + np.pi, 2.0 * np.pi) - np.pi
-            self._prev_omega = omega[lo:].copy()
+            self._prev_omega = omega[lo:]
+            self._prev_mag = mag_peak[lo:]
             self._prev_region = region[-1] - lo
         else:
             self._prev_phase = self._prev_omega = self._prev_region = None

@@ -48,15 +48,17 @@ def invert_cooperation(
     f_max: float = DEFAULT_F_MAX,
     dt: float = 0.002,
     smoothing: float = 0.05,
+    floor: float = 0.05,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Post-deadband force magnitude that makes the cooperation filter output ``cooperation``.
 
     The trace is smoothed with a cubic smoothing spline (``scipy``'s ``make_smoothing_spline``,
     penalty ``lam = smoothing^4 / mean sample spacing``, so ``smoothing`` is roughly the time scale
     below which wiggles are smoothed out, whatever the sampling rate; piecewise linear below 5
-    samples), then inverted on a uniform grid from 0 to ``t[-1]``. The result is
-    clipped to ``[0, f_max]``: the filter saturates at ``f_max`` and cannot decay faster than with
-    no force. Before the first sample (``t[0] > 0``) a constant force brings the filter from rest
+    samples), then inverted on a uniform grid from 0 to ``t[-1]``. The result is clipped to
+    ``[0, f_max]``: the filter saturates at ``f_max`` and cannot decay faster than with no force.
+    Forces below ``floor`` are then set to 0: that is inversion ripple where the person does not
+    resist, and replayed, each would become a deadband-sized push that slows the hand. Before the first sample (``t[0] > 0``) a constant force brings the filter from rest
     (``c = 1``) to ``cooperation[0]`` at ``t[0]`` (as close as ``f_max`` allows).
 
     Args:
@@ -67,6 +69,8 @@ def invert_cooperation(
         dt: Grid step (s), > 0.
         smoothing: Smoothing time scale (s), > 0. 0.05 s reproduces the study's 50 Hz traces
             within 0.004 RMSE while keeping the force free of digitisation wiggles.
+        floor: Smallest post-deadband force (N) kept, >= 0 (``floor / f_max`` bounds the
+            cooperation error it causes).
 
     Returns:
         ``(grid, f_tilde)``: grid times (m,), s, ``grid[k] = k * dt`` up to ``t[-1]``; and the
@@ -92,6 +96,9 @@ def invert_cooperation(
     if t[0] < 0.0 or np.any(np.diff(t) <= 0.0):
         raise ConfigError(f"{owner}: t must be >= 0 and strictly increasing")
     smoothing = _check_positive("smoothing", smoothing, owner)
+    floor = float(floor)
+    if not (math.isfinite(floor) and floor >= 0.0):
+        raise ConfigError(f"{owner}: floor must be finite and >= 0, got {floor!r}")
     rate = math.log(1.0 / alpha)
     r = 1.0 - c
     grid = np.arange(math.floor(t[-1] / dt + 1e-9) + 1, dtype=np.float64) * dt
@@ -111,7 +118,9 @@ def invert_cooperation(
         # Constant force from rest: r(t0) = u (1 - alpha^t0).
         u[~inside] = r[0] / (1.0 - alpha ** t[0])
     np.clip(u, 0.0, 1.0, out=u)
-    return grid, u * f_max
+    force = u * f_max
+    force[force < floor] = 0.0
+    return grid, force
 
 
 class ReplayUser:
@@ -131,6 +140,7 @@ class ReplayUser:
         deadband: Force sensor deadband (N), >= 0.
         dt: Control period (s) of the grid the force is tabulated on, > 0.
         smoothing: Smoothing time scale (s) of the inversion (:func:`invert_cooperation`).
+        floor: Smallest post-deadband force (N) replayed (:func:`invert_cooperation`).
 
     Raises:
         ConfigError: on a bad argument (names it).
@@ -145,6 +155,7 @@ class ReplayUser:
         deadband: float = DEFAULT_DEADBAND,
         dt: float = 0.002,
         smoothing: float = 0.05,
+        floor: float = 0.05,
     ) -> None:
         if not isinstance(session, Session):
             raise ConfigError(
@@ -159,7 +170,13 @@ class ReplayUser:
         self.deadband = deadband
         self.dt = float(dt)
         grid, f_tilde = invert_cooperation(
-            session.t, session.cooperation, alpha=alpha, f_max=f_max, dt=dt, smoothing=smoothing
+            session.t,
+            session.cooperation,
+            alpha=alpha,
+            f_max=f_max,
+            dt=dt,
+            smoothing=smoothing,
+            floor=floor,
         )
         grid.setflags(write=False)
         f_tilde.setflags(write=False)
@@ -176,7 +193,7 @@ class ReplayUser:
     @classmethod
     def from_csv(cls, path: str | Path, **kwargs: float) -> ReplayUser:
         """Load a session CSV (:func:`load_session`) and replay it (``kwargs``: as ``__init__``)."""
-        return cls(load_session(path), **kwargs)  # type: ignore[arg-type]
+        return cls(load_session(path), **kwargs)
 
     @property
     def end_time(self) -> float:

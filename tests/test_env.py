@@ -1,0 +1,214 @@
+"""LangCtrl-v0: API checks, determinism, bad input, and the paper's controller at 500 Hz."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env as gym_check_env
+
+import langenv
+from langenv.env import LangCtrlEnv
+from langenv.errors import ActionError, ConfigError, PhraseGraphError
+from policies import load_policy
+from policies.aligner import AlignerGains, optimal_paces
+
+SESSIONS = Path(__file__).resolve().parents[2] / "shared" / "sessions"
+
+
+def zero_user(t: float, v: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.zeros(3)
+
+
+def resisting_user(t: float, v: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Pushes 12 N against the path between 2 s and 5 s."""
+    return -12.0 * b if 2.0 <= t < 5.0 else np.zeros(3)
+
+
+def run(env: gym.Env, policy, seed: int = 0, **reset_kw):  # type: ignore[no-untyped-def]
+    obs, info = env.reset(seed=seed, **reset_kw)
+    infos, rewards = [info], []
+    done = False
+    while not done:
+        obs, r, term, trunc, info = env.step(policy.act(obs))
+        assert env.observation_space.contains(obs)
+        infos.append(info)
+        rewards.append(r)
+        done = term or trunc
+    return infos, rewards, term
+
+
+@pytest.mark.parametrize("choice_mode", ["target", "scores"])
+def test_gymnasium_env_checker(choice_mode: str) -> None:
+    env = gym.make(langenv.ENV_ID, choice_mode=choice_mode)
+    gym_check_env(env.unwrapped, skip_render_check=True)
+    env.close()
+
+
+def test_sb3_env_checker() -> None:
+    from stable_baselines3.common.env_checker import check_env
+
+    env = gym.make(langenv.ENV_ID)
+    check_env(env, warn=True)
+    env.close()
+
+
+def test_registered_with_time_limit() -> None:
+    spec = gym.spec(langenv.ENV_ID)
+    assert spec.max_episode_steps == 1500
+
+
+def test_make_vec() -> None:
+    envs = gym.make_vec(langenv.ENV_ID, num_envs=2, vectorization_mode="sync")
+    obs, _ = envs.reset(seed=3)
+    assert obs.shape == (2, *envs.single_observation_space.shape)
+    obs, r, term, trunc, _ = envs.step(np.zeros((2, *envs.single_action_space.shape), np.float32))
+    assert r.shape == (2,)
+    envs.close()
+
+
+def test_same_seed_same_episode() -> None:
+    pol = load_policy("lc")
+    pol.decision_hz = 25
+    a = run(gym.make(langenv.ENV_ID), pol, seed=7)
+    b = run(gym.make(langenv.ENV_ID), pol, seed=7)
+    c = run(gym.make(langenv.ENV_ID), pol, seed=8)
+    assert [i["time"] for i in a[0]] == [i["time"] for i in b[0]]
+    assert a[1] == b[1]
+    assert [i["cooperation"] for i in a[0]] != [i["cooperation"] for i in c[0]]
+
+
+def test_episode_ends_when_speech_and_motion_are_over() -> None:
+    env = gym.make(langenv.ENV_ID, users=zero_user)
+    infos, rewards, terminated = run(env, load_policy("ac"))
+    last = infos[-1]
+    assert terminated and last["motion_done"] and last["speech_done"]
+    assert math.isclose(last["am"], last["t_speech"] - last["t_motion"])
+    assert 10.0 <= last["t_motion"] <= 12.5  # nominal exercise time, no resistance
+    # weighted reward terms are reported and add up
+    for info, r in zip(infos[1:], rewards, strict=True):
+        assert math.isclose(r, info["reward_em"] + info["reward_pace"] + info["reward_am"])
+    assert infos[-1]["reward_am"] == pytest.approx(-abs(last["am"]))
+
+
+def test_reward_weights_scale_terms() -> None:
+    pol = load_policy("lc")
+    pol.decision_hz = 25
+    a, _, _ = run(gym.make(langenv.ENV_ID, users=resisting_user), pol)
+    b, _, _ = run(gym.make(langenv.ENV_ID, users=resisting_user, w_em=2.0, w_am=0.0), pol)
+    assert b[5]["reward_em"] == pytest.approx(2.0 * a[5]["reward_em"])
+    assert b[-1]["reward_am"] == 0.0 and a[-1]["reward_am"] < 0.0
+
+
+def test_lc_at_500hz_is_the_papers_controller() -> None:
+    """Integrate the paper's pace laws directly on the logged ETCs and cooperation."""
+    env = gym.make(
+        langenv.ENV_ID, users=resisting_user, decision_hz=500, max_episode_steps=30_000
+    )
+    infos, _, _ = run(env, load_policy("lc"))
+    gains = AlignerGains()
+    dt = 0.002
+    p = a = 1.0
+    err_p = err_a = 0.0
+    for prev, cur in zip(infos[:-1], infos[1:], strict=True):
+        p_star, a_star = optimal_paces(prev["t_x"], prev["t_a"])
+        p = min(1.4, max(0.6, p + dt * 6.0 * (p_star - p)))
+        da = gains.k_a * (a_star - a) - gains.k_c * (1.0 - prev["cooperation"])
+        a = min(1.4, max(0.6, a + dt * da))
+        err_p = max(err_p, abs(p - cur["p"]))
+        err_a = max(err_a, abs(a - cur["a"]))
+    assert err_p < 1e-4 and err_a < 1e-4
+    # the paper's slows: resistance lowered the audio pace
+    assert min(i["a"] for i in infos) < 0.9
+
+
+def test_target_choice_at_zero_is_the_papers_rule() -> None:
+    env = gym.make(langenv.ENV_ID, users=resisting_user, decision_hz=500, max_episode_steps=30_000)
+    base: LangCtrlEnv = env.unwrapped  # type: ignore[assignment]
+    obs, _ = env.reset(seed=0)
+    pol = load_policy("lc")
+    choices = 0
+    done = False
+    while not done:
+        before = base.speech.phrase
+        obs, _, term, trunc, info = env.step(pol.act(obs))
+        after = base.speech.phrase
+        kids = base.graph.children(before) if before else ()
+        if after != before and len(kids) > 1:
+            choices += 1
+            # the choice is made inside the tick with the t_x of that tick (reported in info)
+            assert after == base.graph.choose(before, info["t_x"])
+        done = term or trunc
+    assert choices >= 1
+
+
+def test_bad_arguments_raise_clear_errors(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="decision_hz"):
+        LangCtrlEnv(decision_hz=7)
+    with pytest.raises(ConfigError, match="choice_mode"):
+        LangCtrlEnv(choice_mode="dice")  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match="users"):
+        LangCtrlEnv(users="ghost")
+    with pytest.raises(ConfigError, match="session"):
+        LangCtrlEnv(users="replay")
+    with pytest.raises(ConfigError, match="w_em"):
+        LangCtrlEnv(w_em=float("nan"))
+    bad = tmp_path / "g.yaml"
+    bad.write_text("start: a\nphrases:\n  a:\n    text: hi\n    next: [b]\n")
+    with pytest.raises(PhraseGraphError, match="g.yaml"):
+        LangCtrlEnv(phrase_graph=bad)
+
+
+@pytest.mark.parametrize(
+    "action", [[np.nan, 0, 0], [0, np.inf, 0], [1.5, 0, 0], [0, 0, -2.0], [0, 0]]
+)
+def test_bad_actions_raise(action: list[float]) -> None:
+    env = LangCtrlEnv()
+    env.reset(seed=0)
+    with pytest.raises(ActionError, match="action"):
+        env.step(np.asarray(action, np.float32))
+
+
+def test_scores_mode_never_picks_an_invalid_child() -> None:
+    env = gym.make(langenv.ENV_ID, choice_mode="scores", users=zero_user)
+    base: LangCtrlEnv = env.unwrapped  # type: ignore[assignment]
+    obs, _ = env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    done = False
+    while not done:
+        act = rng.uniform(-1, 1, env.action_space.shape).astype(np.float32)
+        obs, _, term, trunc, _ = env.step(act)
+        done = term or trunc
+    path = base.speech.path
+    for u, v in zip(path[:-1], path[1:], strict=True):
+        assert v in base.graph.children(u)
+
+
+@pytest.mark.skipif(not SESSIONS.is_dir(), reason="recorded sessions not available")
+def test_replay_user_reproduces_recorded_cooperation() -> None:
+    csv = SESSIONS / "u3_lc.csv"
+    env = gym.make(langenv.ENV_ID, users="replay", session=csv, decision_hz=50)
+    pol = load_policy("lc")
+    infos, _, _ = run(env, pol)
+    data = np.genfromtxt(csv, delimiter=",", names=True)
+    t = np.array([i["time"] for i in infos])
+    c = np.array([i["cooperation"] for i in infos])
+    mask = t <= data["t"][-1]
+    rmse = float(np.sqrt(np.mean((np.interp(t[mask], data["t"], data["cooperation"]) - c[mask]) ** 2)))
+    assert rmse < 0.05
+
+
+def test_render_rgb_array() -> None:
+    env = gym.make(langenv.ENV_ID, render_mode="rgb_array", width=160, height=120)
+    env.reset(seed=0)
+    try:
+        frame = env.render()
+    except Exception as exc:  # no GL backend on this machine
+        pytest.skip(f"no off-screen GL: {exc}")
+    assert isinstance(frame, np.ndarray)
+    assert frame.shape == (120, 160, 3) and frame.dtype == np.uint8
+    assert frame.std() > 1.0  # not a blank image
+    env.close()
