@@ -94,8 +94,12 @@ class GuidedArm:
         return float(self.state.s / self.trajectory.length)
 
     def tangent(self) -> np.ndarray:
-        """Unit path tangent ``b`` at the current closest point, shape (3,)."""
-        return self.trajectory.tangent(self.state.s)
+        """Unit direction of travel along the path at the closest point, shape (3,).
+
+        At a stop not yet reached this is the arriving segment's direction (the right derivative
+        there would already point along the next segment).
+        """
+        return self.guide.tangent(self.state)
 
     # ------------------------------------------------------------------ loop
     def reset(self) -> None:

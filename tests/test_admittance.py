@@ -40,7 +40,7 @@ M0, D0, K, FP = P.mass, P.damping, P.stiffness, P.propel_force
 )
 def test_params_validation_names_the_field(field: str, value: float) -> None:
     with pytest.raises(ConfigError, match=field):
-        AdmittanceParams(**{field: value})
+        AdmittanceParams(**{field: value})  # type: ignore[arg-type]
 
 
 def test_params_defaults_and_plateau() -> None:
@@ -69,7 +69,11 @@ def test_params_defaults_and_plateau() -> None:
 def test_step_validation_names_the_argument(kwargs: dict[str, object], name: str) -> None:
     adm = VariableAdmittance(P)
     args: dict[str, object] = {
-        "v": np.zeros(3), "force": np.ones(3), "p": 1.0, "p_dot": 0.0, "dt": 0.002
+        "v": np.zeros(3),
+        "force": np.ones(3),
+        "p": 1.0,
+        "p_dot": 0.0,
+        "dt": 0.002,
     }
     args.update(kwargs)
     with pytest.raises(ConfigError, match=rf"\b{name}\b"):
@@ -89,7 +93,7 @@ def test_p1_constant_force_is_exact_at_any_step(dt: float) -> None:
     f = np.array([10.0, -4.0, 2.0])
     v0 = np.array([0.3, 0.1, -0.2])
     v = v0.copy()
-    n = int(round(2.0 / dt))
+    n = round(2.0 / dt)
     for _ in range(n):
         v = adm.step(v, f, 1.0, 0.0, dt)
     t = n * dt
@@ -137,17 +141,18 @@ def _smooth_pace(amps: list[float], freqs: list[float], phases: list[float]) -> 
     return _SmoothPace(amps, freqs, phases)
 
 
-def _warp_error(p: _SmoothPace, f: np.ndarray, v_star0: np.ndarray, dt: float,
-                t_end: float = 2.0) -> float:
+def _warp_error(
+    p: _SmoothPace, f: np.ndarray, v_star0: np.ndarray, dt: float, t_end: float = 2.0
+) -> float:
     adm = VariableAdmittance(P)
     v = p(0.0) * v_star0
-    n = int(round(t_end / dt))
+    n = round(t_end / dt)
     err = 0.0
     for k in range(n):
         t = k * dt
         p_k, p_next = p(t), p(t + dt)
         v = adm.step(v, f, p_k, (p_next - p_k) / dt, dt)
-        if (k + 1) % int(round(0.25 / dt)) == 0:
+        if (k + 1) % round(0.25 / dt) == 0:
             t1 = (k + 1) * dt
             phi = p.phi(t1)
             v_star = f / D0 + (v_star0 - f / D0) * math.exp(-D0 / M0 * phi)
@@ -198,7 +203,9 @@ def test_time_warp_fails_without_the_pdot_term() -> None:
 
 # ------------------------------------------------------------------------------ passivity
 def _passivity_run(
-    p: Callable[[float], float], forces: list[tuple[float, float, float]], dt: float,
+    p: Callable[[float], float],
+    forces: list[tuple[float, float, float]],
+    dt: float,
     t_end: float = 2.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Virtual loop on a straight line (no stop within reach), x integrated from v_ref.
@@ -220,7 +227,7 @@ def _passivity_run(
         x_perp = x - traj.position(0.0) - x_par * u
         return 0.5 * K * float(x_perp @ x_perp) - FP * x_par + 0.5 * M0 * float(v @ v) / pk**2
 
-    n = int(round(t_end / dt))
+    n = round(t_end / dt)
     v_hist = [storage(x, v, p(0.0))]
     w_hist, d_hist = [0.0], [0.0]
     for k in range(n):
@@ -231,9 +238,7 @@ def _passivity_run(
         v_new = adm.step(v, guide.virtual_force(state, x, v, pk) + f_ext, pk, (pn - pk) / dt, dt)
         x = x + v_new * dt
         w_hist.append(w_hist[-1] + float(f_ext @ (v + v_new)) * 0.5 * dt)
-        d_hist.append(
-            d_hist[-1] + 0.5 * dt * D0 * (float(v @ v) / pk + float(v_new @ v_new) / pn)
-        )
+        d_hist.append(d_hist[-1] + 0.5 * dt * D0 * (float(v @ v) / pk + float(v_new @ v_new) / pn))
         v = v_new
         v_hist.append(storage(x, v, pn))
     return np.array(v_hist) - v_hist[0], np.array(w_hist), np.array(d_hist)
@@ -267,7 +272,7 @@ def test_passivity_on_a_straight_line(
 def test_passivity_dissipates_without_external_force() -> None:
     """With F_ext = 0 the storage function decreases (D0 > 0, p >= p_min)."""
     p = _smooth_pace([0.35], [0.7], [0.0])
-    dv, w, d = _passivity_run(p, [(0.0, 0.0, 0.0)], 0.002)
+    dv, w, _ = _passivity_run(p, [(0.0, 0.0, 0.0)], 0.002)
     assert np.all(w == 0.0)
     assert dv[-1] < -0.01
     assert np.max(np.diff(dv)) < 1e-5

@@ -88,7 +88,8 @@ def test_virtual_force_components() -> None:
     guide.update(st, past, np.array([0.05, 0.0, 0.0]))
     assert st.s == pytest.approx(1.0) and not st.done
     np.testing.assert_allclose(
-        guide.virtual_force(st, past, np.zeros(3), 1.0), P.stiffness * (np.array([1.0, 0, 0]) - past)
+        guide.virtual_force(st, past, np.zeros(3), 1.0),
+        P.stiffness * (np.array([1.0, 0, 0]) - past),
     )
 
 
@@ -113,14 +114,14 @@ def test_stop_reached_only_at_rest_and_close() -> None:
     guide = Guide(tr, P)
     end = np.array([0.5, 0.0, 0.0])
     st = GuideState(0.49, 0, False)
-    guide.update(st, end + [0.0, 0.006, 0.0], np.zeros(3))  # 6 mm off: not yet
+    guide.update(st, end + np.array([0.0, 0.006, 0.0]), np.zeros(3))  # 6 mm off: not yet
     assert not st.done
     guide.update(st, end, np.array([0.011, 0.0, 0.0]))  # too fast: not yet
     assert not st.done
-    guide.update(st, end + [-0.003, 0.002, 0.0], np.array([0.005, 0.005, 0.0]))
+    guide.update(st, end + np.array([-0.003, 0.002, 0.0]), np.array([0.005, 0.005, 0.0]))
     assert st.done and st.s == pytest.approx(0.5) and st.stop_index == 1
     # once done only the spring to the end point remains; update is a no-op
-    x = end + [0.0, 0.01, 0.0]
+    x = end + np.array([0.0, 0.01, 0.0])
     np.testing.assert_allclose(
         guide.virtual_force(st, x, np.ones(3), 1.0), [0.0, -P.stiffness * 0.01, 0.0]
     )

@@ -36,7 +36,9 @@ def test_minimal_file_loads_with_optional_columns_absent(tmp_path: Path) -> None
 
 def test_optional_columns_are_read(tmp_path: Path) -> None:
     header = "t,cooperation," + ",".join(OPTIONAL_COLUMNS)
-    rows = [",".join(str(v) for v in [0.02 * i, 1.0] + [i] * len(OPTIONAL_COLUMNS)) for i in range(4)]
+    rows = [
+        ",".join(str(v) for v in [0.02 * i, 1.0] + [i] * len(OPTIONAL_COLUMNS)) for i in range(4)
+    ]
     s = load_session(_write(tmp_path, header + "\n" + "\n".join(rows) + "\n"))
     for col in OPTIONAL_COLUMNS:
         np.testing.assert_array_equal(getattr(s, col), [0, 1, 2, 3])
@@ -75,11 +77,11 @@ def test_bad_files_raise_naming_file_and_place(
 
 
 def test_unreadable_files(tmp_path: Path) -> None:
-    with pytest.raises(SessionDataError, match="missing.csv"):
+    with pytest.raises(SessionDataError, match=r"missing\.csv"):
         load_session(tmp_path / "missing.csv")
     binary = tmp_path / "binary.csv"
     binary.write_bytes(b"t,cooperation\n\xff\xfe\x00\x81\n")
-    with pytest.raises(SessionDataError, match="binary.csv"):
+    with pytest.raises(SessionDataError, match=r"binary\.csv"):
         load_session(binary)
     with pytest.raises(SessionDataError, match="cannot read"):
         load_session(tmp_path)  # a directory

@@ -157,8 +157,12 @@ def test_line_helper() -> None:
 
 
 def test_full_circle_and_negative_angle() -> None:
-    arc = ArcSegment(center=np.zeros(3), axis=np.array([0, 0, 2.0]), start=np.array([1.0, 0, 0]),
-                     angle=-math.pi / 2)
+    arc = ArcSegment(
+        center=np.zeros(3),
+        axis=np.array([0, 0, 2.0]),
+        start=np.array([1.0, 0, 0]),
+        angle=-math.pi / 2,
+    )
     np.testing.assert_allclose(arc.end, [0, -1, 0], atol=1e-12)
     tr = Trajectory([arc])
     np.testing.assert_allclose(tr.tangent(0.0), [0, -1, 0], atol=1e-12)
@@ -173,19 +177,36 @@ def test_full_circle_and_negative_angle() -> None:
         (lambda: LineSegment(np.zeros(2), np.ones(3)), "LineSegment.start"),
         (lambda: LineSegment(np.zeros(3), np.array([np.inf, 0, 0])), "LineSegment.end"),
         (lambda: ArcSegment(np.zeros(3), np.zeros(3), np.ones(3), 1.0), "ArcSegment.axis"),
-        (lambda: ArcSegment(np.zeros(3), np.array([0, 0, 1.0]), np.array([0, 0, 0.3]), 1.0),
-         "ArcSegment.start"),
-        (lambda: ArcSegment(np.zeros(3), np.array([0, 0, 1.0]), np.ones(3), 0.0),
-         "ArcSegment.angle"),
-        (lambda: ArcSegment(np.zeros(3), np.array([0, 0, 1.0]), np.ones(3), math.nan),
-         "ArcSegment.angle"),
-        (lambda: ArcSegment(np.zeros(3), np.array([0, 0, 1.0]), np.ones(3), 7.0),
-         "ArcSegment.angle"),
-        (lambda: ArcSegment(np.array([0, np.nan, 0]), np.array([0, 0, 1.0]), np.ones(3), 1.0),
-         "ArcSegment.center"),
+        (
+            lambda: ArcSegment(np.zeros(3), np.array([0, 0, 1.0]), np.array([0, 0, 0.3]), 1.0),
+            "ArcSegment.start",
+        ),
+        (
+            lambda: ArcSegment(np.zeros(3), np.array([0, 0, 1.0]), np.ones(3), 0.0),
+            "ArcSegment.angle",
+        ),
+        (
+            lambda: ArcSegment(np.zeros(3), np.array([0, 0, 1.0]), np.ones(3), math.nan),
+            "ArcSegment.angle",
+        ),
+        (
+            lambda: ArcSegment(np.zeros(3), np.array([0, 0, 1.0]), np.ones(3), 7.0),
+            "ArcSegment.angle",
+        ),
+        (
+            lambda: ArcSegment(np.array([0, np.nan, 0]), np.array([0, 0, 1.0]), np.ones(3), 1.0),
+            "ArcSegment.center",
+        ),
         (lambda: Trajectory([]), "segments"),
-        (lambda: Trajectory([LineSegment(np.zeros(3), np.ones(3)),
-                             LineSegment(np.ones(3) * 1.01, np.ones(3) * 2)]), "segments\\[1\\]"),
+        (
+            lambda: Trajectory(
+                [
+                    LineSegment(np.zeros(3), np.ones(3)),
+                    LineSegment(np.ones(3) * 1.01, np.ones(3) * 2),
+                ]
+            ),
+            "segments\\[1\\]",
+        ),
         (lambda: Trajectory(["not a segment"]), "segments\\[0\\]"),  # type: ignore[list-item]
     ],
 )

@@ -8,6 +8,7 @@ loads. Every signal fades in and out over 20 ms, like a recorded phrase.
 from __future__ import annotations
 
 import functools
+from typing import Literal
 
 import librosa
 import numpy as np
@@ -167,7 +168,7 @@ def test_time_varying_pace_duration(trace: str) -> None:
     else:
         t = np.arange(0.0, 6.0, 0.25)
         a = np.where(np.arange(t.size) % 2 == 0, 0.6, 1.4)
-    interp = "previous" if trace == "steps" else "linear"
+    interp: Literal["linear", "previous"] = "previous" if trace == "steps" else "linear"
     out = time_stretch(y, SR, t, a, interp=interp)
     if interp == "linear":
         expected = _expected_duration(y.size, t, a)
@@ -215,7 +216,7 @@ def test_block_accounting_is_exact(paces: list[float], sizes: list[int], n: int)
 
 @pytest.mark.parametrize("name", ["harmonic", "speech_like", "espeak"])
 def test_pitch_preserved(name: str) -> None:
-    y = _signal(name, 1.5).astype(np.float32)
+    y = _signal(name, 1.2)[: int(1.2 * SR)].astype(np.float32)
 
     def median_f0(x: np.ndarray) -> float:
         f0, voiced, _ = librosa.pyin(x, fmin=70.0, fmax=400.0, sr=SR, frame_length=1024)

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from langenv.control.admittance import AdmittanceParams
-from langenv.control.trajectory import ArcSegment, Trajectory
+from langenv.control.trajectory import Trajectory
 from langenv.errors import ConfigError
 
 __all__ = ["Guide", "GuideState"]
@@ -176,19 +176,17 @@ class Guide:
         rem = s_stop - s
         clamped = rem <= 0.0
         seg, t = traj._local(s, clamped)
-        xd = seg._point(t)
+        xd, b, kv = seg._frame(t)
         f0, f1, f2 = k_s * (xd[0] - x0), k_s * (xd[1] - x1), k_s * (xd[2] - x2)
         if clamped:
             return np.array((f0, f1, f2))
-        b = seg._tangent(t)
         fp = self._f_prop * (1.0 if rem * self._inv_brake >= 1.0 else rem * self._inv_brake)
         f0 += fp * b[0]
         f1 += fp * b[1]
         f2 += fp * b[2]
-        if self._ff_mass and type(seg) is ArcSegment:
+        if kv is not None and self._ff_mass:
             v0, v1, v2 = v.tolist()
             vp = (v0 * b[0] + v1 * b[1] + v2 * b[2]) / p
-            kv = seg._curvature(t)
             c = self._ff_mass * vp * vp
             f0 += c * kv[0]
             f1 += c * kv[1]

@@ -505,8 +505,7 @@ class FastETC:
         s = state.s
         s_stop = self._stops[state.stop_index]
         seg, t = self._traj._local(s, s >= s_stop)
-        xd = seg._point(t)
-        b = seg._tangent(t)
+        xd, b, _ = seg._frame(t)
         x0, x1, x2 = x.tolist()
         v0, v1, v2 = v.tolist()
         q = s_stop - s - ((x0 - xd[0]) * b[0] + (x1 - xd[1]) * b[1] + (x2 - xd[2]) * b[2])

@@ -105,6 +105,11 @@ class LineSegment:
     def _curvature(self, t: float) -> Vec3:
         return (0.0, 0.0, 0.0)
 
+    def _frame(self, t: float) -> tuple[Vec3, Vec3, Vec3 | None]:
+        """Point, unit tangent and curvature vector (``None`` on a line) at ``t``."""
+        p, u = self._p0, self._u
+        return (p[0] + t * u[0], p[1] + t * u[1], p[2] + t * u[2]), u, None
+
     def _project(self, x0: float, x1: float, x2: float) -> float:
         p, u = self._p0, self._u
         t = (x0 - p[0]) * u[0] + (x1 - p[1]) * u[1] + (x2 - p[2]) * u[2]
@@ -215,6 +220,25 @@ class ArcSegment:
         cs, sn = -k * math.cos(th), -k * math.sin(th)
         e1, e2 = self._e1, self._e2
         return (cs * e1[0] + sn * e2[0], cs * e1[1] + sn * e2[1], cs * e1[2] + sn * e2[2])
+
+    def _frame(self, t: float) -> tuple[Vec3, Vec3, Vec3 | None]:
+        """Point, unit tangent and curvature vector at ``t`` (one cos/sin)."""
+        th = self._sign * t / self.radius
+        cs, sn = math.cos(th), math.sin(th)
+        r, sg, k = self.radius, self._sign, 1.0 / self.radius
+        c, e1, e2 = self._c, self._e1, self._e2
+        r0 = cs * e1[0] + sn * e2[0]
+        r1 = cs * e1[1] + sn * e2[1]
+        r2 = cs * e1[2] + sn * e2[2]
+        return (
+            (c[0] + r * r0, c[1] + r * r1, c[2] + r * r2),
+            (
+                sg * (-sn * e1[0] + cs * e2[0]),
+                sg * (-sn * e1[1] + cs * e2[1]),
+                sg * (-sn * e1[2] + cs * e2[2]),
+            ),
+            (-k * r0, -k * r1, -k * r2),
+        )
 
     def _project(self, x0: float, x1: float, x2: float) -> float:
         c, e1, e2 = self._c, self._e1, self._e2

@@ -4,33 +4,35 @@ The speech of the robot is played at an *audio pace* ``a`` that changes over tim
 plays the content 20 % faster, so it lasts 1/1.2 as long). :class:`VariableRateVocoder`
 time-scales mono audio with a short-time Fourier transform while keeping its pitch:
 
-* **fixed synthesis hop** ``hop``; the analysis position in the content advances by
-  ``a * hop`` per output frame, at fractional sample positions (analysis is done directly at the
+* **fixed synthesis hop** ``hop``; the analysis position in the content advances by about
+  ``a * hop`` per output frame, at fractional positions (the analysis window is centred on the
   position rounded to the nearest sample, so no magnitude interpolation is needed);
-* **instantaneous frequency** of every bin from the derivative-window (reassignment) estimate
-  ``omega = omega_k - Im(X_dh / X_h)``, exact for a stationary sinusoid and free of the
-  phase-unwrapping ambiguity; the phase of a peak advances by ``hop`` times the mean of its
-  instantaneous frequency in the previous and the current frame (trapezoid rule);
+* **instantaneous frequency** from the derivative-window (reassignment) estimate
+  ``omega = omega_k - Im(X_dh / X_h)`` (rad/sample), exact for a stationary sinusoid and free of
+  phase unwrapping; a peak's phase advances by ``hop`` times the mean of its frequency in the
+  previous and the current frame (trapezoid rule);
 * **phase locking** (Laroche & Dolson 1999): the peaks of the magnitude spectrum (bins larger
-  than their two neighbours on each side) are propagated, with peak tracking (a peak continues
-  the phase of the previous frame's peak whose region contained it, "scaled" locking with
-  ``beta = 1``); every other bin keeps its analysed phase offset to the peak of its region of
-  influence (regions split half-way between peaks), i.e. the whole region is rotated by the
-  peak's phase rotation (identity phase locking);
+  than their two neighbours on each side) are propagated with peak tracking (a peak continues
+  the phase of the previous frame's peak whose region held its bin, "scaled" locking with
+  ``beta = 1``), and every bin of a peak's region of influence (split half-way between peaks)
+  is rotated by its peak's phase rotation, which keeps the analysed phase offsets within the
+  region (identity locking). Phases are zero-phase (referred to the frame centre). A peak more
+  than 12 dB louder than its source (an onset, or a frame after silence) restarts from its
+  analysed phase, which keeps attacks crisp and keeps onset errors from persisting;
 * **overlap-add** with Hann analysis and synthesis windows, normalised per output sample by the
-  accumulated sum of the window products, which is exact whatever the hops.
+  accumulated sum of the window products (exact whatever the hops and window length).
 
-Timing. Output sample ``j`` is played at pace ``a_j`` (the pace of the :meth:`pull` that emitted
-it) and the content time consumed is ``tau(j) = sum_{i<j} a_i`` samples, kept as an exact
-rational number. The output ends at the first sample ``T`` with ``tau(T) >= len(content)``, so the
-rendered duration satisfies ``integral_0^T a dt = len(y) / sr`` to within one sample. The frame
-centred on output sample ``o`` is analysed at content position ``tau(s) + a_s * n_fft / 2``,
-where ``s = o - n_fft / 2`` is the first output sample the frame touches (the pace is only known
-up to the sample being emitted, so it is extrapolated over the half frame); the advance per frame
-is kept within ``[0.5, 2] * a * hop`` so that a sudden change of pace never moves the content
-backwards. Because every quantity depends only on the per-sample pace sequence, the output does
-not depend on how it is split into pulls: a live sound card pulling small blocks and an offline
-render of the same ``a(t)`` give the same samples.
+Timing. Output sample ``j`` is played at pace ``a_j`` (the pace of the :meth:`pull` that
+emitted it) and the content consumed is ``tau(j) = sum_{i<j} a_i`` samples, summed exactly
+(integers, paces rounded to multiples of 2**-40). The output ends at the first sample ``T`` with
+``tau(T) >= len(content)``, so ``integral_0^T a dt = len(y) / sr`` to within one sample. The
+frame centred on output sample ``o`` is analysed at content position ``tau(s) + a_s * n_fft / 2``
+where ``s = o - n_fft / 2`` is the first output sample it touches: the pace is known only up to
+the sample being emitted, so it is extrapolated over the half frame, and the next frames absorb
+the difference; the advance per frame is kept within ``[0.5, 2] * a * hop``, so a sudden change
+of pace never moves the content backwards. Since every quantity depends only on the per-sample
+pace, the output does not depend on how it is split into pulls: a sound card pulling small blocks
+and an offline render of the same ``a(t)`` give the same samples.
 
 Example::
 
@@ -60,6 +62,8 @@ _MAX_ADVANCE = 2.0
 _ONSET_RATIO = 4.0
 #: Instantaneous frequencies are kept within this many bins of their bin (Hann main lobe).
 _MAX_BIN_OFFSET = 2.0
+_EMPTY = np.zeros(0)
+_ZERO = np.zeros(1)
 #: Content buffer prefix (samples) that may be dropped before it is actually trimmed.
 _TRIM_SLACK = 1 << 15
 #: Paces are rounded to multiples of 2**-_PACE_BITS so that content time is summed exactly.
@@ -84,16 +88,23 @@ class VariableRateVocoder:
     Content is appended with :meth:`push` (mono, at base pace) and the stretched audio is read
     with :meth:`pull`, which may be called with a different pace every time; state (phases,
     content read position, overlap-add tail) is carried between pulls, so block boundaries are
-    inaudible. The latency is about ``1.5 * n_fft`` content samples: a pull returns fewer samples
-    than asked only when the content pushed so far does not reach far enough ("starved") or at
-    the end of the content after :meth:`finish`.
+    inaudible and the samples do not depend on the block sizes. A pull returns fewer samples than
+    asked only when the content pushed so far does not reach far enough (it needs about
+    ``(a + 1) * n_fft / 2`` samples beyond the content being played) or at the end of the
+    content after :meth:`finish`.
+
+    Attributes:
+        content_time: Seconds of content consumed by the output so far (base pace).
+        output_time: Seconds of output emitted so far.
+        done: Content finished, fully consumed and the output fully emitted.
 
     Args:
         sr: Sample rate (Hz) of content and output.
-        n_fft: Frame length (samples), even, at least 16.
+        n_fft: Frame length (samples), even, at least 16 (1024 = 46 ms at 22.05 kHz).
         hop: Synthesis hop (samples), in ``[1, n_fft // 2]``; ``n_fft // 4`` is the usual choice.
         phase_lock: Lock the phases of each peak's region of influence (Laroche & Dolson); when
-            false every bin's phase is propagated on its own (classic phase vocoder).
+            false every bin's phase is propagated on its own (the classic phase vocoder, kept as
+            a reference).
 
     Raises:
         ConfigError: If an argument is out of range (the message names it).
@@ -137,9 +148,8 @@ class VariableRateVocoder:
         self._bins = np.arange(self._n_bins)
         self._center_phase = np.pi * (self._bins % 2)
         self._flat_bins = np.arange(0)  # grown on demand: flat bin indices of (F, K) batches
-        self._omega_bin = 2.0 * np.pi * np.arange(self._n_bins) / n
+        self._omega_bin = 2.0 * np.pi * self._bins / n  # bin centre frequencies (rad/sample)
         self._max_dw = _MAX_BIN_OFFSET * 2.0 * np.pi / n
-        self._frame_offsets = np.arange(-self._half, self._half)
         # First frame whose span [m*hop - n/2, m*hop + n/2) reaches output sample 0.
         m0 = -(self._half // self.hop)
         while m0 * self.hop + self._half <= 0:
@@ -204,8 +214,8 @@ class VariableRateVocoder:
         arr = np.asarray(y)
         if arr.ndim != 1:
             raise ConfigError(f"y must be mono audio of shape (n,), got shape {arr.shape}")
-        if arr.size and not np.issubdtype(arr.dtype, np.number):
-            raise ConfigError(f"y must be numeric audio, got dtype {arr.dtype}")
+        if arr.size and arr.dtype.kind not in "biuf":
+            raise ConfigError(f"y must be real-valued audio, got dtype {arr.dtype}")
         arr = arr.astype(np.float32, copy=False)
         if not np.all(np.isfinite(arr)):
             raise ConfigError("y must be finite (found NaN or inf samples)")
@@ -263,8 +273,14 @@ class VariableRateVocoder:
     def _synthesize_until(self, end: int, a: float, a_q: int) -> int:
         """Synthesize every frame starting before output sample ``end`` that the content allows.
 
+        Args:
+            end: Output sample (exclusive) the caller wants to emit up to.
+            a: Pace of the samples being emitted (on the exact grid).
+            a_q: The same pace in units of 2**-_PACE_BITS.
+
         Returns:
-            The output sample up to which (exclusive) the output is complete.
+            The output sample up to which (exclusive) the output is complete: ``end``, or the
+            first sample of the first frame the pushed content does not cover yet.
         """
         hop, half = self.hop, self._half
         centres: list[int] = []
@@ -413,83 +429,74 @@ class VariableRateVocoder:
         mag = np.abs(x_h)
         mid = mag[:, 2:-2]
         is_peak = np.zeros((n_frames, n_bins), dtype=bool)
-        is_peak[:, 2:-2] = (
-            (mid > mag[:, 1:-3]) & (mid > mag[:, :-4]) & (mid >= mag[:, 3:-1]) & (mid >= mag[:, 4:])
-        )
+        peak_mid = is_peak[:, 2:-2]
+        np.greater(mid, mag[:, 1:-3], out=peak_mid)
+        peak_mid &= mid > mag[:, :-4]
+        peak_mid &= mid >= mag[:, 3:-1]
+        peak_mid &= mid >= mag[:, 4:]
         flat = np.flatnonzero(is_peak)  # peaks in frame order, then bin order
         n_peaks = flat.size
-        rows, cols = np.divmod(flat, n_bins)
-        per_row = np.bincount(rows, minlength=n_frames)
-        row_first = np.cumsum(per_row) - per_row  # index of each frame's first peak
-        # Region of influence of each bin: index of the nearest peak in its frame (boundaries
-        # half-way between neighbouring peaks), from the run starts in the flattened (F, K)
-        # array; the regions of silent frames point at a sentinel (index n_peaks).
+        rows = flat // n_bins
+        cols = flat - rows * n_bins
         if self._flat_bins.size < n_frames * n_bins:
             self._flat_bins = np.arange(2 * n_frames * n_bins)
-        if n_peaks:
-            starts = rows * n_bins
-            starts[1:] += np.where(rows[1:] == rows[:-1], (cols[:-1] + cols[1:] + 1) // 2, 0)
-            starts[0] = 0
-            region = np.searchsorted(starts, self._flat_bins[: n_frames * n_bins], "right") - 1
-            region = region.reshape(n_frames, n_bins)
-            if not per_row.all():
-                region[per_row == 0] = n_peaks
-        else:
-            region = np.zeros((n_frames, n_bins), dtype=np.int64)
+        # Peaks of frame i are [edges[i], edges[i + 1]).
+        edges = np.searchsorted(rows, self._flat_bins[: n_frames + 1]).tolist()
+        # Region of influence of each bin: index of the nearest peak in its frame (boundaries
+        # half-way between neighbouring peaks, and at frame starts); the bins of a frame
+        # without peaks point at a sentinel (index n_peaks) that does not rotate them.
+        bounds = np.where(rows[1:] == rows[:-1], (flat[:-1] + flat[1:] + 1) // 2, rows[1:] * n_bins)
+        region = np.searchsorted(bounds, self._flat_bins[: n_frames * n_bins], "right")
+        for i in range(n_frames):
+            if edges[i] == edges[i + 1]:
+                region[i * n_bins : (i + 1) * n_bins] = n_peaks
 
         x_peak = x_h.ravel()[flat]
-        omega = self._inst_freq(x_peak, x_dh.ravel()[flat], cols)
+        mag_peak = mag.ravel()[flat]
+        offset = (x_dh.ravel()[flat] / x_peak).imag  # peaks are > 0: no division by zero
+        omega = self._omega_bin[cols] - np.clip(offset, -self._max_dw, self._max_dw)
         phase_a = np.arctan2(x_peak.imag, x_peak.real) + self._center_phase[cols]
 
         # Extended arrays: the previous batch's last frame's peaks, this batch's peaks, and a
-        # sentinel (the region index of silent frames points at it; its value is never used).
-        prev_phase, prev_omega, prev_region = self._prev_phase, self._prev_omega, self._prev_region
-        if prev_phase is None or prev_omega is None or prev_region is None:
-            prev_phase = prev_omega = prev_region = None
-            n_prev = 0
-        else:
-            n_prev = prev_phase.size
-        zero = np.zeros(1)
-        ext_phase = np.concatenate([zero[:0] if prev_phase is None else prev_phase, phase_a, zero])
-        ext_omega = np.concatenate([zero[:0] if prev_omega is None else prev_omega, omega, zero])
-        prev_mag = self._prev_mag if prev_phase is not None else None
-        mag_peak = mag.ravel()[flat]
-        ext_mag = np.concatenate([zero[:0] if prev_mag is None else prev_mag, mag_peak, zero])
+        # sentinel with magnitude 0 (for peaks without a source).
+        prev_phase, prev_omega, prev_mag = self._prev_phase, self._prev_omega, self._prev_mag
+        prev_region = self._prev_region
+        if prev_phase is None or prev_omega is None or prev_mag is None or prev_region is None:
+            prev_phase, prev_omega, prev_mag = _EMPTY, _EMPTY, _EMPTY
+            prev_region = None
+        n_prev = prev_phase.size
+        ext_phase = np.concatenate([prev_phase, phase_a, _ZERO])
+        ext_omega = np.concatenate([prev_omega, omega, _ZERO])
+        ext_mag = np.concatenate([prev_mag, mag_peak, _ZERO])
         # Source of every peak: the previous frame's peak whose region holds its bin.
-        src = np.empty(n_peaks, dtype=np.int64)
-        first = int(per_row[0])
-        if n_frames > 1:
-            src[first:] = region.ravel()[flat[first:] - n_bins] + n_prev
-        linked = np.empty(n_frames, dtype=bool)  # frame has a previous frame with peaks
-        linked[1:] = per_row[:-1] > 0
-        linked[0] = prev_region is not None
-        if prev_region is not None:
-            src[:first] = prev_region[cols[:first]]
-        else:
-            src[:first] = n_prev + n_peaks  # the sentinel; unused
-        increment = 0.5 * self.hop * (ext_omega[src] + omega)
+        src = region[flat - n_bins] + n_prev  # frames >= 1 (frame 0 is overwritten below)
+        first = edges[1]
+        src[:first] = n_prev + n_peaks if prev_region is None else prev_region[cols[:first]]
+        increment = (0.5 * self.hop) * (ext_omega[src] + omega)
         # Onsets: a peak much louder than its source (or without one) restarts from its
         # analysed phase, which keeps attacks crisp and stops onset errors from persisting.
         born = mag_peak > _ONSET_RATIO * ext_mag[src]
         src[born] = n_prev + np.flatnonzero(born)
         increment[born] = 0.0
-        for i in np.flatnonzero(linked & (per_row > 0)).tolist():
-            lo, hi = int(row_first[i]), int(row_first[i] + per_row[i])
-            ext_phase[n_prev + lo : n_prev + hi] = ext_phase[src[lo:hi]] + increment[lo:hi]
+        for i in range(n_frames):  # sequential: each frame continues the previous one
+            lo, hi = edges[i], edges[i + 1]
+            if hi > lo:
+                ext_phase[n_prev + lo : n_prev + hi] = ext_phase[src[lo:hi]] + increment[lo:hi]
         phase_s = ext_phase[n_prev:-1]
 
-        rotation = np.ones(n_peaks + 1, dtype=np.complex128)
+        rotation = np.empty(n_peaks + 1, dtype=np.complex128)
         rotation[:n_peaks] = np.exp(1j * (phase_s - phase_a))
-        z = x_h * rotation[region]
+        rotation[n_peaks] = 1.0
+        z = x_h * rotation[region].reshape(n_frames, n_bins)
 
-        if per_row[-1] > 0:
-            lo = int(row_first[-1])
-            self._prev_phase = np.mod(phase_s[lo:] + np.pi, 2.0 * np.pi) - np.pi
+        lo = edges[-2]
+        if n_peaks > lo:  # the last frame has peaks: it is the next batch's source
+            self._prev_phase = np.remainder(phase_s[lo:], 2.0 * np.pi)
             self._prev_omega = omega[lo:]
             self._prev_mag = mag_peak[lo:]
-            self._prev_region = region[-1] - lo
+            self._prev_region = region[(n_frames - 1) * n_bins :] - lo
         else:
-            self._prev_phase = self._prev_omega = self._prev_region = None
+            self._prev_phase = self._prev_omega = self._prev_mag = self._prev_region = None
         return z
 
     def _trim_content(self) -> None:

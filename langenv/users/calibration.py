@@ -78,10 +78,10 @@ CALIBRATED_PARAMS = SyntheticUserParams(
     duration=LogNormal(median=2.55, sigma=1.05),
     rise=LogNormal(median=0.582, sigma=0.989),
     fall=LogNormal(median=0.753, sigma=1.16),
-    magnitude=LogNormal(median=4.93, sigma=0.584),
-    session_sigma=0.238,
-    noise_std=0.579,
-    noise_tau=0.28,
+    magnitude=LogNormal(median=4.92, sigma=0.579),
+    session_sigma=0.24,
+    noise_std=0.546,
+    noise_tau=0.3,
 )
 
 

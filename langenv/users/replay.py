@@ -58,8 +58,9 @@ def invert_cooperation(
     samples), then inverted on a uniform grid from 0 to ``t[-1]``. The result is clipped to
     ``[0, f_max]``: the filter saturates at ``f_max`` and cannot decay faster than with no force.
     Forces below ``floor`` are then set to 0: that is inversion ripple where the person does not
-    resist, and replayed, each would become a deadband-sized push that slows the hand. Before the first sample (``t[0] > 0``) a constant force brings the filter from rest
-    (``c = 1``) to ``cooperation[0]`` at ``t[0]`` (as close as ``f_max`` allows).
+    resist, and replayed, each would become a deadband-sized push that slows the hand. Before
+    the first sample (``t[0] > 0``) a constant force brings the filter from rest (``c = 1``) to
+    ``cooperation[0]`` at ``t[0]`` (as close as ``f_max`` allows).
 
     Args:
         t: Sample times (n,), s, strictly increasing, ``t[0] >= 0``.

@@ -227,9 +227,10 @@ class Episode:
     def envelope(self, t: np.ndarray) -> np.ndarray:
         """Noise-free force above the deadband (N) at times ``t`` (...,), s."""
         t = np.asarray(t, dtype=np.float64)
-        up = (t - self.onset) / self.rise if self.rise > 0.0 else np.inf
-        down = (self.end - t) / self.fall if self.fall > 0.0 else np.inf
-        shape = np.clip(np.minimum(up, down), 0.0, 1.0)
+        with np.errstate(over="ignore", divide="ignore"):
+            up = (t - self.onset) / self.rise if self.rise > 0.0 else np.inf
+            down = (self.end - t) / self.fall if self.fall > 0.0 else np.inf
+            shape = np.clip(np.minimum(up, down), 0.0, 1.0)
         inside = (t > self.onset) & (t < self.end)
         return np.where(inside, self.magnitude * shape, 0.0)
 

@@ -1,0 +1,165 @@
+"""Motion ETC: the 500 Hz reference, the fast estimator, and the virtual-run simulator."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from langenv.control.admittance import AdmittanceParams, VariableAdmittance
+from langenv.control.guide import Guide, GuideState
+from langenv.control.motion_etc import (
+    FastETC,
+    VirtualRun,
+    etc_agreement,
+    random_pace,
+    random_resistance,
+    reference_etc,
+    simulate_virtual,
+)
+from langenv.control.trajectory import default_exercise, line
+from langenv.errors import ConfigError
+
+EX = default_exercise()
+P = AdmittanceParams()
+
+
+@pytest.fixture(scope="module")
+def guide() -> Guide:
+    return Guide(EX, P)
+
+
+@pytest.fixture(scope="module")
+def adm() -> VariableAdmittance:
+    return VariableAdmittance(P)
+
+
+@pytest.fixture(scope="module")
+def fast(guide: Guide, adm: VariableAdmittance) -> FastETC:
+    return FastETC(guide, adm)
+
+
+@pytest.fixture(scope="module")
+def nominal() -> VirtualRun:
+    return simulate_virtual(EX, P)
+
+
+def test_reference_is_consistent_with_the_run(
+    guide: Guide, adm: VariableAdmittance, nominal: VirtualRun
+) -> None:
+    """From any recorded state of the nominal run, the reference gives the time left exactly."""
+    assert nominal.done_time is not None
+    st = guide.initial_state()
+    assert reference_etc(guide, adm, st, EX.position(0.0), np.zeros(3)) == pytest.approx(
+        nominal.done_time
+    )
+    assert st == guide.initial_state()  # the state is not modified
+    for i in np.linspace(0, len(nominal.t) - 2, 7).astype(int).tolist():
+        ref = reference_etc(guide, adm, nominal.guide_state(i), nominal.x[i], nominal.v[i])
+        assert ref == pytest.approx(nominal.done_time - nominal.t[i], abs=1e-9)
+
+
+def test_reference_done_and_horizon(guide: Guide, adm: VariableAdmittance) -> None:
+    done = GuideState(EX.length, len(EX.stop_s), True)
+    assert reference_etc(guide, adm, done, EX.position(EX.length), np.zeros(3)) == 0.0
+    short = reference_etc(
+        guide, adm, guide.initial_state(), EX.position(0.0), np.zeros(3), t_max=1.0
+    )
+    assert math.isinf(short)
+
+
+def test_fast_etc_nominal_and_done(fast: FastETC, nominal: VirtualRun) -> None:
+    assert nominal.done_time is not None
+    assert fast.nominal() == pytest.approx(nominal.done_time, abs=0.01)
+    done = GuideState(EX.length, len(EX.stop_s), True)
+    assert fast.etc(done, EX.position(EX.length), np.zeros(3)) == 0.0
+
+
+def test_fast_etc_along_the_nominal_run(fast: FastETC, nominal: VirtualRun) -> None:
+    assert nominal.done_time is not None
+    idx = np.arange(0, len(nominal.t) - 1, 25)
+    est = np.array(
+        [fast.etc(nominal.guide_state(i), nominal.x[i], nominal.v[i]) for i in idx.tolist()]
+    )
+    ref = nominal.done_time - nominal.t[idx]
+    err = np.abs(est - ref)
+    assert np.max(err / np.maximum(ref, 0.1)) <= 0.02
+    assert np.max(err) < 0.02
+
+
+def test_fast_etc_agrees_with_reference_off_nominal() -> None:
+    """Random paces and resisting users (states slowed, pushed back, faster than nominal)."""
+    res = etc_agreement(EX, P, np.random.default_rng(7), n_runs=4, samples_per_run=8)
+    assert res["n_states"] >= 30
+    assert res["max_rel_err"] <= 0.02
+    assert res["mean_rel_err"] <= 0.005
+    assert res["etc_us_median"] < 50.0  # a few us on the dev machine; generous for CI
+
+
+def test_fast_etc_on_another_geometry() -> None:
+    """A longer straight exercise with a stop in the middle: tables are not exercise-specific."""
+    from langenv.control.trajectory import LineSegment, Trajectory
+
+    tr = Trajectory(
+        [
+            LineSegment(np.zeros(3), np.array([0.4, 0.0, 0.0]), stop=True),
+            LineSegment(np.array([0.4, 0.0, 0.0]), np.array([0.4, 0.3, 0.0]), stop=True),
+        ]
+    )
+    g = Guide(tr, P)
+    a = VariableAdmittance(P)
+    f = FastETC(g, a)
+    run = simulate_virtual(
+        tr,
+        P,
+        p=random_pace(np.random.default_rng(3)),
+        force=random_resistance(np.random.default_rng(4), horizon=8.0),
+    )
+    assert run.done_time is not None
+    for i in np.linspace(0, len(run.t) - 2, 12).astype(int).tolist():
+        st, x, v = run.guide_state(i), run.x[i], run.v[i]
+        ref = reference_etc(g, a, st, x, v)
+        assert abs(f.etc(st, x, v) - ref) <= 0.02 * max(ref, 0.1)
+
+
+def test_fast_etc_knife_edge_of_the_stop_rule(
+    guide: Guide, adm: VariableAdmittance, fast: FastETC
+) -> None:
+    """Near the stop, a slightly faster hand misses the tolerance box and swings back: the
+    reference jumps by ~0.8 s there and the estimator must follow it on both sides (bilinear
+    interpolation alone fails here: FastETC(jump=inf) misses one of these states per row)."""
+    s_stop = float(EX.stop_s[-1])
+    k = len(EX.stop_s) - 1
+    for q in (0.12, 0.08):
+        values = []
+        for u in np.linspace(0.0325, 0.2025, 35):
+            s = s_stop - q
+            st = GuideState(s, k, False)
+            x, v = EX.position(s), u * EX.tangent(s)
+            ref = reference_etc(guide, adm, st, x, v)
+            values.append(ref)
+            assert fast.etc(st, x, v) == pytest.approx(ref, abs=0.05)
+        assert np.max(np.diff(values)) > 0.5  # the jump is there
+
+
+def test_simulate_virtual_records_inputs() -> None:
+    run = simulate_virtual(EX, P, p=0.8, force=lambda t, v, b: -3.0 * b, t_max=2.0)
+    assert run.done_time is None
+    n = len(run.t)
+    assert run.x.shape == (n, 3) and run.v.shape == (n, 3) and run.f_ext.shape == (n, 3)
+    assert np.all(run.p == 0.8)
+    np.testing.assert_allclose(np.linalg.norm(run.f_ext, axis=1), 3.0)
+    # slower pace and resistance: slower than the nominal plateau
+    assert run.max_speed < 0.8 * (10.0 - 3.0) / 80.0 + 1e-3
+
+
+def test_fast_etc_validation(guide: Guide, adm: VariableAdmittance) -> None:
+    with pytest.raises(ConfigError, match="propel_force"):
+        FastETC(Guide(line([0, 0, 0], [1, 0, 0]), AdmittanceParams(propel_force=0.0)), adm)
+    with pytest.raises(ConfigError, match="dt"):
+        FastETC(guide, adm, dt=0.0)
+    with pytest.raises(ConfigError, match="u_range"):
+        FastETC(guide, adm, u_range=(0.1, 0.3))
+    with pytest.raises(ConfigError, match="dt"):
+        simulate_virtual(EX, P, dt=-1.0)
