@@ -3,7 +3,8 @@
 Run, for instance::
 
     python -m eval.compare --policies ac,lc-noap,lc --users synthetic:12 --seed 0 --out out/compare
-    python -m eval.compare --policies lc,ppo:models/ppo_langctrl.zip --sessions ../shared/sessions --out out/replay
+    python -m eval.compare --policies lc,ppo:models/ppo_langctrl.zip \
+        --sessions ../shared/sessions --pattern '*_lc.csv' --out out/replay
 
 Writes (only when every episode ran; nothing partial is left on error):
 
@@ -274,7 +275,9 @@ def _run_jobs(jobs: list[Job], workers: int) -> list[dict[str, Any]]:
     return rows
 
 
-def _write_outputs(rows: list[dict[str, Any]], names: list[str], tmp: Path, args: CompareArgs) -> None:
+def _write_outputs(
+    rows: list[dict[str, Any]], names: list[str], tmp: Path, args: CompareArgs
+) -> None:
     from eval.episode import EpisodeLog
     from eval.plots import violin_figure
     from eval.report import write_sessions_csv, write_summary_md

@@ -205,6 +205,12 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self._obs = np.zeros(self.observation_space.shape, np.float32)
         self._choice_u = np.zeros(n_choice)
         self._renderer: Any = None
+        self.time = 0.0
+        self.t_a = 0.0
+        self.t_speech_end: float | None = None
+        self.am = 0.0
+        self._terminated = False
+        self._am_paid = False
         self._reset_episode_state()
 
     # ------------------------------------------------------------------ gym API
@@ -254,7 +260,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         info.update(reward_em=r_em, reward_pace=r_pace, reward_am=r_am)
         return self._observation(), float(reward), self._terminated, False, info
 
-    def render(self) -> np.ndarray | None:  # type: ignore[override]
+    def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array":
             return None
         return self.motion.arm.render(
@@ -272,11 +278,11 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     def _reset_episode_state(self) -> None:
         self.time = 0.0
         self.t_a = 0.0
-        self.t_speech_end: float | None = None
+        self.t_speech_end = None
         self.am = 0.0
         self._terminated = False
         self._am_paid = False
-        self._coop_hist = np.ones(max(1, int(round(TREND_WINDOW / self.dt))))
+        self._coop_hist = np.ones(max(1, round(TREND_WINDOW / self.dt)))
         self._coop_i = 0
 
     def _tick(self, p_cmd: float, a_cmd: float) -> tuple[float, float]:
@@ -387,9 +393,11 @@ def _make_user(users: Any, session: str | Path | None) -> User:
             if session is None:
                 raise ConfigError("users='replay' needs session=PATH to a session CSV")
             return ReplayUser.from_csv(session)
-        raise ConfigError(f"users must be 'synthetic', 'replay', a User or a callable; got {users!r}")
+        raise ConfigError(
+            f"users must be 'synthetic', 'replay', a User or a callable; got {users!r}"
+        )
     if hasattr(users, "reset") and hasattr(users, "force"):
-        return users  # type: ignore[no-any-return]
+        return users
     if callable(users):
         return CallableUser(users)
     raise ConfigError(f"users must be 'synthetic', 'replay', a User or a callable; got {users!r}")

@@ -51,9 +51,13 @@ class PaceLimits:
             if not (math.isfinite(value) and value > 0.0):
                 raise ConfigError(f"PaceLimits.{name} must be finite and > 0, got {value!r}")
         if not self.p_min < 1.0 < self.p_max:
-            raise ConfigError(f"PaceLimits needs p_min < 1 < p_max, got [{self.p_min}, {self.p_max}]")
+            raise ConfigError(
+                f"PaceLimits needs p_min < 1 < p_max, got [{self.p_min}, {self.p_max}]"
+            )
         if not self.a_min < 1.0 < self.a_max:
-            raise ConfigError(f"PaceLimits needs a_min < 1 < a_max, got [{self.a_min}, {self.a_max}]")
+            raise ConfigError(
+                f"PaceLimits needs a_min < 1 < a_max, got [{self.a_min}, {self.a_max}]"
+            )
 
 
 def command_from_action(u: float, upper: float) -> float:

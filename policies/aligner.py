@@ -1,9 +1,9 @@
-"""The Language Controller's audio–motion aligner (SPEC §1).
+"""The Language Controller's audio-motion aligner (SPEC §1).
 
 The aligner chooses the physical pace ``p`` and the audio pace ``a`` closest to the natural pace 1
 under which motion and speech end together:
 
-    minimise (p - 1)^2 + (a - 1)^2   subject to   t_x / p = t_a / a   (i.e. a = p / s, s = t_x / t_a)
+    minimise (p - 1)^2 + (a - 1)^2  subject to  t_x / p = t_a / a  (a = p / s, s = t_x / t_a)
 
 whose solution is ``p* = (s^2 + s) / (s^2 + 1)``, ``a* = (s + 1) / (s^2 + 1)``. The paper prints the
 two formulas swapped (a typo; the study's lab code has them as here).

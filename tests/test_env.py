@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from pathlib import Path
 
@@ -65,7 +66,7 @@ def test_make_vec() -> None:
     envs = gym.make_vec(langenv.ENV_ID, num_envs=2, vectorization_mode="sync")
     obs, _ = envs.reset(seed=3)
     assert obs.shape == (2, *envs.single_observation_space.shape)
-    obs, r, term, trunc, _ = envs.step(np.zeros((2, *envs.single_action_space.shape), np.float32))
+    obs, r, _term, _trunc, _ = envs.step(np.zeros((2, *envs.single_action_space.shape), np.float32))
     assert r.shape == (2,)
     envs.close()
 
@@ -105,15 +106,13 @@ def test_reward_weights_scale_terms() -> None:
 
 def test_lc_at_500hz_is_the_papers_controller() -> None:
     """Integrate the paper's pace laws directly on the logged ETCs and cooperation."""
-    env = gym.make(
-        langenv.ENV_ID, users=resisting_user, decision_hz=500, max_episode_steps=30_000
-    )
+    env = gym.make(langenv.ENV_ID, users=resisting_user, decision_hz=500, max_episode_steps=30_000)
     infos, _, _ = run(env, load_policy("lc"))
     gains = AlignerGains()
     dt = 0.002
     p = a = 1.0
     err_p = err_a = 0.0
-    for prev, cur in zip(infos[:-1], infos[1:], strict=True):
+    for prev, cur in itertools.pairwise(infos):
         p_star, a_star = optimal_paces(prev["t_x"], prev["t_a"])
         p = min(1.4, max(0.6, p + dt * 6.0 * (p_star - p)))
         da = gains.k_a * (a_star - a) - gains.k_c * (1.0 - prev["cooperation"])
@@ -158,7 +157,7 @@ def test_bad_arguments_raise_clear_errors(tmp_path: Path) -> None:
         LangCtrlEnv(w_em=float("nan"))
     bad = tmp_path / "g.yaml"
     bad.write_text("start: a\nphrases:\n  a:\n    text: hi\n    next: [b]\n")
-    with pytest.raises(PhraseGraphError, match="g.yaml"):
+    with pytest.raises(PhraseGraphError, match=r"g\.yaml"):
         LangCtrlEnv(phrase_graph=bad)
 
 
@@ -175,15 +174,15 @@ def test_bad_actions_raise(action: list[float]) -> None:
 def test_scores_mode_never_picks_an_invalid_child() -> None:
     env = gym.make(langenv.ENV_ID, choice_mode="scores", users=zero_user)
     base: LangCtrlEnv = env.unwrapped  # type: ignore[assignment]
-    obs, _ = env.reset(seed=0)
+    env.reset(seed=0)
     rng = np.random.default_rng(0)
     done = False
     while not done:
         act = rng.uniform(-1, 1, env.action_space.shape).astype(np.float32)
-        obs, _, term, trunc, _ = env.step(act)
+        _obs, _, term, trunc, _ = env.step(act)
         done = term or trunc
     path = base.speech.path
-    for u, v in zip(path[:-1], path[1:], strict=True):
+    for u, v in itertools.pairwise(path):
         assert v in base.graph.children(u)
 
 
@@ -197,7 +196,9 @@ def test_replay_user_reproduces_recorded_cooperation() -> None:
     t = np.array([i["time"] for i in infos])
     c = np.array([i["cooperation"] for i in infos])
     mask = t <= data["t"][-1]
-    rmse = float(np.sqrt(np.mean((np.interp(t[mask], data["t"], data["cooperation"]) - c[mask]) ** 2)))
+    rmse = float(
+        np.sqrt(np.mean((np.interp(t[mask], data["t"], data["cooperation"]) - c[mask]) ** 2))
+    )
     assert rmse < 0.05
 
 
