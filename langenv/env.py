@@ -232,10 +232,10 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         act = np.asarray(action, dtype=np.float64).reshape(-1)
         if act.shape != self.action_space.shape:
             raise ActionError(f"action must have shape {self.action_space.shape}, got {act.shape}")
-        if not np.all(np.isfinite(act)):
-            raise ActionError(f"action must be finite, got {act.tolist()}")
-        if np.any(np.abs(act) > 1.0 + 1e-6):
-            raise ActionError(f"action must lie in [-1, 1], got {act.tolist()}")
+        values = act.tolist()
+        for v in values:
+            if not -1.000001 <= v <= 1.000001:  # also rejects NaN
+                raise ActionError(f"action must be finite and lie in [-1, 1], got {values}")
         lim = self.paces.limits
         p_cmd = command_from_action(float(act[0]), lim.p_max)
         a_cmd = command_from_action(float(act[1]), lim.a_max)
@@ -340,8 +340,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         oldest = self._coop_hist[self._coop_i % n] if self._coop_i >= n else 1.0
         obs[6] = (newest - oldest) / TREND_WINDOW
         obs[7] = 2.0 * m.progress - 1.0
-        speed = float(np.linalg.norm(m.hand_velocity))
-        obs[8] = speed / MAX_TRAJECTORY_SPEED
+        obs[8] = m.hand_speed / MAX_TRAJECTORY_SPEED
         obs[9] = 2.0 * sp.fraction_said - 1.0
         obs[10] = sp.remaining_in_phrase / T_SCALE
         obs[11] = 1.0 if sp.in_pause else -1.0
@@ -372,7 +371,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             "p": self.paces.p,
             "a": self.paces.a,
             "cooperation": m.cooperation,
-            "hand_speed": float(np.linalg.norm(m.hand_velocity)),
+            "hand_speed": m.hand_speed,
             "progress": m.progress,
             "phrase": self.speech.phrase,
             "in_pause": self.speech.in_pause,

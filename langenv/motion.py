@@ -66,6 +66,8 @@ class GuidedArm:
         self.t_x: float = 0.0
         self.t_motion_end: float | None = None
         self.time: float = 0.0
+        self._hand_velocity = np.zeros(3)
+        self._hand_speed = 0.0
 
     # ------------------------------------------------------------------ state
     @property
@@ -75,8 +77,13 @@ class GuidedArm:
 
     @property
     def hand_velocity(self) -> np.ndarray:
-        """Hand (handle site) linear velocity, shape (3,), m/s."""
-        return self.arm.hand_velocity()
+        """Hand (handle site) linear velocity after the last tick, shape (3,), m/s (read-only)."""
+        return self._hand_velocity
+
+    @property
+    def hand_speed(self) -> float:
+        """Norm of :attr:`hand_velocity` (m/s)."""
+        return self._hand_speed
 
     @property
     def cooperation(self) -> float:
@@ -113,6 +120,13 @@ class GuidedArm:
         self.time = 0.0
         self.t_motion_end = None
         self.t_x = self.etc.etc(self.state, self.arm.hand_position(), self.v_ref)
+        self._measure_hand()
+
+    def _measure_hand(self) -> None:
+        v = self.arm.hand_velocity()
+        v.flags.writeable = False
+        self._hand_velocity = v
+        self._hand_speed = math.sqrt(float(v @ v))
 
     def tick(
         self,
@@ -148,4 +162,5 @@ class GuidedArm:
             self.v_ref = self.admittance.step(self.v_ref, force, p, p_dot, self.dt)
             self.arm.step(self.v_ref, f_user)
             self.t_x = self.etc.etc(self.state, self.arm.hand_position(), self.v_ref)
+        self._measure_hand()
         self.time += self.dt

@@ -39,7 +39,7 @@ import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -605,6 +605,270 @@ def compare_quantiles(
         synthetic_durations=result.completion,
         synthetic_episode_counts=np.asarray(realised, dtype=np.int64),
     )
+
+
+# --------------------------------------------------------------------------------------------
+# Closed loop in the real env (LangCtrl-v0)
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class EnvUserSpec:
+    """A user to run through ``LangCtrl-v0`` (picklable, so runs can go to worker processes).
+
+    Attributes:
+        label: Name in reports (``"synthetic:SEED"`` or the session's name).
+        seed: Seed given to ``env.reset`` (draws the synthetic user; replays ignore it).
+        params: Synthetic user parameters; ``None`` for a replay.
+        session: Path of the session CSV to replay; ``None`` for a synthetic user.
+    """
+
+    label: str
+    seed: int
+    params: SyntheticUserParams | None = None
+    session: Path | None = None
+
+    def __post_init__(self) -> None:
+        if (self.params is None) == (self.session is None):
+            raise ConfigError(f"EnvUserSpec {self.label!r}: give exactly one of params or session")
+
+    @classmethod
+    def synthetic(cls, seed: int, params: SyntheticUserParams | None = None) -> EnvUserSpec:
+        """A synthetic user drawn from ``env.reset(seed=seed)``."""
+        return cls(f"synthetic:{seed}", seed, params=params or CALIBRATED_PARAMS)
+
+    @classmethod
+    def replay(cls, path: str | Path, seed: int = 0) -> EnvUserSpec:
+        """The replay of a recorded session CSV."""
+        p = Path(path)
+        return cls(p.stem, seed, session=p)
+
+
+@dataclass(frozen=True)
+class EnvSessionResult:
+    """One closed-loop session in ``LangCtrl-v0``.
+
+    Attributes:
+        user: The user's label. policy: The policy's name.
+        motion_time: Time (s) the motion ended (``max_time`` if it did not).
+        finished: Whether the motion ended before ``max_time``.
+        am: Actual misalignment ``t_speech_end - t_motion_end`` (s); NaN if not finished.
+        cooperation: Cooperation samples (k,) at the decision rate while the motion went on.
+        episodes: Resistance episodes begun before the motion ended.
+        resisting_speed: Hand speed samples (m/s) while the person pushed above the deadband
+            (and the motion went on).
+        backward_time: Time (s) the hand moved backwards along the path faster than 1 cm/s.
+    """
+
+    user: str
+    policy: str
+    motion_time: float
+    finished: bool
+    am: float
+    cooperation: np.ndarray = field(repr=False)
+    episodes: int
+    resisting_speed: np.ndarray = field(repr=False)
+    backward_time: float
+
+
+_ENV_CACHE: dict[tuple[str, int], tuple[object, object]] = {}
+
+
+def _env_for(policy_name: str, decision_hz: int) -> tuple[object, object]:
+    key = (policy_name, decision_hz)
+    if key not in _ENV_CACHE:
+        import gymnasium as gym
+
+        import langenv  # noqa: F401  (registers LangCtrl-v0)
+        from policies import load_policy
+
+        policy = load_policy(policy_name)
+        policy.decision_hz = decision_hz
+        env = gym.make(
+            "LangCtrl-v0",
+            decision_hz=decision_hz,
+            phrase_graph=policy.phrase_graph,
+            max_episode_steps=None,
+        )
+        _ENV_CACHE[key] = (env, policy)
+    return _ENV_CACHE[key]
+
+
+def run_env_session(
+    spec: EnvUserSpec,
+    policy_name: str,
+    *,
+    decision_hz: int = 25,
+    max_time: float = 90.0,
+) -> EnvSessionResult:
+    """Run one session of ``policy_name`` with the user ``spec`` in ``LangCtrl-v0``.
+
+    Args:
+        spec: The user.
+        policy_name: ``"ac"``, ``"lc-noap"`` or ``"lc"`` (``policies.load_policy``).
+        decision_hz: The env's (and policy's) decision rate.
+        max_time: The session is cut at this time (s).
+
+    Returns:
+        The :class:`EnvSessionResult`.
+    """
+    from langenv.users.replay import ReplayUser
+
+    env_any, policy_any = _env_for(policy_name, decision_hz)
+    env: Any = env_any
+    policy: Any = policy_any
+    user: SyntheticUser | ReplayUser
+    if spec.params is not None:
+        user = SyntheticUser(spec.params)
+        n_episodes_of = None
+    else:
+        assert spec.session is not None
+        user = ReplayUser.from_csv(spec.session)
+        n_episodes_of = extract_episodes(user.session)
+    policy.reset()
+    obs, info = env.reset(seed=spec.seed, options={"user": user})
+    motion = env.unwrapped.motion
+    dt_step = 1.0 / decision_hz
+    coop: list[float] = []
+    speeds: list[float] = []
+    backward = 0.0
+    max_steps = math.ceil(max_time * decision_hz)
+    for _ in range(max_steps):
+        obs, _, terminated, truncated, info = env.step(policy.act(obs))
+        if not info["motion_done"]:
+            coop.append(float(info["cooperation"]))
+            v_along = float(motion.hand_velocity @ motion.tangent())
+            if v_along < -0.01:
+                backward += dt_step
+            if float(np.linalg.norm(motion.f_measured)) > 0.0:
+                speeds.append(float(info["hand_speed"]))
+        if terminated or truncated:
+            break
+    t_motion = info["t_motion"]
+    finished = t_motion is not None
+    motion_time = float(t_motion) if finished else max_time
+    am = float(info["am"]) if info["am"] is not None else math.nan
+    if n_episodes_of is None:
+        assert isinstance(user, SyntheticUser)
+        n_eps = sum(e.onset < motion_time for e in user.episodes)
+    else:
+        n_eps = sum(e.onset < motion_time for e in n_episodes_of)
+    return EnvSessionResult(
+        user=spec.label,
+        policy=policy_name,
+        motion_time=motion_time,
+        finished=finished,
+        am=am,
+        cooperation=np.asarray(coop),
+        episodes=int(n_eps),
+        resisting_speed=np.asarray(speeds),
+        backward_time=backward,
+    )
+
+
+def _run_task(task: tuple[EnvUserSpec, str, int, float]) -> EnvSessionResult:
+    spec, policy_name, decision_hz, max_time = task
+    return run_env_session(spec, policy_name, decision_hz=decision_hz, max_time=max_time)
+
+
+def run_env_sessions(
+    specs: Sequence[EnvUserSpec],
+    policies: Sequence[str] = ("ac", "lc"),
+    *,
+    decision_hz: int = 25,
+    max_time: float = 90.0,
+    workers: int = 1,
+    progress: bool = True,
+) -> list[EnvSessionResult]:
+    """Run every user under every policy in ``LangCtrl-v0`` (optionally in worker processes).
+
+    Returns:
+        The results in the order ``[(policy, spec) for policy in policies for spec in specs]``.
+    """
+    tasks = [(s, pol, decision_hz, max_time) for pol in policies for s in specs]
+    bar: Any = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(tasks), desc="LangCtrl-v0 sessions", unit="session")
+    results: list[EnvSessionResult] = []
+    if workers <= 1:
+        for task in tasks:
+            results.append(_run_task(task))
+            if bar is not None:
+                bar.update()
+    else:
+        import multiprocessing as mp
+
+        with mp.get_context("spawn").Pool(workers) as pool:
+            for res in pool.imap(_run_task, tasks):
+                results.append(res)
+                if bar is not None:
+                    bar.update()
+    if bar is not None:
+        bar.close()
+    return results
+
+
+@dataclass(frozen=True)
+class EnvSummary:
+    """Statistics of a group of :class:`EnvSessionResult` (one user population, one policy).
+
+    Attributes:
+        n: Sessions. finished: Sessions whose motion ended.
+        duration_q: Motion time quantiles (s) at 10/50/90 %; ``duration_range`` (min, max).
+        coop_q: Pooled cooperation quantiles at :data:`QUANTILES`.
+        episodes_mean: Mean resistance episodes per session.
+        abs_am_q: ``|AM|`` quantiles (s) at 50/90/100 %; ``am_within_1s``: share with |AM| <= 1 s.
+        resisting_speed_median: Median hand speed (m/s) while the person pushed.
+        backward_share: Share of motion time the hand moved backwards.
+    """
+
+    n: int
+    finished: int
+    duration_q: tuple[float, float, float]
+    duration_range: tuple[float, float]
+    coop_q: tuple[float, ...]
+    episodes_mean: float
+    abs_am_q: tuple[float, float, float]
+    am_within_1s: float
+    resisting_speed_median: float
+    backward_share: float
+
+    @classmethod
+    def of(cls, results: Sequence[EnvSessionResult]) -> EnvSummary:
+        """Summarise ``results`` (at least one)."""
+        if not results:
+            raise ConfigError("EnvSummary.of: results must not be empty")
+        d = np.array([r.motion_time for r in results])
+        am = np.abs(np.array([r.am for r in results]))
+        am = am[np.isfinite(am)]
+        coop = np.concatenate([r.cooperation for r in results])
+        speed = np.concatenate([r.resisting_speed for r in results])
+        nan3 = (math.nan, math.nan, math.nan)
+        return cls(
+            n=len(results),
+            finished=sum(r.finished for r in results),
+            duration_q=tuple(float(x) for x in np.quantile(d, [0.1, 0.5, 0.9])),  # type: ignore[arg-type]
+            duration_range=(float(d.min()), float(d.max())),
+            coop_q=tuple(float(x) for x in np.quantile(coop, list(QUANTILES))),
+            episodes_mean=float(np.mean([r.episodes for r in results])),
+            abs_am_q=tuple(float(x) for x in np.quantile(am, [0.5, 0.9, 1.0])) if am.size else nan3,  # type: ignore[arg-type]
+            am_within_1s=float(np.mean(am <= 1.0)) if am.size else math.nan,
+            resisting_speed_median=float(np.median(speed)) if speed.size else math.nan,
+            backward_share=float(sum(r.backward_time for r in results) / d.sum()),
+        )
+
+    def line(self, label: str) -> str:
+        """One report line."""
+        dq, cq, aq = self.duration_q, self.coop_q, self.abs_am_q
+        return (
+            f"{label:<22} n={self.n:<3} T 10/50/90% {dq[0]:5.1f} {dq[1]:5.1f} {dq[2]:5.1f} "
+            f"[{self.duration_range[0]:.1f}, {self.duration_range[1]:.1f}]  "
+            f"c {' '.join(f'{x:.3f}' for x in cq)}  eps {self.episodes_mean:.2f}  "
+            f"|AM| 50/90/max {aq[0]:.2f} {aq[1]:.2f} {aq[2]:.2f} (<=1s {self.am_within_1s:.0%})  "
+            f"v_res {self.resisting_speed_median:.3f}  back {self.backward_share:.1%}"
+        )
 
 
 def _format_params(params: SyntheticUserParams) -> str:

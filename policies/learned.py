@@ -1,0 +1,379 @@
+"""The learned aligner: a PPO policy that corrects the Language Controller (residual RL).
+
+The network does not act on ``LangCtrl-v0`` directly. Its action ``r`` in ``[-1, 1]^k`` is a bounded
+*correction* of the analytic LC action (:class:`policies.analytic.LanguageController`), computed
+from the same observation:
+
+* pace commands: ``p_cmd = p*_LC + pace_scale r_0``, ``a_cmd = a_cmd_LC + pace_scale r_1``;
+* next phrase, ``choice_mode="target"``: target speech duration ``t_x 2^{2 u}`` with
+  ``u = choice_scale r_2`` (``u = 0`` is the paper's rule);
+* next phrase, ``choice_mode="scores"``: per-child scores ``(prior_k + choice_scale r_{2+k}) / 2``
+  with the paper's rule as prior ``prior_k = (5 - d_k) / (5 + d_k)``, ``d_k = |t_x - mid_k|`` (s),
+  so the argmax at ``r = 0`` is the paper's choice.
+
+At ``r = 0`` the learned policy *is* LC, so PPO only has to improve on it. The same mapping
+(:class:`ResidualLC`) is used by the training wrapper (``train.wrappers.ResidualLCWrapper``) and by
+:class:`PPOPolicy`, which loads a model saved by ``python -m train.ppo`` together with its
+observation normalisation and the env arguments it was trained with.
+
+The network also sees a few features the raw observation lacks (:data:`FEATURES`): LC's own
+action, the misalignments on a 1 s scale (the raw ones are on a 40 s scale) and how fast the motion
+actually progresses compared with its estimate ``t_x`` (resistance the person has shown so far).
+"""
+
+from __future__ import annotations
+
+import math
+import pickle
+import zipfile
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import yaml
+
+from langenv.env import T_SCALE
+from langenv.errors import ConfigError
+from langenv.pacing import PaceLimits, action_from_command, command_from_action
+from policies.analytic import LanguageController
+
+__all__ = [
+    "FEATURES",
+    "PPOPolicy",
+    "ResidualLC",
+    "ResidualSpec",
+    "model_files",
+]
+
+# observation indices of LangCtrl-v0 (see LangCtrlEnv's docstring)
+_T_X, _T_A, _P, _A, _ELAPSED = 0, 1, 3, 4, 15
+_CHILD0 = 16
+
+#: Names of the features :class:`ResidualLC` appends to the env's observation, in order.
+FEATURES: tuple[str, ...] = (
+    "lc_u_p",  # LC's physical pace action
+    "lc_u_a",  # LC's audio pace action
+    "mis_fine",  # (t_a/a - t_x/p) / 1 s, clipped
+    "em_fine",  # (t_a - t_x) / 1 s, clipped
+    "motion_rate",  # -dt_x/dt over the last decision, minus 1, clipped
+    "motion_rate_avg",  # the same, averaged over ~1 s
+    "time_lost",  # elapsed - (t_x(0) - t_x), / 10 s, clipped
+    "residual_p",  # the previous correction (pace), as applied
+    "residual_a",
+)
+
+_RATE_TAU = 1.0  # s, time constant of the motion-rate average
+_LOST_SCALE = 10.0  # s
+_FINE_SCALE = 1.0  # s
+_PRIOR_SCALE = 5.0  # s, distance scale of the scores prior
+
+
+@dataclass(frozen=True)
+class ResidualSpec:
+    """How a correction ``r`` in ``[-1, 1]^k`` is added to LC's action.
+
+    Attributes:
+        choice_mode: The env's next-phrase action design: ``"target"`` or ``"scores"``.
+        max_children: Number of choice scores (the phrase graph's largest out-degree) for
+            ``"scores"``; ignored for ``"target"``.
+        pace_scale: Largest change of the pace commands (pace units, > 0).
+        choice_scale: Largest change of the choice action (``"target"``: of ``u``, where ``u = 1``
+            is two octaves; ``"scores"``: of the score, whose LC prior spans ``[-1, 1]``), > 0.
+        decision_hz: Decision rate the correction was trained at (for the motion-rate feature).
+    """
+
+    choice_mode: Literal["target", "scores"] = "target"
+    max_children: int = 1
+    pace_scale: float = 0.3
+    choice_scale: float = 0.5
+    decision_hz: int = 50
+
+    def __post_init__(self) -> None:
+        if self.choice_mode not in ("target", "scores"):
+            raise ConfigError(
+                f"ResidualSpec.choice_mode must be 'target' or 'scores', got {self.choice_mode!r}"
+            )
+        if not isinstance(self.max_children, int) or self.max_children < 1:
+            raise ConfigError(
+                f"ResidualSpec.max_children must be an int >= 1, got {self.max_children!r}"
+            )
+        for name in ("pace_scale", "choice_scale"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0.0):
+                raise ConfigError(f"ResidualSpec.{name} must be finite and > 0, got {value!r}")
+        if not isinstance(self.decision_hz, int) or self.decision_hz <= 0:
+            raise ConfigError(
+                f"ResidualSpec.decision_hz must be a positive int, got {self.decision_hz!r}"
+            )
+
+    @property
+    def n_choice(self) -> int:
+        """Size of the choice part of the env's action."""
+        return 1 if self.choice_mode == "target" else self.max_children
+
+    @property
+    def action_dim(self) -> int:
+        """Size of the correction ``r`` (and of the env's action)."""
+        return 2 + self.n_choice
+
+
+class ResidualLC:
+    """LC plus a bounded correction; augments the observation with :data:`FEATURES`.
+
+    Stateful over an episode (the motion-rate features): call :meth:`start` with the observation
+    returned by ``reset`` and :meth:`observe` with each later one, in order; :meth:`action` maps a
+    correction to the env's action for the latest observation.
+
+    Args:
+        spec: The correction's design.
+        limits: The env's pace limits (bounds of the action map).
+    """
+
+    def __init__(self, spec: ResidualSpec, limits: PaceLimits | None = None) -> None:
+        self.spec = spec
+        self.limits = limits if limits is not None else PaceLimits()
+        self.lc = LanguageController(limits=self.limits, action_dim=3)
+        self._obs = np.zeros(0, np.float32)
+        self._t_x0 = 0.0
+        self._rate = 0.0
+        self._rate_avg = 0.0
+        self._last_r = np.zeros(2)
+
+    @property
+    def n_features(self) -> int:
+        """Number of appended features."""
+        return len(FEATURES)
+
+    def start(self, obs: np.ndarray) -> np.ndarray:
+        """Begin an episode at its first observation; returns the augmented observation."""
+        self._obs = np.asarray(obs, dtype=np.float32)
+        self._t_x0 = float(self._obs[_T_X]) * T_SCALE
+        self._rate = self._rate_avg = 0.0
+        self._last_r = np.zeros(2)
+        return self._augment()
+
+    def observe(self, obs: np.ndarray) -> np.ndarray:
+        """Take the next observation of the episode; returns the augmented observation."""
+        new = np.asarray(obs, dtype=np.float32)
+        if self._obs.size == 0:
+            return self.start(new)
+        dt = (float(new[_ELAPSED]) - float(self._obs[_ELAPSED])) * 60.0
+        if dt <= 0.0:
+            dt = 1.0 / self.spec.decision_hz
+        rate = (float(self._obs[_T_X]) - float(new[_T_X])) * T_SCALE / dt - 1.0
+        self._rate = min(1.0, max(-1.0, rate))
+        w = 1.0 - math.exp(-dt / _RATE_TAU)
+        self._rate_avg += w * (self._rate - self._rate_avg)
+        self._obs = new
+        return self._augment()
+
+    def _augment(self) -> np.ndarray:
+        obs = self._obs
+        t_x = max(0.0, float(obs[_T_X]) * T_SCALE)
+        t_a = max(0.0, float(obs[_T_A]) * T_SCALE)
+        p = 1.0 + 0.4 * float(obs[_P])
+        a = 1.0 + 0.4 * float(obs[_A])
+        lc = self.lc.act(obs)
+        elapsed = float(obs[_ELAPSED]) * 60.0
+        lost = elapsed - (self._t_x0 - t_x)
+        feats = np.array(
+            [
+                lc[0],
+                lc[1],
+                (t_a / a - t_x / p) / _FINE_SCALE,
+                (t_a - t_x) / _FINE_SCALE,
+                self._rate,
+                self._rate_avg,
+                lost / _LOST_SCALE,
+                self._last_r[0],
+                self._last_r[1],
+            ],
+            dtype=np.float32,
+        )
+        np.clip(feats, -1.0, 1.0, out=feats)
+        return np.concatenate([obs, feats])
+
+    def action(self, residual: np.ndarray) -> np.ndarray:
+        """The env's action for the latest observation and a correction.
+
+        Args:
+            residual: Correction ``r``, shape ``(spec.action_dim,)``; clipped to ``[-1, 1]``.
+
+        Returns:
+            The env's action, float32, shape ``(spec.action_dim,)``, in ``[-1, 1]``.
+
+        Raises:
+            ConfigError: if ``residual`` has the wrong shape or is not finite, or no observation
+                was given yet.
+        """
+        spec = self.spec
+        r = np.asarray(residual, dtype=np.float64).reshape(-1)
+        if r.shape != (spec.action_dim,):
+            raise ConfigError(f"residual must have shape ({spec.action_dim},), got {r.shape}")
+        if not np.all(np.isfinite(r)):
+            raise ConfigError(f"residual must be finite, got {r.tolist()}")
+        if self._obs.size == 0:
+            raise ConfigError("ResidualLC.action called before start(observation)")
+        r = np.clip(r, -1.0, 1.0)
+        obs, lim = self._obs, self.limits
+        lc = self.lc.act(obs)
+        out = np.zeros(spec.action_dim, np.float32)
+        p_cmd = command_from_action(float(lc[0]), lim.p_max) + spec.pace_scale * r[0]
+        a_cmd = command_from_action(float(lc[1]), lim.a_max) + spec.pace_scale * r[1]
+        out[0] = action_from_command(p_cmd, lim.p_max)
+        out[1] = action_from_command(a_cmd, lim.a_max)
+        self._last_r = r[:2].copy()
+        if spec.choice_mode == "target":
+            out[2] = min(1.0, max(-1.0, spec.choice_scale * r[2]))
+        else:
+            t_x = max(0.0, float(obs[_T_X]) * T_SCALE)
+            for k in range(spec.max_children):
+                base = _CHILD0 + 3 * k
+                if base + 2 >= obs.shape[0]:
+                    break
+                mid = 0.5 * (float(obs[base + 1]) + float(obs[base + 2])) * T_SCALE
+                d = abs(t_x - mid)
+                prior = (_PRIOR_SCALE - d) / (_PRIOR_SCALE + d)
+                score = 0.5 * (prior + spec.choice_scale * r[2 + k])
+                out[2 + k] = min(1.0, max(-1.0, score))
+        return out
+
+
+def model_files(path: str | Path) -> tuple[Path, Path, Path]:
+    """The three files of a saved model: ``(STEM.zip, STEM_vecnormalize.pkl, STEM_config.yaml)``.
+
+    Args:
+        path: The model zip, with or without its ``.zip`` suffix.
+    """
+    p = Path(path)
+    stem = p.with_suffix("") if p.suffix == ".zip" else p
+    return (
+        stem.with_name(stem.name + ".zip"),
+        stem.with_name(stem.name + "_vecnormalize.pkl"),
+        stem.with_name(stem.name + "_config.yaml"),
+    )
+
+
+@dataclass
+class PPOPolicy:
+    """A trained residual PPO policy, acting through ``LangCtrl-v0``'s observation/action.
+
+    Build it with :meth:`load`. ``act`` is deterministic (the mean action of the Gaussian policy).
+
+    Attributes:
+        name: ``"ppo"``.
+        phrase_graph: Phrase graph the model was trained with.
+        decision_hz: Decision rate the model was trained at.
+        env_kwargs: Further env arguments it was trained with (``choice_mode``...).
+        path: The model zip.
+    """
+
+    model: Any
+    normalizer: Any
+    residual: ResidualLC
+    phrase_graph: str = "lc"
+    decision_hz: int = 50
+    env_kwargs: dict[str, Any] = field(default_factory=dict)
+    path: Path = Path()
+    name: str = "ppo"
+    _started: bool = False
+
+    @classmethod
+    def load(cls, path: str | Path) -> PPOPolicy:
+        """Load ``STEM.zip``, its ``STEM_vecnormalize.pkl`` and its ``STEM_config.yaml``.
+
+        Args:
+            path: The model zip written by ``python -m train.ppo`` (``.zip`` optional).
+
+        Raises:
+            FileNotFoundError: naming the file, if one of the three is missing.
+            ValueError: naming the file, if one is corrupt or inconsistent with the others.
+        """
+        zip_path, norm_path, cfg_path = model_files(path)
+        for f in (zip_path, norm_path, cfg_path):
+            if not f.is_file():
+                raise FileNotFoundError(f"PPO model file not found: {f}")
+        config = _read_config(cfg_path)
+        env_kwargs = dict(config.get("env_kwargs") or {})
+        spec_kw = dict(config.get("residual") or {})
+        try:
+            spec = ResidualSpec(**spec_kw)
+        except (TypeError, ConfigError) as exc:
+            raise ValueError(f"{cfg_path}: invalid 'residual' section: {exc}") from None
+        normalizer = _read_normalizer(norm_path)
+        model = _read_model(zip_path)
+        n_obs = int(np.prod(model.observation_space.shape))
+        n_act = int(np.prod(model.action_space.shape))
+        if n_act != spec.action_dim:
+            raise ValueError(
+                f"{zip_path}: model has {n_act} actions but its config's residual needs "
+                f"{spec.action_dim} ({cfg_path})"
+            )
+        mean = getattr(getattr(normalizer, "obs_rms", None), "mean", None)
+        if mean is None or int(np.prod(np.shape(mean))) != n_obs:
+            raise ValueError(
+                f"{norm_path}: observation normaliser does not match the model's {n_obs} inputs"
+            )
+        hz = int(env_kwargs.pop("decision_hz", spec.decision_hz))
+        graph = str(env_kwargs.pop("phrase_graph", "lc"))
+        env_kwargs.pop("max_episode_steps", None)
+        return cls(
+            model=model,
+            normalizer=normalizer,
+            residual=ResidualLC(spec),
+            phrase_graph=graph,
+            decision_hz=hz,
+            env_kwargs=env_kwargs,
+            path=zip_path,
+        )
+
+    def reset(self) -> None:
+        """Start a new episode (the next observation is the one ``reset`` returned)."""
+        self._started = False
+
+    def act(self, observation: np.ndarray) -> np.ndarray:
+        """The env's action for one observation (deterministic), float32."""
+        if not self._started:
+            aug = self.residual.start(observation)
+            self._started = True
+        else:
+            aug = self.residual.observe(observation)
+        norm = self.normalizer.normalize_obs(aug[None, :].astype(np.float32))
+        r, _ = self.model.predict(norm, deterministic=True)
+        return self.residual.action(np.asarray(r).reshape(-1))
+
+    def config(self) -> dict[str, Any]:
+        """The residual design (for reports)."""
+        return asdict(self.residual.spec)
+
+
+def _read_config(path: Path) -> dict[str, Any]:
+    try:
+        data = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{path}: cannot read model config: {exc}") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: model config must be a YAML mapping")
+    return data
+
+
+def _read_normalizer(path: Path) -> Any:
+    try:
+        with path.open("rb") as fh:
+            normalizer = pickle.load(fh)
+    except (OSError, pickle.UnpicklingError, EOFError, AttributeError, ImportError) as exc:
+        raise ValueError(f"{path}: cannot read VecNormalize statistics: {exc}") from None
+    if not hasattr(normalizer, "normalize_obs"):
+        raise ValueError(f"{path}: not a VecNormalize pickle")
+    normalizer.training = False
+    return normalizer
+
+
+def _read_model(path: Path) -> Any:
+    from stable_baselines3 import PPO
+
+    try:
+        return PPO.load(path, device="cpu")
+    except (zipfile.BadZipFile, OSError, ValueError, KeyError, RuntimeError, EOFError) as exc:
+        raise ValueError(f"{path}: cannot read PPO model: {exc}") from None
