@@ -55,6 +55,8 @@ class CompareArgs:
         audio: Render each session's speech to WAV.
         figures: Draw the per-session close-up figures.
         decision_hz: Override every policy's decision rate (default: each policy's own).
+        phrase_graph: Phrase graph YAML for the policies that choose phrases (LC, learned),
+            instead of the shipped LC graph.
     """
 
     policies: str = "ac,lc-noap,lc"
@@ -67,6 +69,7 @@ class CompareArgs:
     audio: bool = True
     figures: bool = True
     decision_hz: int | None = None
+    phrase_graph: Path | None = None
 
 
 @dataclass(frozen=True)
@@ -81,6 +84,7 @@ class Job:
     audio: bool
     figures: bool
     decision_hz: int | None
+    phrase_graph: str | None = None
 
 
 class UsageError(Exception):
@@ -103,6 +107,12 @@ def parse_args(argv: Sequence[str] | None = None) -> CompareArgs:
     p.add_argument("--no-audio", action="store_true", help="skip WAV rendering")
     p.add_argument("--no-figures", action="store_true", help="skip per-session figures")
     p.add_argument("--decision-hz", type=int, default=None, help="override every policy's rate")
+    p.add_argument(
+        "--phrase-graph",
+        type=Path,
+        default=None,
+        help="phrase graph YAML for the policies that choose phrases (lc, ppo)",
+    )
     ns = p.parse_args(argv)
     if ns.users is not None and ns.sessions is not None:
         p.error("give either --users or --sessions, not both")
@@ -122,6 +132,7 @@ def parse_args(argv: Sequence[str] | None = None) -> CompareArgs:
         audio=not ns.no_audio,
         figures=not ns.no_figures,
         decision_hz=ns.decision_hz,
+        phrase_graph=ns.phrase_graph,
     )
 
 
@@ -139,6 +150,23 @@ def _check_policies(spec: str) -> list[str]:
         except (KeyError, FileNotFoundError, ValueError, OSError) as exc:
             raise UsageError(f"--policies: {name}: {exc}") from None
     return names
+
+
+def _chooses_phrases(spec: str) -> bool:
+    return spec == "lc" or spec.startswith("ppo:")
+
+
+def _check_options(args: CompareArgs) -> None:
+    if args.decision_hz is not None and (args.decision_hz <= 0 or 500 % args.decision_hz):
+        raise UsageError(f"--decision-hz must divide 500, got {args.decision_hz}")
+    if args.phrase_graph is not None:
+        from langenv.errors import LangEnvError
+        from langenv.speech.graph import PhraseGraph
+
+        try:
+            PhraseGraph.load(args.phrase_graph)
+        except LangEnvError as exc:
+            raise UsageError(f"--phrase-graph: {exc}") from None
 
 
 def _users(args: CompareArgs) -> list[tuple[str, int, str | None]]:
@@ -165,6 +193,9 @@ def _users(args: CompareArgs) -> list[tuple[str, int, str | None]]:
     return [(f"s{args.seed + i}", args.seed + i, None) for i in range(int(count))]
 
 
+_ENVS: dict[tuple[str, int, str], Any] = {}
+
+
 def run_episode(job: Job) -> dict[str, Any]:
     """Run one episode, write its figure/audio/log into ``job.out_dir``; return its metrics row."""
     import gymnasium as gym
@@ -180,13 +211,19 @@ def run_episode(job: Job) -> dict[str, Any]:
 
     policy = load_policy(job.policy)
     hz = job.decision_hz or policy.decision_hz
-    env = gym.make(
-        langenv.ENV_ID,
-        phrase_graph=policy.phrase_graph,
-        decision_hz=hz,
-        max_episode_steps=int(60 * hz),
-        **policy.env_kwargs,
-    )
+    graph = policy.phrase_graph
+    if job.phrase_graph is not None and _chooses_phrases(job.policy):
+        graph = job.phrase_graph
+    key = (job.policy, hz, str(graph))
+    env = _ENVS.get(key)
+    if env is None:  # one env per policy and worker process: building one costs ~0.3 s
+        env = _ENVS[key] = gym.make(
+            langenv.ENV_ID,
+            phrase_graph=graph,
+            decision_hz=hz,
+            max_episode_steps=int(60 * hz),
+            **policy.env_kwargs,
+        )
     options = {"user": ReplayUser.from_csv(job.session)} if job.session else None
     obs, info = env.reset(seed=job.seed, options=options)
     policy.reset()
@@ -217,7 +254,6 @@ def run_episode(job: Job) -> dict[str, Any]:
         clips = base.clips
         audio = render_history(graph, clips, base.speech.path, log.t, log.a)
         sf.write(stem.with_suffix(".wav"), audio, clips.sr, subtype="PCM_16")
-    env.close()
     row = episode_metrics(log)
     row["truncated"] = float(bool(info.get("TimeLimit.truncated", False)) or not terminated)
     return row
@@ -229,6 +265,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     t0 = time.perf_counter()
     try:
         names = _check_policies(args.policies)
+        _check_options(args)
         users = _users(args)
     except UsageError as exc:
         print(f"eval.compare: error: {exc}", file=sys.stderr)
@@ -239,7 +276,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         (tmp / "sessions").mkdir()
         jobs = [
-            Job(n, u, s, sess, str(tmp / "sessions"), args.audio, args.figures, args.decision_hz)
+            Job(
+                n,
+                u,
+                s,
+                sess,
+                str(tmp / "sessions"),
+                args.audio,
+                args.figures,
+                args.decision_hz,
+                str(args.phrase_graph) if args.phrase_graph else None,
+            )
             for n in names
             for (u, s, sess) in users
         ]

@@ -79,16 +79,25 @@ class LanguageController:
         return action  # action[2] = 0: target speech duration = t_x (the paper's rule)
 
 
-def make_analytic(name: str, decision_hz: int = 500) -> AdmittanceController | LanguageController:
+def make_analytic(
+    name: str, decision_hz: int | None = None
+) -> AdmittanceController | LanguageController:
     """Build ``"ac"``, ``"lc-noap"`` or ``"lc"``.
+
+    Args:
+        name: The controller.
+        decision_hz: Decision rate; default 500 for the aligners (exactly the paper's loop) and 25
+            for AC (its commands are constant, so the rate does not change what it does).
 
     Raises:
         KeyError: for an unknown name (the message lists the known ones).
     """
     if name == "ac":
-        return AdmittanceController(decision_hz=decision_hz)
+        return AdmittanceController(decision_hz=decision_hz or 25)
     if name == "lc-noap":
-        return LanguageController(name="lc-noap", phrase_graph="lc-noap", decision_hz=decision_hz)
+        return LanguageController(
+            name="lc-noap", phrase_graph="lc-noap", decision_hz=decision_hz or 500
+        )
     if name == "lc":
-        return LanguageController(decision_hz=decision_hz)
+        return LanguageController(decision_hz=decision_hz or 500)
     raise KeyError(f"unknown analytic policy {name!r}; known: ac, lc-noap, lc")

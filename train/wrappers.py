@@ -63,17 +63,17 @@ class ResidualLCWrapper(gym.ActionWrapper[np.ndarray, np.ndarray, np.ndarray]):
                 f"ResidualLCWrapper: choice_mode={choice_mode!r} but the env uses "
                 f"{base.choice_mode!r} (pass the same choice_mode in env_kwargs)"
             )
-        self.spec = ResidualSpec(
+        self.residual_spec = ResidualSpec(
             choice_mode=base.choice_mode,
             max_children=int(base.max_children),
             pace_scale=float(pace_scale),
             choice_scale=float(choice_scale),
             decision_hz=int(base.decision_hz),
         )
-        self.core = ResidualLC(self.spec, base.paces.limits)
+        self.core = ResidualLC(self.residual_spec, base.paces.limits)
         n_obs = int(np.prod(env.observation_space.shape)) + self.core.n_features
         self.observation_space = spaces.Box(-1.0, 1.0, (n_obs,), np.float32)
-        self.action_space = spaces.Box(-1.0, 1.0, (self.spec.action_dim,), np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, (self.residual_spec.action_dim,), np.float32)
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None

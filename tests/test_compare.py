@@ -1,0 +1,90 @@
+"""``python -m eval.compare``: a tiny end-to-end run, and bad arguments that must write nothing."""
+
+from __future__ import annotations
+
+import csv
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from eval.compare import main
+
+ROOT = Path(__file__).resolve().parents[1]
+SESSIONS = ROOT.parent / "shared" / "sessions"
+
+
+def test_smoke_run_writes_every_output(tmp_path: Path) -> None:
+    out = tmp_path / "cmp"
+    args = ["--policies", "ac,lc", "--users", "synthetic:1", "--seed", "3", "--out", str(out)]
+    rc = main([*args, "--workers", "1", "--decision-hz", "50"])
+    assert rc == 0
+    rows = list(csv.DictReader((out / "sessions.csv").open()))
+    assert [r["policy"] for r in rows] == ["ac", "lc"]
+    for col in ("am", "abs_am", "em_mean_abs", "a_mean", "a_dev", "p_mean", "coop_mean"):
+        assert col in rows[0]
+    assert float(rows[0]["a_dev"]) == pytest.approx(0.0)  # AC never changes its pace
+    assert (out / "summary.md").read_text().startswith("# ")
+    assert (out / "summary.png").stat().st_size > 10_000
+    for pol in ("ac", "lc"):
+        assert (out / "sessions" / f"{pol}_s3.png").stat().st_size > 10_000
+        assert (out / "sessions" / f"{pol}_s3.wav").stat().st_size > 10_000
+    assert (out / "config.json").is_file()
+    assert not list(tmp_path.glob(".cmp.tmp-*"))
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--policies", "ac,telepathy"], "telepathy"),
+        (["--policies", "ppo:/no/such/model.zip"], "model.zip"),
+        (["--decision-hz", "7"], "decision-hz"),
+        (["--users", "synthetic:zero"], "synthetic:N"),
+    ],
+)
+def test_bad_arguments_exit_nonzero_and_write_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], message: str
+) -> None:
+    out = tmp_path / "out"
+    assert main([*args, "--out", str(out)]) == 2
+    assert message in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_bad_phrase_graph_and_bad_session(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    graph = tmp_path / "loop.yaml"
+    graph.write_text("start: a\nphrases:\n  a:\n    text: hi\n    next: [a]\n")
+    out = tmp_path / "out"
+    assert main(["--phrase-graph", str(graph), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "loop.yaml" in err and "'a'" in err
+    sessions = tmp_path / "sessions"
+    sessions.mkdir()
+    (sessions / "u1.csv").write_text("t,speed\n0,1\n")
+    assert main(["--sessions", str(sessions), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "u1.csv" in err and "cooperation" in err
+    assert not out.exists()
+
+
+def test_cli_entry_point_help() -> None:
+    res = subprocess.run(
+        [sys.executable, "-m", "eval.compare", "--help"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert res.returncode == 0 and "--policies" in res.stdout
+
+
+@pytest.mark.skipif(not SESSIONS.is_dir(), reason="recorded sessions not available")
+def test_replay_sessions_one_episode_per_csv(tmp_path: Path) -> None:
+    out = tmp_path / "replay"
+    args = ["--policies", "lc", "--sessions", str(SESSIONS), "--pattern", "u2_lc.csv"]
+    rc = main([*args, "--out", str(out), "--workers", "1", "--no-audio", "--no-figures"])
+    assert rc == 0
+    rows = list(csv.DictReader((out / "sessions.csv").open()))
+    assert [(r["policy"], r["user"]) for r in rows] == [("lc", "u2_lc")]
