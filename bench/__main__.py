@@ -13,6 +13,7 @@ Figures (all measured here, on this machine, in this process):
 | ``plateau_speed`` | highest hand speed in that run (m/s) |
 | ``max_path_dev_m`` | largest distance of the hand from the path in that run (m) |
 | ``audio_rtf`` | seconds of speech rendered by the variable-rate phase vocoder per second of wall time |
+| ``compare_s`` | wall time of the main job: ``eval.compare`` with AC, LC-noAP and LC on 12 synthetic users (all outputs) |
 """
 
 from __future__ import annotations
@@ -106,11 +107,41 @@ def measure_audio() -> dict[str, float]:
     return {"audio_rtf": float(measure_audio_rtf())}
 
 
+def measure_compare() -> dict[str, float]:
+    """The three-controller comparison on 12 synthetic users, every output written."""
+    import contextlib
+    import io
+    import tempfile
+
+    from eval.compare import main as compare
+
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+            rc = compare(
+                [
+                    "--policies",
+                    "ac,lc-noap,lc",
+                    "--users",
+                    "synthetic:12",
+                    "--seed",
+                    "0",
+                    "--out",
+                    f"{tmp}/out",
+                ]
+            )
+        elapsed = time.perf_counter() - t0
+    if rc != 0:
+        raise RuntimeError(f"eval.compare exited with {rc}")
+    return {"compare_s": elapsed}
+
+
 SECTIONS: dict[str, Callable[[], dict[str, float]]] = {
     "physics": measure_physics,
     "nominal": measure_nominal,
     "etc": measure_etc,
     "audio": measure_audio,
+    "compare": measure_compare,
 }
 
 
