@@ -38,7 +38,7 @@ import re
 import shutil
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 from typing import Any
@@ -123,7 +123,9 @@ class TrainArgs:
         if self.seed < 0 or self.eval_seed < 0:
             raise ConfigError("TrainArgs.seed and eval_seed must be >= 0")
         if self.vec_env not in ("subproc", "dummy"):
-            raise ConfigError(f"TrainArgs.vec_env must be 'subproc' or 'dummy', got {self.vec_env!r}")
+            raise ConfigError(
+                f"TrainArgs.vec_env must be 'subproc' or 'dummy', got {self.vec_env!r}"
+            )
         if not re.fullmatch(r"[A-Za-z0-9_.-]+", self.name):
             raise ConfigError(f"TrainArgs.name must be a plain file stem, got {self.name!r}")
 
@@ -203,7 +205,9 @@ def _normalize_kwargs(value: Any, path: Path) -> dict[str, Any] | None:
         try:
             value = ast.literal_eval(value)
         except (ValueError, SyntaxError):
-            raise ConfigError(f"{path}: normalize must be a bool or a dict, got {value!r}") from None
+            raise ConfigError(
+                f"{path}: normalize must be a bool or a dict, got {value!r}"
+            ) from None
     if not isinstance(value, dict):
         raise ConfigError(f"{path}: normalize must be a bool or a dict, got {value!r}")
     return dict(value)
@@ -240,20 +244,23 @@ def _schedule(value: Any) -> Any:
     return value
 
 
-def _wrapper_class(spec: Any, path: Path) -> Callable[[Any], Any] | None:
+def _wrapper_class(spec: Any, path: Path) -> _WrapperChain | None:
     """Zoo's ``env_wrapper``: a dotted class name, a ``{name: kwargs}`` mapping, or a list."""
     if spec is None:
         return None
     items = spec if isinstance(spec, list) else [spec]
     chain: list[tuple[Any, dict[str, Any]]] = []
     for item in items:
+        kwargs: dict[str, Any] = {}
         if isinstance(item, str):
-            name, kwargs = item, {}
+            name = item
         elif isinstance(item, dict) and len(item) == 1:
             name, kwargs = next(iter(item.items()))
             kwargs = dict(kwargs or {})
         else:
-            raise ConfigError(f"{path}: env_wrapper entry {item!r} must be a name or {{name: kwargs}}")
+            raise ConfigError(
+                f"{path}: env_wrapper entry {item!r} must be a name or {{name: kwargs}}"
+            )
         module, _, cls = str(name).rpartition(".")
         try:
             klass = getattr(importlib.import_module(module), cls)
@@ -452,7 +459,7 @@ def train(args: TrainArgs, given: set[str] | None = None) -> Path:
         found = _latest_checkpoint(ckpt_dir, a.name)
         if found is None:
             raise FileNotFoundError(f"--resume: no checkpoint {a.name}_*_steps.zip in {ckpt_dir}")
-        zip_path, pkl, steps = found
+        zip_path, pkl, _steps = found
         if isinstance(env, VecNormalize):
             env = VecNormalize.load(str(pkl), env.venv)
         model = PPO.load(zip_path, env=env, device=a.device, tensorboard_log=tb)

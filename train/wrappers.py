@@ -71,7 +71,7 @@ class ResidualLCWrapper(gym.ActionWrapper[np.ndarray, np.ndarray, np.ndarray]):
             decision_hz=int(base.decision_hz),
         )
         self.core = ResidualLC(self.residual_spec, base.paces.limits)
-        n_obs = int(np.prod(env.observation_space.shape)) + self.core.n_features
+        n_obs = int(np.prod(env.observation_space.shape or (0,))) + self.core.n_features
         self.observation_space = spaces.Box(-1.0, 1.0, (n_obs,), np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (self.residual_spec.action_dim,), np.float32)
 

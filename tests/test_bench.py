@@ -1,0 +1,29 @@
+"""``python -m bench --json``: a smoke run of the cheap sections, and the nominal exercise figures."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from bench.__main__ import main, measure_nominal
+
+
+def test_json_output_has_the_figures(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["--json", "--only", "physics"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out) == {"mj_step_us", "tick_us", "tick_ratio"}
+    assert out["tick_ratio"] == pytest.approx(out["tick_us"] / out["mj_step_us"], rel=0.01)
+
+
+def test_unknown_section_is_an_error() -> None:
+    with pytest.raises(SystemExit):
+        main(["--only", "warp-drive"])
+
+
+def test_nominal_exercise_matches_the_study() -> None:
+    """F_ext = 0, p = 1 on the full MuJoCo arm: the study's nominal time and speed, on the path."""
+    fig = measure_nominal()
+    assert 10.0 <= fig["nominal_s"] <= 12.5
+    assert 0.11 <= fig["plateau_speed"] <= 0.14
+    assert fig["max_path_dev_m"] <= 0.01
