@@ -11,6 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from langenv.control.admittance import AdmittanceParams
 from langenv.control.cooperation import CooperationFilter
 from langenv.errors import ConfigError
 from langenv.robot.force_sensor import ForceSensor
@@ -28,8 +29,10 @@ from langenv.users import (
 )
 from langenv.users.calibration import (
     CALIBRATED_PARAMS,
+    ENV_TUNED,
     LoopParams,
     compare_quantiles,
+    extract_episodes,
     fit_params,
     round_params,
     simulate_loop,
@@ -417,8 +420,48 @@ def test_stored_calibration_is_what_the_fit_gives() -> None:
     assert len(episodes) >= 2 * len(sessions)
     fitted = round_params(direct)
     stored = CALIBRATED_PARAMS
-    # All but the overall level come straight from the direct fit...
-    assert dataclasses.replace(fitted, magnitude=stored.magnitude) == stored
-    assert stored.magnitude.sigma == fitted.magnitude.sigma
-    # ...which match_level scales within its bisection bounds.
-    assert 0.5 <= stored.magnitude.median / direct.magnitude.median <= 1.5
+    # All but the env-tuned fields come straight from the direct fit...
+    env_tuned = {name: getattr(stored, name) for name in ENV_TUNED}
+    assert dataclasses.replace(fitted, **env_tuned) == stored
+    # ...including the episode count distribution, which is the recorded one.
+    counts = np.bincount([len(extract_episodes(s)) for s in sessions])
+    assert stored.count_pmf is not None
+    np.testing.assert_allclose(stored.count_pmf, counts / counts.sum(), atol=1e-4)
+    # The env-tuned magnitudes keep the hand creeping forward on the straight parts: the
+    # force above the deadband never exceeds the propelling force.
+    assert stored.max_excess <= AdmittanceParams().propel_force
+
+
+def test_synthetic_episode_counts_follow_the_pmf() -> None:
+    pmf = np.asarray(CALIBRATED_PARAMS.count_pmf)
+    rng = np.random.default_rng(123)
+    n = 3000
+    drawn = np.zeros(pmf.size)
+    user = SyntheticUser()
+    for _ in range(n):
+        user.reset(rng)
+        drawn[len(user.episodes)] += 1
+    # Binomial standard error of each frequency, 4 sigma.
+    tol = 4.0 * np.sqrt(pmf * (1.0 - pmf) / n) + 1e-12
+    assert np.all(np.abs(drawn / n - pmf) <= tol), (drawn / n, pmf)
+
+
+def test_synthetic_onsets_spread_like_the_recorded_ones() -> None:
+    sessions = _sessions()
+    recorded = [extract_episodes(s) for s in sessions]
+    rec_last = np.array([eps[-1].onset for eps in recorded if eps])
+    rec_total = np.array([sum(e.duration for e in eps) for eps in recorded])
+    rng = np.random.default_rng(77)
+    syn_last, syn_total = [], []
+    for _ in range(1000):
+        user = SyntheticUser()
+        user.reset(rng)
+        syn_last.append(user.episodes[-1].onset)
+        syn_total.append(sum(e.duration for e in user.episodes))
+        assert all(e.onset < 60.0 for e in user.episodes)
+    # Episodes start within the first seconds of the session as recorded (median of the last
+    # onset within 3 s, 90th percentile within 6 s), and the resisting time per session is
+    # of the recorded size (median within 35 %).
+    assert abs(np.median(syn_last) - np.median(rec_last)) < 3.0
+    assert abs(np.quantile(syn_last, 0.9) - np.quantile(rec_last, 0.9)) < 6.0
+    assert abs(np.median(syn_total) / np.median(rec_total) - 1.0) < 0.35

@@ -9,11 +9,17 @@ against the motion with ``|F| = E + deadband`` while an episode is under way and
 otherwise, which is the convention :class:`~langenv.users.replay.ReplayUser` uses for recorded
 sessions, so synthetic and replayed users are comparable.
 
-Episodes follow each other as a renewal process: the first starts at ``t = 0`` with probability
-``p_start_resisting`` (the person already resists when the session starts), otherwise after a
-log-normal delay; each later one starts a log-normal ``gap`` after the previous one ended. By
-default this goes on for as long as the session lasts (up to ``horizon``); with ``count_pmf`` the
-number of episodes is drawn first, and the person cooperates fully after the last one.
+How many episodes and when. With ``count_pmf`` the number of episodes is drawn first (the
+calibrated users draw it from the recorded sessions' counts) and the person cooperates fully after
+the last one. The first episode starts at ``t = 0`` with probability ``p_start_resisting`` (the
+person already resists when the session starts), otherwise after a log-normal delay. With
+``onset_window`` (the calibrated users) the later onsets are spread uniformly over the first
+``onset_window`` seconds, as the recorded ones are, and an episode ends by ``min_gap`` before the
+next one starts. Without it, episodes follow each other as a renewal process, each later one
+starting a log-normal ``gap`` after the previous one ended, for as many episodes as drawn or, with
+no ``count_pmf``, for as long as the session lasts (up to ``horizon``): the longer the session,
+the more episodes, which in ``LangCtrl-v0`` feeds on itself (resistance near a stop, where the
+propelling force tapers, stalls the hand).
 Episode magnitudes are log-normal around a per-session level: ``log magnitude = log median +
 session_sigma * z_session + magnitude.sigma * z_episode``, so some people resist harder than others.
 Everything is drawn from the generator given to :meth:`SyntheticUser.reset`.
@@ -130,6 +136,11 @@ class SyntheticUserParams:
         max_excess: Cap (N) on the force above the deadband.
         deadband: Force sensor deadband (N): the person pushes with ``E + deadband``.
         horizon: Time (s) up to which the force is tabulated; episodes are cut there.
+        onset_window: ``None`` (default): onsets follow the renewal process. Otherwise (needs
+            ``count_pmf``) the onsets after the first are spread uniformly over
+            ``(first onset, onset_window)`` s, at least ``min_gap`` plus 0.1 s apart, and an
+            episode ends at the latest ``min_gap`` before the next one starts (``gap`` unused).
+        min_gap: Shortest lull (s) between episodes with ``onset_window`` (> 0).
         resolution: Step (s) on which the force is tabulated at reset.
     """
 
@@ -144,6 +155,8 @@ class SyntheticUserParams:
     noise_std: float
     noise_tau: float
     count_pmf: tuple[float, ...] | None = None
+    onset_window: float | None = None
+    min_gap: float = 0.3
     max_excess: float = 25.0
     deadband: float = DEFAULT_DEADBAND
     horizon: float = 120.0
@@ -176,7 +189,11 @@ class SyntheticUserParams:
                     )
         for name in ("session_sigma", "noise_std", "deadband"):
             _finite(owner, name, getattr(self, name), low=0.0, strict=False)
-        for name in ("noise_tau", "max_excess", "horizon", "resolution"):
+        if self.onset_window is not None:
+            _finite(owner, "onset_window", self.onset_window, low=0.0, strict=True)
+            if self.count_pmf is None:
+                raise ConfigError(f"{owner}.onset_window needs count_pmf (the number of episodes)")
+        for name in ("noise_tau", "max_excess", "horizon", "resolution", "min_gap"):
             _finite(owner, name, getattr(self, name), low=0.0, strict=True)
         if self.resolution > self.horizon:
             raise ConfigError(
@@ -275,18 +292,47 @@ class SyntheticUser:
             onset = 0.0
         else:
             onset = p.first_onset.sample(rng)
+        if p.onset_window is not None and count is not None:
+            return self._draw_in_window(rng, onset, count, p.onset_window)
         while onset < p.horizon and (count is None or len(episodes) < count):
-            duration = p.duration.sample(rng)
-            rise = p.rise.sample(rng)
-            fall = p.fall.sample(rng)
-            if rise + fall > duration:
-                scale = duration / (rise + fall)
-                rise *= scale
-                fall *= scale
-            magnitude = min(self.level * p.magnitude.sample(rng), p.max_excess)
-            episodes.append(Episode(onset, duration, rise, fall, magnitude))
-            onset = onset + duration + p.gap.sample(rng)
+            episodes.append(self._draw_episode(rng, onset, math.inf))
+            onset = onset + episodes[-1].duration + p.gap.sample(rng)
         return tuple(episodes)
+
+    def _draw_in_window(
+        self, rng: np.random.Generator, first: float, count: int, window: float
+    ) -> tuple[Episode, ...]:
+        """``count`` episodes, the first at ``first``, the others spread over ``(first, window)``.
+
+        Sorted uniform draws with a minimum spacing ``min_gap + 0.1`` s: ``count - 1`` uniforms on
+        ``[0, room]``, ``room = window - first - (count - 1) spacing`` (0 if negative), sorted,
+        plus ``k * spacing``. Each episode is cut ``min_gap`` before the next onset.
+        """
+        p = self.params
+        if count == 0:
+            return ()
+        spacing = p.min_gap + 0.1
+        room = max(window - first - (count - 1) * spacing, 0.0)
+        rest = np.sort(rng.random(count - 1)) * room + spacing * np.arange(1, count)
+        onsets = [first, *(first + rest).tolist()]
+        episodes = []
+        for k, onset in enumerate(onsets):
+            latest_end = onsets[k + 1] - p.min_gap if k + 1 < count else math.inf
+            episodes.append(self._draw_episode(rng, onset, latest_end))
+        return tuple(episodes)
+
+    def _draw_episode(self, rng: np.random.Generator, onset: float, latest_end: float) -> Episode:
+        """One episode starting at ``onset`` (s), ending by ``latest_end`` (s) at the latest."""
+        p = self.params
+        duration = min(p.duration.sample(rng), latest_end - onset)
+        rise = p.rise.sample(rng)
+        fall = p.fall.sample(rng)
+        if rise + fall > duration:
+            scale = duration / (rise + fall)
+            rise *= scale
+            fall *= scale
+        magnitude = min(self.level * p.magnitude.sample(rng), p.max_excess)
+        return Episode(onset, duration, rise, fall, magnitude)
 
     def reset(self, rng: np.random.Generator) -> None:
         """Draw a new person and session: level, episodes, then the force noise, all from ``rng``.
