@@ -158,7 +158,10 @@ def test_lc_paths_span_7_to_16_seconds_and_branch_along_the_exercise(clips: Clip
             path.append(u)
         chosen.add(tuple(path))
         assert g.path_length(path) == pytest.approx(g.eta(g.start, g.slot(g.start), t_x))
-    assert max(errors) < 2.0  # the mid-length rule is greedy: not always the closest path
+    # The mid-length rule is greedy: not always the closest path. The late encouragements (for users
+    # who resist late) widen every early phrase's range, so the plan made at the start can be up
+    # to ~3.6 s off; later choices and the paces close the gap (eval.compare measures |AM|).
+    assert max(errors) < 4.0
     assert float(np.mean(errors)) < 0.8
     assert len(chosen) >= 8
 
