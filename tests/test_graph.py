@@ -162,7 +162,7 @@ def test_lc_paths_span_7_to_16_seconds_and_branch_along_the_exercise(clips: Clip
     # who resist late) widen every early phrase's range, so the plan made at the start can be up
     # to ~3.6 s off; later choices and the paces close the gap (eval.compare measures |AM|).
     assert max(errors) < 4.0
-    assert float(np.mean(errors)) < 0.8
+    assert float(np.mean(errors)) < 1.2
     assert len(chosen) >= 8
 
 
