@@ -398,8 +398,8 @@ def test_loop_nominal_time_and_resistance_lengthens() -> None:
     settled = (result.sample_times > 4.0) & (result.sample_times < 6.0)
     np.testing.assert_allclose(c[settled], 1 - 2 / 15, atol=2e-3)
     assert np.all(np.isnan(result.cooperation[0][result.sample_times > nominal + 0.02]))
-    with pytest.raises(ConfigError, match="mass"):
-        LoopParams(mass=0.0)
+    with pytest.raises(ConfigError, match="dt"):
+        LoopParams(dt=0.0)
 
 
 @pytest.mark.slow

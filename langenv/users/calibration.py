@@ -60,6 +60,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from langenv.control.admittance import AdmittanceParams
 from langenv.errors import ConfigError
 from langenv.users.base import DEFAULT_ALPHA, DEFAULT_DEADBAND, DEFAULT_F_MAX
 from langenv.users.replay import invert_cooperation
@@ -401,6 +402,13 @@ class _MagnitudeSource(Protocol):
     def magnitude_array(self, t: np.ndarray) -> np.ndarray: ...
 
 
+def _default_segment_lengths() -> tuple[float, ...]:
+    from langenv.control.trajectory import default_exercise
+
+    stops = default_exercise().stop_s
+    return tuple(float(x) for x in np.diff(np.concatenate([[0.0], stops])))
+
+
 @dataclass(frozen=True)
 class LoopParams:
     """The 1-D along-path model of the guided exercise (SPEC §2 defaults).
@@ -410,24 +418,19 @@ class LoopParams:
     before it). The propelling force tapers linearly to 0 over the last ``brake_distance``
     before each stop; a stop is reached when within ``stop_tol_pos`` of it at a speed below
     ``stop_tol_vel``; then the next segment starts. The cooperation filter runs on the
-    deadbanded user force.
+    deadbanded user force. The virtual dynamics and guide numbers are the env's
+    :class:`~langenv.control.admittance.AdmittanceParams`.
 
     Attributes:
-        segment_lengths: Arc lengths (m) of the segments, each ending with a stop.
-        mass: M0 (kg). damping: D0 (N s/m). stiffness: K (N/m). propel_force: F_prop (N).
-        brake_distance: Taper length (m). stop_tol_pos: (m). stop_tol_vel: (m/s).
+        segment_lengths: Arc lengths (m) of the segments, each ending with a stop (default: the
+            default exercise's).
+        admittance: M0, D0, K, F_prop, the brake distance and the stop tolerances.
         alpha: Cooperation decay factor (1/s). f_max: (N). deadband: Sensor deadband (N).
         dt: Control period (s). max_time: Sessions are cut at this time (s).
     """
 
-    segment_lengths: tuple[float, ...] = (0.257, 0.252, 0.257)
-    mass: float = 40.0
-    damping: float = 80.0
-    stiffness: float = 120.0
-    propel_force: float = 10.0
-    brake_distance: float = 0.15
-    stop_tol_pos: float = 0.005
-    stop_tol_vel: float = 0.01
+    segment_lengths: tuple[float, ...] = field(default_factory=_default_segment_lengths)
+    admittance: AdmittanceParams = field(default_factory=AdmittanceParams)
     alpha: float = DEFAULT_ALPHA
     f_max: float = DEFAULT_F_MAX
     deadband: float = DEFAULT_DEADBAND
@@ -442,11 +445,7 @@ class LoopParams:
             raise ConfigError(
                 f"LoopParams.segment_lengths must be > 0, got {self.segment_lengths!r}"
             )
-        for name in ("mass", "damping", "propel_force", "brake_distance", "stop_tol_pos"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0.0):
-                raise ConfigError(f"LoopParams.{name} must be finite and > 0, got {value!r}")
-        for name in ("stiffness", "stop_tol_vel", "f_max", "dt", "max_time"):
+        for name in ("f_max", "dt", "max_time"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
                 raise ConfigError(f"LoopParams.{name} must be finite and > 0, got {value!r}")
@@ -505,6 +504,7 @@ def simulate_loop(
     every = round(sample_dt / p.dt)
     if every < 1 or not math.isclose(every * p.dt, sample_dt, rel_tol=1e-6):
         raise ConfigError(f"simulate_loop: sample_dt ({sample_dt}) must be a multiple of dt")
+    adm = p.admittance
     stops = np.cumsum(p.segment_lengths)
     starts = np.concatenate([[0.0], stops[:-1]])
     n_seg = len(stops)
@@ -531,17 +531,19 @@ def simulate_loop(
             to_go = stop - s
             f_prop = np.where(
                 to_go >= 0.0,
-                p.propel_force * np.minimum(1.0, to_go / p.brake_distance),
-                p.stiffness * to_go,
+                adm.propel_force * np.minimum(1.0, to_go / adm.brake_distance),
+                adm.stiffness * to_go,
             )
-            f_prop += np.where(s < start, p.stiffness * (start - s), 0.0)
+            f_prop += np.where(s < start, adm.stiffness * (start - s), 0.0)
             f_meas = np.maximum(f_user - p.deadband, 0.0)
             f_resist = f_meas if p.measured_force_drives_motion else f_user
-            acc = (f_prop - f_resist - p.damping * v) / p.mass
+            acc = (f_prop - f_resist - adm.damping * v) / adm.mass
             v = np.where(done, 0.0, v + acc * p.dt)
             s = s + v * p.dt
             reached = (
-                ~done & (np.abs(stops[seg_c] - s) < p.stop_tol_pos) & (np.abs(v) < p.stop_tol_vel)
+                ~done
+                & (np.abs(stops[seg_c] - s) < adm.stop_tol_pos)
+                & (np.abs(v) < adm.stop_tol_vel)
             )
             if reached.any():
                 seg = seg + reached
