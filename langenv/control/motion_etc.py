@@ -44,6 +44,7 @@ __all__ = [
 ]
 
 #: Control period (s).
+_SETTLE_ZONE = 0.01  # m: within this of a stop the ETC uses the whole speed |v|
 DT = 0.002
 
 PaceFn = Callable[[float], float]
@@ -509,7 +510,12 @@ class FastETC:
         x0, x1, x2 = x.tolist()
         v0, v1, v2 = v.tolist()
         q = s_stop - s - ((x0 - xd[0]) * b[0] + (x1 - xd[1]) * b[1] + (x2 - xd[2]) * b[2])
-        return q, v0 * b[0] + v1 * b[1] + v2 * b[2]
+        u = v0 * b[0] + v1 * b[1] + v2 * b[2]
+        if -_SETTLE_ZONE < q < _SETTLE_ZONE:
+            # Settling at the stop: the stop test reads the whole speed |v|, lateral part included,
+            # which the 1D model would otherwise miss (a few ticks in the last 0.1 s).
+            u = math.copysign(math.sqrt(v0 * v0 + v1 * v1 + v2 * v2), u)
+        return q, u
 
     def etc(self, state: GuideState, x: np.ndarray, v: np.ndarray) -> float:
         """Estimated time to complete the trajectory from the current state (s).
