@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 import pickle
+import warnings
 import zipfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -40,9 +41,11 @@ from policies.analytic import LanguageController
 
 __all__ = [
     "FEATURES",
+    "MlpActor",
     "PPOPolicy",
     "ResidualLC",
     "ResidualSpec",
+    "graph_digest",
     "model_files",
 ]
 
@@ -240,6 +243,90 @@ class ResidualLC:
         return out
 
 
+@dataclass(frozen=True)
+class MlpActor:
+    """The deterministic actor of an SB3 ``MlpPolicy`` (mean action), evaluated with NumPy.
+
+    Reading the weights and running the small MLP in NumPy keeps torch's thread pools out of the
+    evaluation, whose worker processes are forked (torch in a forked child can deadlock).
+
+    Attributes:
+        weights: Weight matrices ``(out, in)`` of the hidden layers, then of the action layer.
+        biases: Their biases ``(out,)``.
+        activation: ``"tanh"`` or ``"relu"`` (hidden layers).
+    """
+
+    weights: tuple[np.ndarray, ...]
+    biases: tuple[np.ndarray, ...]
+    activation: Literal["tanh", "relu"] = "tanh"
+
+    @property
+    def n_inputs(self) -> int:
+        """Observation size."""
+        return int(self.weights[0].shape[1])
+
+    @property
+    def n_actions(self) -> int:
+        """Action size."""
+        return int(self.weights[-1].shape[0])
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """Mean action for one normalised observation ``(n_inputs,)``, clipped to [-1, 1]."""
+        h = np.asarray(obs, dtype=np.float64).reshape(-1)
+        for w, b in zip(self.weights[:-1], self.biases[:-1], strict=True):
+            h = w @ h + b
+            h = np.tanh(h) if self.activation == "tanh" else np.maximum(h, 0.0)
+        out = self.weights[-1] @ h + self.biases[-1]
+        return np.clip(out, -1.0, 1.0)
+
+    @classmethod
+    def from_sb3_zip(cls, path: Path) -> MlpActor:
+        """Read the actor of a PPO ``MlpPolicy`` saved by SB3 (``model.save``).
+
+        Raises:
+            ValueError: if the zip is not such a model.
+            zipfile.BadZipFile: if it is not a zip at all.
+        """
+        import io
+        import json
+
+        import torch
+
+        with zipfile.ZipFile(path) as zf:
+            data = json.loads(zf.read("data"))
+            state = torch.load(
+                io.BytesIO(zf.read("policy.pth")), map_location="cpu", weights_only=True
+            )
+        act_repr = str((data.get("policy_kwargs") or {}).get("activation_fn", "Tanh"))
+        if "Tanh" in act_repr:
+            activation: Literal["tanh", "relu"] = "tanh"
+        elif "ReLU" in act_repr:
+            activation = "relu"
+        else:
+            raise ValueError(f"unsupported activation {act_repr}")
+        prefix = "mlp_extractor.policy_net."
+        layers = sorted(
+            {int(k[len(prefix) :].split(".")[0]) for k in state if k.startswith(prefix)}
+        )
+        weights = [state[f"{prefix}{i}.weight"] for i in layers] + [state["action_net.weight"]]
+        biases = [state[f"{prefix}{i}.bias"] for i in layers] + [state["action_net.bias"]]
+        return cls(
+            tuple(w.detach().numpy().astype(np.float64) for w in weights),
+            tuple(b.detach().numpy().astype(np.float64) for b in biases),
+            activation,
+        )
+
+
+def graph_digest(phrase_graph: str | Path) -> str:
+    """SHA-256 of a phrase graph's YAML (a shipped key such as ``"lc"`` or a path)."""
+    import hashlib
+
+    from langenv.env import DEFAULT_GRAPHS
+
+    path = DEFAULT_GRAPHS.get(str(phrase_graph), Path(phrase_graph))
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
 def model_files(path: str | Path) -> tuple[Path, Path, Path]:
     """The three files of a saved model: ``(STEM.zip, STEM_vecnormalize.pkl, STEM_config.yaml)``.
 
@@ -269,7 +356,7 @@ class PPOPolicy:
         path: The model zip.
     """
 
-    model: Any
+    model: MlpActor
     normalizer: Any
     residual: ResidualLC
     phrase_graph: str = "lc"
@@ -303,8 +390,7 @@ class PPOPolicy:
             raise ValueError(f"{cfg_path}: invalid 'residual' section: {exc}") from None
         normalizer = _read_normalizer(norm_path)
         model = _read_model(zip_path)
-        n_obs = int(np.prod(model.observation_space.shape))
-        n_act = int(np.prod(model.action_space.shape))
+        n_obs, n_act = model.n_inputs, model.n_actions
         if n_act != spec.action_dim:
             raise ValueError(
                 f"{zip_path}: model has {n_act} actions but its config's residual needs "
@@ -318,6 +404,13 @@ class PPOPolicy:
         hz = int(env_kwargs.pop("decision_hz", spec.decision_hz))
         graph = str(env_kwargs.pop("phrase_graph", "lc"))
         env_kwargs.pop("max_episode_steps", None)
+        digest = config.get("phrase_graph_sha256")
+        if digest and digest != graph_digest(graph):
+            warnings.warn(
+                f"{zip_path}: the phrase graph {graph!r} changed since this model was trained; "
+                "retrain it (python -m train.ppo) for best results",
+                stacklevel=2,
+            )
         return cls(
             model=model,
             normalizer=normalizer,
@@ -340,8 +433,7 @@ class PPOPolicy:
         else:
             aug = self.residual.observe(observation)
         norm = self.normalizer.normalize_obs(aug[None, :].astype(np.float32))
-        r, _ = self.model.predict(norm, deterministic=True)
-        return self.residual.action(np.asarray(r).reshape(-1))
+        return self.residual.action(self.model(norm[0]))
 
     def config(self) -> dict[str, Any]:
         """The residual design (for reports)."""
@@ -370,10 +462,8 @@ def _read_normalizer(path: Path) -> Any:
     return normalizer
 
 
-def _read_model(path: Path) -> Any:
-    from stable_baselines3 import PPO
-
+def _read_model(path: Path) -> MlpActor:
     try:
-        return PPO.load(path, device="cpu")
+        return MlpActor.from_sb3_zip(path)
     except (zipfile.BadZipFile, OSError, ValueError, KeyError, RuntimeError, EOFError) as exc:
         raise ValueError(f"{path}: cannot read PPO model: {exc}") from None

@@ -1,0 +1,1 @@
+"""Training scripts of LangCtrl: ``python -m train.ppo`` (the learned aligner) and its wrappers."""

@@ -377,13 +377,16 @@ def _config_dict(run: _Run, residual: dict[str, Any], extra: dict[str, Any]) -> 
     import stable_baselines3
 
     import langenv
+    from policies.learned import graph_digest
 
     args = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(run.args).items()}
+    graph = str(run.env_kwargs.get("phrase_graph", "lc"))
     return {
         run.args.env_id: _plain(run.hyper),
         "train": args,
         "env_kwargs": _plain(run.env_kwargs),
         "residual": residual,
+        "phrase_graph_sha256": graph_digest(graph),
         "n_envs": run.n_envs,
         "total_timesteps": run.total,
         "versions": {

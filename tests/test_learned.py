@@ -1,0 +1,215 @@
+"""The learned aligner's residual map, wrappers and PPOPolicy loading (policies/learned.py)."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import langenv
+from langenv.env import T_SCALE
+from langenv.errors import ConfigError
+from langenv.pacing import command_from_action
+from policies import load_policy
+from policies.learned import FEATURES, PPOPolicy, ResidualLC, ResidualSpec, model_files
+from train.wrappers import AlignmentReward, ResidualLCWrapper, SeedCycle
+
+REPO = Path(__file__).resolve().parents[1]
+SHIPPED = REPO / "models" / "ppo_langctrl.zip"
+
+
+def _make(**kw: Any) -> Any:
+    kw.setdefault("decision_hz", 50)
+    kw.setdefault("max_episode_steps", 3000)
+    return gym.make(langenv.ENV_ID, **kw)
+
+
+def _obs(t_x: float, t_a: float, coop: float, mids: list[float], n_children: int) -> np.ndarray:
+    """A synthetic observation with the fields the residual map reads."""
+    obs = np.zeros(16 + 3 * n_children, np.float32)
+    obs[0], obs[1], obs[5] = t_x / T_SCALE, t_a / T_SCALE, 2.0 * coop - 1.0
+    for k in range(n_children):
+        base = 16 + 3 * k
+        if k < len(mids):
+            obs[base : base + 3] = (1.0, (mids[k] - 0.5) / T_SCALE, (mids[k] + 0.5) / T_SCALE)
+        else:
+            obs[base : base + 3] = (-1.0, 0.0, 0.0)
+    return obs
+
+
+@pytest.mark.parametrize("mode", ["target", "scores"])
+def test_zero_residual_is_lc_on_the_env(mode: str) -> None:
+    """At r = 0 the wrapped env follows exactly LC's trajectory (same infos step by step)."""
+    wrapped = ResidualLCWrapper(_make(choice_mode=mode))
+    plain = _make(choice_mode=mode)
+    lc = load_policy("lc")
+    lc.action_dim = plain.action_space.shape[0]
+    w_obs, _ = wrapped.reset(seed=7)
+    obs, _ = plain.reset(seed=7)
+    assert w_obs.shape == (plain.observation_space.shape[0] + len(FEATURES),)
+    assert np.array_equal(w_obs[: obs.size], obs)
+    for _ in range(400):
+        act = lc.act(obs)
+        if mode == "scores":  # LC's rule as scores: the wrapper's prior
+            act = wrapped.core.action(np.zeros(wrapped.residual_spec.action_dim))
+        w_obs, _, w_term, _, w_info = wrapped.step(np.zeros(wrapped.residual_spec.action_dim))
+        obs, _, term, _, info = plain.step(act)
+        assert w_info["phrase"] == info["phrase"]
+        assert w_info["p"] == info["p"] and w_info["a"] == info["a"]
+        assert w_term == term
+        if term:
+            break
+    assert wrapped.observation_space.contains(w_obs)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    t_x=st.floats(0.0, 35.0),
+    mids=st.lists(st.floats(1.0, 30.0), min_size=2, max_size=6, unique=True),
+)
+def test_scores_prior_picks_the_papers_child(t_x: float, mids: list[float]) -> None:
+    """With r = 0 the highest-scoring valid child is the one with the closest mid-length."""
+    spec = ResidualSpec(choice_mode="scores", max_children=6)
+    core = ResidualLC(spec)
+    core.start(_obs(t_x, 5.0, 1.0, mids, 6))
+    act = core.action(np.zeros(spec.action_dim))
+    chosen = int(np.argmax(act[2 : 2 + len(mids)]))
+    dist = [abs(t_x - m) for m in mids]
+    assert dist[chosen] == pytest.approx(min(dist), abs=1e-4)
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    t_x=st.floats(0.0, 30.0),
+    t_a=st.floats(0.0, 30.0),
+    coop=st.floats(0.0, 1.0),
+    r=st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3),
+)
+def test_residual_moves_pace_commands_within_bounds(
+    t_x: float, t_a: float, coop: float, r: list[float]
+) -> None:
+    """Actions stay in [-1, 1]; a larger correction never lowers a pace command."""
+    spec = ResidualSpec(pace_scale=0.3, choice_scale=0.5)
+    core = ResidualLC(spec)
+    core.start(_obs(t_x, t_a, coop, [5.0], 1))
+    act = core.action(np.array(r))
+    assert act.dtype == np.float32 and np.all(np.abs(act) <= 1.0)
+    assert act[2] == pytest.approx(np.clip(0.5 * r[2], -1, 1), abs=1e-6)
+    base = core.action(np.zeros(3))
+    for i in (0, 1):
+        cmd, cmd0 = (
+            command_from_action(float(act[i]), 1.4),
+            command_from_action(float(base[i]), 1.4),
+        )
+        if r[i] >= 0:
+            assert cmd >= cmd0 - 1e-6
+        else:
+            assert cmd <= cmd0 + 1e-6
+
+
+def test_residual_spec_and_core_reject_bad_input() -> None:
+    with pytest.raises(ConfigError, match="choice_mode"):
+        ResidualSpec(choice_mode="argmax")  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match="pace_scale"):
+        ResidualSpec(pace_scale=0.0)
+    core = ResidualLC(ResidualSpec())
+    with pytest.raises(ConfigError, match="before start"):
+        core.action(np.zeros(3))
+    core.start(_obs(5.0, 5.0, 1.0, [5.0], 1))
+    with pytest.raises(ConfigError, match="shape"):
+        core.action(np.zeros(4))
+    with pytest.raises(ConfigError, match="finite"):
+        core.action(np.array([np.nan, 0.0, 0.0]))
+    with pytest.raises(ConfigError, match="choice_mode"):
+        ResidualLCWrapper(_make(choice_mode="target"), choice_mode="scores")
+
+
+def test_motion_rate_feature_tracks_resistance() -> None:
+    """Time lost and motion rate: zero without resistance, negative rate when the person resists."""
+    resist = ResidualLCWrapper(_make(users=lambda t, v, b: -30.0 * b))
+    free = ResidualLCWrapper(_make(users=lambda t, v, b: 0.0 * b))
+    i_rate, i_lost = 16 + 30 + FEATURES.index("motion_rate_avg"), 46 + FEATURES.index("time_lost")
+    for env, sign in ((resist, -1), (free, 0)):
+        env.reset(seed=0)
+        for _ in range(100):
+            obs, *_ = env.step(np.zeros(env.residual_spec.action_dim))
+        if sign < 0:
+            assert obs[i_rate] < -0.5 and obs[i_lost] > 0.1
+        else:
+            assert abs(obs[i_rate]) < 0.1 and abs(obs[i_lost]) < 0.05
+
+
+def test_alignment_reward_terms() -> None:
+    env = AlignmentReward(_make(w_em=0.0, w_pace=0.0, w_am=0.0), w_em=1.0, w_adev=1.0)
+    env.reset(seed=3)
+    total = 0.0
+    terms = 0.0
+    for _ in range(3000):
+        _, r, term, trunc, info = env.step(np.array([0.0, -0.2, 0.0], np.float32))
+        total += r
+        terms += info["reward_em_base"] + info["reward_adev"] + info["reward_am_fine"]
+        assert info["reward_em_base"] <= 0.0 and info["reward_adev"] <= 0.0
+        if term or trunc:
+            break
+    assert term
+    assert info["reward_am_fine"] == pytest.approx(-np.log1p(abs(info["am"]) / 0.02))
+    assert total == pytest.approx(terms)
+    with pytest.raises(ConfigError, match="w_em"):
+        AlignmentReward(_make(), w_em=-1.0)
+
+
+def test_seed_cycle_repeats_users() -> None:
+    env = SeedCycle(_make(), seeds=[11, 12])
+    first = [env.reset()[0] for _ in range(4)]
+    assert np.array_equal(first[0], first[2]) and np.array_equal(first[1], first[3])
+    with pytest.raises(ConfigError, match="seeds"):
+        SeedCycle(_make(), seeds=[])
+
+
+def test_model_files_names() -> None:
+    z, n, c = model_files("models/x.zip")
+    assert (z.name, n.name, c.name) == ("x.zip", "x_vecnormalize.pkl", "x_config.yaml")
+    assert model_files("models/x") == (z, n, c)
+
+
+def test_load_missing_files_name_the_path(tmp_path: Path) -> None:
+    with pytest.raises(FileNotFoundError, match=r"nope\.zip"):
+        PPOPolicy.load(tmp_path / "nope.zip")
+    with pytest.raises(FileNotFoundError, match=r"nope\.zip"):
+        load_policy(f"ppo:{tmp_path / 'nope.zip'}")
+
+
+@pytest.mark.skipif(not SHIPPED.is_file(), reason="no shipped model in models/")
+def test_shipped_model_acts_deterministically() -> None:
+    policy = load_policy(f"ppo:{SHIPPED}")
+    assert isinstance(policy, PPOPolicy)
+    env = _make(phrase_graph=policy.phrase_graph, **policy.env_kwargs)
+    assert policy.decision_hz == env.unwrapped.decision_hz
+    obs, _ = env.reset(seed=5)
+    policy.reset()
+    acts = [policy.act(obs)]
+    for _ in range(20):
+        obs, *_ = env.step(acts[-1])
+        acts.append(policy.act(obs))
+    policy.reset()
+    env.reset(seed=5)
+    assert np.array_equal(policy.act(env.reset(seed=5)[0]), acts[0])
+    assert all(env.action_space.contains(a) for a in acts)
+
+
+@pytest.mark.skipif(not SHIPPED.is_file(), reason="no shipped model in models/")
+@pytest.mark.parametrize("broken", ["zip", "pkl", "yaml"])
+def test_corrupt_files_raise_value_error_naming_them(tmp_path: Path, broken: str) -> None:
+    for src in model_files(SHIPPED):
+        shutil.copy(src, tmp_path / src.name.replace("ppo_langctrl", "m"))
+    z, n, c = model_files(tmp_path / "m.zip")
+    target = {"zip": z, "pkl": n, "yaml": c}[broken]
+    target.write_bytes(b"\x00garbage: [" if broken == "yaml" else b"not a real file")
+    with pytest.raises(ValueError, match=target.name):
+        PPOPolicy.load(z)

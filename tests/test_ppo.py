@@ -1,0 +1,115 @@
+"""Smoke test of the training script (python -m train.ppo) and its config handling."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+import langenv
+from langenv.errors import ConfigError
+from policies.learned import PPOPolicy, model_files
+from train.ppo import TrainArgs, _policy_kwargs, _schedule, load_config, parse_args
+
+REPO = Path(__file__).resolve().parents[1]
+CONFIG = REPO / "configs" / "ppo.yaml"
+
+
+def _train(*extra: str) -> subprocess.CompletedProcess[str]:
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    cmd = [sys.executable, "-m", "train.ppo", "--config", str(CONFIG), "--no-progress-bar"]
+    return subprocess.run(
+        [*cmd, *extra], cwd=REPO, env=env, capture_output=True, text=True, timeout=300
+    )
+
+
+@pytest.mark.slow
+def test_train_smoke_resume_and_load(tmp_path: Path) -> None:
+    """A tiny run through the real script, resumed, then loaded and run with PPOPolicy."""
+    out = tmp_path / "run"
+    common = ["--out", str(out), "--n-envs", "2", "--eval-freq", "2048", "--checkpoint-freq"]
+    first = _train(*common, "2048", "--total-timesteps", "2048", "--n-eval-episodes", "1")
+    assert first.returncode == 0, first.stderr[-3000:]
+    zip_path, norm_path, cfg_path = model_files(out / "ppo_langctrl.zip")
+    assert zip_path.is_file() and norm_path.is_file() and cfg_path.is_file()
+    assert (out / "checkpoints" / "ppo_langctrl_2048_steps.zip").is_file()
+    assert any((out / "tb").iterdir())
+    assert (out / "eval" / "evaluations.npz").is_file()
+    assert (out / "best" / "ppo_langctrl.zip").is_file()
+    cfg = yaml.safe_load(cfg_path.read_text())
+    assert cfg["num_timesteps"] == 2048
+    assert cfg["train"]["seed"] >= 1_000_000
+    assert cfg["residual"]["choice_mode"] == cfg["env_kwargs"]["choice_mode"]
+
+    again = _train(
+        *common, "2048", "--total-timesteps", "4096", "--n-eval-episodes", "0", "--resume"
+    )
+    assert again.returncode == 0, again.stderr[-3000:]
+    assert "resuming from" in again.stderr
+    assert yaml.safe_load(cfg_path.read_text())["num_timesteps"] == 4096
+
+    import gymnasium as gym
+
+    policy = PPOPolicy.load(zip_path)
+    env = gym.make(
+        langenv.ENV_ID,
+        phrase_graph=policy.phrase_graph,
+        decision_hz=policy.decision_hz,
+        **policy.env_kwargs,
+    )
+    obs, _ = env.reset(seed=0)
+    policy.reset()
+    for _ in range(50):
+        action = policy.act(obs)
+        assert env.action_space.contains(action)
+        obs, *_ = env.step(action)
+    assert np.isfinite(obs).all()
+
+
+def test_resume_without_checkpoint_fails_cleanly(tmp_path: Path) -> None:
+    res = _train("--out", str(tmp_path), "--resume", "--total-timesteps", "100")
+    assert res.returncode == 2
+    assert "no checkpoint" in res.stderr
+
+
+def test_load_config_reads_zoo_keys_and_train_section() -> None:
+    hyper, section = load_config(CONFIG, "LangCtrl-v0")
+    for key in ("n_envs", "n_timesteps", "policy", "normalize", "env_wrapper", "policy_kwargs"):
+        assert key in hyper
+    assert section["seed"] >= 1_000_000
+    assert section["eval_seed"] + section["n_eval_episodes"] <= section["seed"]
+    kw = _policy_kwargs(hyper["policy_kwargs"], CONFIG)
+    assert kw["log_std_init"] < 0
+
+
+def test_load_config_errors(tmp_path: Path) -> None:
+    with pytest.raises(FileNotFoundError, match=r"missing\.yaml"):
+        load_config(tmp_path / "missing.yaml", "LangCtrl-v0")
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("Other-v0: {n_envs: 1}\n")
+    with pytest.raises(ConfigError, match="LangCtrl-v0"):
+        load_config(bad, "LangCtrl-v0")
+    bad.write_text("LangCtrl-v0: {frame_stack: 4}\n")
+    with pytest.raises(ConfigError, match="frame_stack"):
+        load_config(bad, "LangCtrl-v0")
+    bad.write_text("LangCtrl-v0: {n_envs: 1}\ntrain: {bogus: 1}\n")
+    with pytest.raises(ConfigError, match="bogus"):
+        load_config(bad, "LangCtrl-v0")
+    with pytest.raises(ConfigError, match="policy_kwargs"):
+        _policy_kwargs("__import__('os')", bad)
+
+
+def test_schedules_and_cli_overrides() -> None:
+    lin = _schedule("lin_3e-4")
+    assert lin(1.0) == pytest.approx(3e-4) and lin(0.5) == pytest.approx(1.5e-4)
+    assert _schedule(0.2) == 0.2
+    args, given = parse_args(["--total-timesteps", "5000", "--seed", "1000001", "--resume"])
+    assert args.total_timesteps == 5000 and args.seed == 1_000_001 and args.resume
+    assert given == {"total_timesteps", "seed", "resume"}
+    with pytest.raises(ConfigError, match="vec_env"):
+        TrainArgs(vec_env="threads")
