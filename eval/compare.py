@@ -57,6 +57,8 @@ class CompareArgs:
         decision_hz: Override every policy's decision rate (default: each policy's own).
         phrase_graph: Phrase graph YAML for the policies that choose phrases (LC, learned),
             instead of the shipped LC graph.
+        stat: Statistic of the differences against LC in ``summary.md``: ``median`` (of the
+            per-user differences) or ``mean``.
     """
 
     policies: str = "ac,lc-noap,lc"
@@ -70,6 +72,7 @@ class CompareArgs:
     figures: bool = True
     decision_hz: int | None = None
     phrase_graph: Path | None = None
+    stat: str = "median"
 
 
 @dataclass(frozen=True)
@@ -113,6 +116,12 @@ def parse_args(argv: Sequence[str] | None = None) -> CompareArgs:
         default=None,
         help="phrase graph YAML for the policies that choose phrases (lc, ppo)",
     )
+    p.add_argument(
+        "--stat",
+        choices=("median", "mean"),
+        default="median",
+        help="statistic of the differences against LC in summary.md",
+    )
     ns = p.parse_args(argv)
     if ns.users is not None and ns.sessions is not None:
         p.error("give either --users or --sessions, not both")
@@ -133,6 +142,7 @@ def parse_args(argv: Sequence[str] | None = None) -> CompareArgs:
         figures=not ns.no_figures,
         decision_hz=ns.decision_hz,
         phrase_graph=ns.phrase_graph,
+        stat=ns.stat,
     )
 
 
@@ -344,6 +354,7 @@ def _write_outputs(
         rng=np.random.default_rng(args.seed),
         policies=order,
         figure="summary.png",
+        stat="mean" if args.stat == "mean" else "median",
     )
 
 
