@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 
-from langenv.control.admittance import AdmittanceParams, VariableAdmittance
+from langenv.control.admittance import AdmittanceParams
 from langenv.control.guide import Guide, GuideState
 from langenv.control.motion_etc import VirtualRun, simulate_virtual
 from langenv.control.trajectory import default_exercise, line
@@ -167,20 +165,3 @@ def test_guide_validates_its_arguments() -> None:
         Guide("exercise", P)  # type: ignore[arg-type]
     with pytest.raises(ConfigError, match="params"):
         Guide(EX, None)  # type: ignore[arg-type]
-
-
-def test_hot_path_cost() -> None:
-    """update + virtual_force + admittance step stay well below a bare MuJoCo step (tens of us)."""
-    guide = Guide(EX, P)
-    adm = VariableAdmittance(P)
-    st = GuideState(0.1, 0, False)
-    x = EX.position(0.1) + 0.001
-    v = 0.1 * EX.tangent(0.1)
-    n = 3000
-    t0 = time.perf_counter()
-    for _ in range(n):
-        guide.update(st, x, v)
-        f = guide.virtual_force(st, x, v, 1.1)
-        adm.step(v, f, 1.1, 0.0, 0.002)
-    per_tick_us = (time.perf_counter() - t0) / n * 1e6
-    assert per_tick_us < 60.0  # measured ~5 us on the dev machine; generous for CI
