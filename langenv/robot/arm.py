@@ -45,6 +45,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from langenv.errors import ActionError, ConfigError
+from langenv.validation import as_vec3
 
 if TYPE_CHECKING:
     from langenv.robot.camera import SceneRenderer
@@ -91,19 +92,6 @@ def _finite_positive(name: str, value: float, *, allow_zero: bool = False) -> fl
         bound = ">= 0" if allow_zero else "> 0"
         raise ConfigError(f"{name} must be finite and {bound}, got {value!r}")
     return v
-
-
-def _vec3(value: ArrayLike, name: str, error: type[Exception]) -> NDArray[np.float64]:
-    """Convert to a finite float64 (3,) array or raise ``error`` naming the argument."""
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise error(f"{name} must be a (3,) array of floats, got {value!r}") from exc
-    if arr.shape != (3,):
-        raise error(f"{name} must have shape (3,), got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise error(f"{name} must be finite, got {arr.tolist()}")
-    return np.ascontiguousarray(arr)
 
 
 def _rotation_error_matrix(r_held: NDArray[np.float64], gain: float) -> NDArray[np.float64]:
@@ -408,7 +396,7 @@ class Arm:
             mujoco.mj_resetData(m, d)
         mujoco.mj_forward(m, d)
         if hand_position is not None:
-            target = _vec3(hand_position, "hand_position", ConfigError)
+            target = as_vec3(hand_position, "hand_position", ConfigError)
             residual = self._solve_ik(target, self._site_xmat.reshape(3, 3).copy())
             if residual > _IK_ACCEPT:
                 raise ConfigError(
@@ -523,19 +511,19 @@ class Arm:
             or v_ref.dtype != np.float64
             or not v_ref.flags.c_contiguous
         ):
-            v_ref = _vec3(v_ref, "v_ref", ActionError)
+            v_ref = as_vec3(v_ref, "v_ref", ActionError)
         if (
             type(f_ext) is not np.ndarray
             or f_ext.shape != (3,)
             or f_ext.dtype != np.float64
             or not f_ext.flags.c_contiguous
         ):
-            f_ext = _vec3(f_ext, "f_ext", ActionError)
+            f_ext = as_vec3(f_ext, "f_ext", ActionError)
         s2 = v_ref.dot(v_ref)
         f2 = f_ext.dot(f_ext)
         if not (s2 < math.inf and f2 < math.inf):  # NaN fails the comparison too
-            _vec3(v_ref, "v_ref", ActionError)
-            _vec3(f_ext, "f_ext", ActionError)
+            as_vec3(v_ref, "v_ref", ActionError)
+            as_vec3(f_ext, "f_ext", ActionError)
         m, d = self.model, self.data
         vmax = self.max_hand_speed
         if s2 > vmax * vmax:
