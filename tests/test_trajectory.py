@@ -107,7 +107,7 @@ def test_closest_stays_on_the_outbound_leg(
 ) -> None:
     """Started on the outbound arc, the search never jumps to the return arc over it."""
     x = EX.position(s_true) + np.array(noise)
-    s_prev = min(max(s_true + ds_prev, 0.0), L0)
+    s_prev = min(max(s_true + ds_prev, 0.0), L0 - 1e-6)  # on the arc, not on its joint
     s = EX.closest(x, s_prev, 0.0, EX.length)  # whole trajectory allowed
     # the third segment is the same arc: a global argmin could land there, we must not
     assert s < L0 + 0.02
@@ -223,3 +223,10 @@ def test_errors_are_config_errors_and_arrays_are_read_only() -> None:
         seg.start[0] = 1.0
     with pytest.raises(TrajectoryError, match="finite"):
         EX.position(math.nan)
+
+
+def test_closest_from_a_joint_starts_on_the_nearer_segment() -> None:
+    """s_prev exactly on the arc/line joint: a point on the arc is found on the arc."""
+    s_true = L0 - 0.02
+    s = EX.closest(EX.position(s_true), L0, 0.0, EX.length)
+    assert s == pytest.approx(s_true, abs=1e-6)

@@ -20,8 +20,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from langenv.errors import TrajectoryError
+from langenv.validation import as_vec3
 
 __all__ = [
     "ArcSegment",
@@ -40,16 +42,9 @@ CONTINUITY_TOL = 1e-6
 Vec3 = tuple[float, float, float]
 
 
-def _as_vec3(value: object, name: str) -> np.ndarray:
+def _as_vec3(value: ArrayLike, name: str) -> np.ndarray:
     """Return ``value`` as a read-only float64 array of shape (3,), or raise naming ``name``."""
-    try:
-        arr = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise TrajectoryError(f"{name} must be a 3-vector of numbers, got {value!r}") from exc
-    if arr.shape != (3,):
-        raise TrajectoryError(f"{name} must have shape (3,), got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise TrajectoryError(f"{name} must be finite, got {arr.tolist()}")
+    arr = np.array(as_vec3(value, name, TrajectoryError))  # a copy: the segment owns it
     arr.setflags(write=False)
     return arr
 
@@ -466,6 +461,11 @@ class Trajectory:
         i = 0 if i < 0 else (n - 1 if i >= n else i)
         best_s, best_d2 = self._dist2_on(i, x0, x1, x2, lo, hi)
         eps = 1e-12
+        if i > 0 and s_prev <= self._starts[i] + eps and self._starts[i] > lo:
+            # s_prev on a joint belongs to both segments: start from the closer one
+            s, d2 = self._dist2_on(i - 1, x0, x1, x2, lo, hi)
+            if d2 < best_d2:
+                best_s, best_d2, i = s, d2, i - 1
         j = i
         moved = False
         # descend forward while the projection sits at the segment's end
