@@ -4,7 +4,8 @@ The network does not act on ``LangCtrl-v0`` directly. Its action ``r`` in ``[-1,
 *correction* of the analytic LC action (:class:`policies.analytic.LanguageController`), computed
 from the same observation:
 
-* pace commands: ``p_cmd = p*_LC + pace_scale r_0``, ``a_cmd = a_cmd_LC + pace_scale r_1``;
+* pace commands: ``p_cmd = p*_LC + pace_scale r_0``, ``a_cmd = a_cmd_LC + audio_scale r_1``
+  (``audio_scale`` defaults to ``pace_scale``);
 * next phrase, ``choice_mode="target"``: target speech duration ``t_x 2^{2 u}`` with
   ``u = choice_scale r_2`` (``u = 0`` is the paper's rule);
 * next phrase, ``choice_mode="scores"``: per-child scores ``(prior_k + choice_scale r_{2+k}) / 2``
@@ -80,7 +81,10 @@ class ResidualSpec:
         choice_mode: The env's next-phrase action design: ``"target"`` or ``"scores"``.
         max_children: Number of choice scores (the phrase graph's largest out-degree) for
             ``"scores"``; ignored for ``"target"``.
-        pace_scale: Largest change of the pace commands (pace units, > 0).
+        pace_scale: Largest change of the physical pace command (pace units, > 0).
+        audio_scale: Largest change of the audio pace command (pace units, > 0); ``None``: the
+            same as ``pace_scale``. A small value keeps the learned corrections on the motion side,
+            where they cost no audio distortion.
         choice_scale: Largest change of the choice action (``"target"``: of ``u``, where ``u = 1``
             is two octaves; ``"scores"``: of the score, whose LC prior spans ``[-1, 1]``), > 0.
         decision_hz: Decision rate the correction was trained at (for the motion-rate feature).
@@ -90,6 +94,7 @@ class ResidualSpec:
     max_children: int = 1
     pace_scale: float = 0.3
     choice_scale: float = 0.5
+    audio_scale: float | None = None
     decision_hz: int = 50
 
     def __post_init__(self) -> None:
@@ -101,14 +106,21 @@ class ResidualSpec:
             raise ConfigError(
                 f"ResidualSpec.max_children must be an int >= 1, got {self.max_children!r}"
             )
-        for name in ("pace_scale", "choice_scale"):
+        for name in ("pace_scale", "choice_scale", "audio_scale"):
             value = getattr(self, name)
+            if name == "audio_scale" and value is None:
+                continue
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0.0):
                 raise ConfigError(f"ResidualSpec.{name} must be finite and > 0, got {value!r}")
         if not isinstance(self.decision_hz, int) or self.decision_hz <= 0:
             raise ConfigError(
                 f"ResidualSpec.decision_hz must be a positive int, got {self.decision_hz!r}"
             )
+
+    @property
+    def audio_gain(self) -> float:
+        """Largest change of the audio pace command (``audio_scale``, or ``pace_scale``)."""
+        return self.pace_scale if self.audio_scale is None else float(self.audio_scale)
 
     @property
     def n_choice(self) -> int:
@@ -223,7 +235,7 @@ class ResidualLC:
         lc = self.lc.act(obs)
         out = np.zeros(spec.action_dim, np.float32)
         p_cmd = command_from_action(float(lc[0]), lim.p_max) + spec.pace_scale * r[0]
-        a_cmd = command_from_action(float(lc[1]), lim.a_max) + spec.pace_scale * r[1]
+        a_cmd = command_from_action(float(lc[1]), lim.a_max) + spec.audio_gain * r[1]
         out[0] = action_from_command(p_cmd, lim.p_max)
         out[1] = action_from_command(a_cmd, lim.a_max)
         self._last_r = r[:2].copy()

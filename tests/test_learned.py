@@ -113,11 +113,27 @@ def test_residual_moves_pace_commands_within_bounds(
             assert cmd <= cmd0 + 1e-6
 
 
+@pytest.mark.parametrize("audio_scale", [None, 0.1])
+def test_audio_scale_bounds_the_audio_correction_only(audio_scale: float | None) -> None:
+    """``audio_scale`` limits the audio command's change; the physical one keeps ``pace_scale``."""
+    spec = ResidualSpec(pace_scale=0.3, audio_scale=audio_scale)
+    core = ResidualLC(spec)
+    core.start(_obs(8.0, 9.0, 1.0, [5.0], 1))
+    base, act = core.action(np.zeros(3)), core.action(np.array([-1.0, -1.0, 0.0]))
+    d_p = command_from_action(float(base[0]), 1.4) - command_from_action(float(act[0]), 1.4)
+    d_a = command_from_action(float(base[1]), 1.4) - command_from_action(float(act[1]), 1.4)
+    assert d_p == pytest.approx(0.3, abs=1e-5)
+    assert d_a == pytest.approx(0.3 if audio_scale is None else 0.1, abs=1e-5)
+    assert spec.audio_gain == pytest.approx(d_a, abs=1e-5)
+
+
 def test_residual_spec_and_core_reject_bad_input() -> None:
     with pytest.raises(ConfigError, match="choice_mode"):
         ResidualSpec(choice_mode="argmax")  # type: ignore[arg-type]
     with pytest.raises(ConfigError, match="pace_scale"):
         ResidualSpec(pace_scale=0.0)
+    with pytest.raises(ConfigError, match="audio_scale"):
+        ResidualSpec(audio_scale=float("nan"))
     core = ResidualLC(ResidualSpec())
     with pytest.raises(ConfigError, match="before start"):
         core.action(np.zeros(3))

@@ -41,7 +41,8 @@ class ResidualLCWrapper(gym.ActionWrapper[np.ndarray, np.ndarray, np.ndarray]):
 
     Args:
         env: A ``LangCtrl-v0`` env (possibly wrapped).
-        pace_scale: Largest change of the pace commands (pace units).
+        pace_scale: Largest change of the physical pace command (pace units).
+        audio_scale: Largest change of the audio pace command (pace units); ``None``: ``pace_scale``.
         choice_scale: Largest change of the choice action.
         choice_mode: Must equal the env's ``choice_mode`` when given (a safety check for configs).
 
@@ -55,6 +56,7 @@ class ResidualLCWrapper(gym.ActionWrapper[np.ndarray, np.ndarray, np.ndarray]):
         pace_scale: float = 0.3,
         choice_scale: float = 0.5,
         choice_mode: Literal["target", "scores"] | None = None,
+        audio_scale: float | None = None,
     ) -> None:
         super().__init__(env)
         base: Any = env.unwrapped
@@ -68,6 +70,7 @@ class ResidualLCWrapper(gym.ActionWrapper[np.ndarray, np.ndarray, np.ndarray]):
             max_children=int(base.max_children),
             pace_scale=float(pace_scale),
             choice_scale=float(choice_scale),
+            audio_scale=None if audio_scale is None else float(audio_scale),
             decision_hz=int(base.decision_hz),
         )
         self.core = ResidualLC(self.residual_spec, base.paces.limits)
