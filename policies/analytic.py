@@ -9,19 +9,21 @@ internals). At ``decision_hz=500`` the LC policy is exactly the paper's controll
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from langenv.env import T_SCALE
+from langenv.errors import ConfigError
 from langenv.pacing import PaceLimits, action_from_command
 from policies.aligner import AlignerGains, audio_command, optimal_paces
 
 __all__ = ["AdmittanceController", "LanguageController", "make_analytic"]
 
 # observation indices (see LangCtrlEnv's docstring)
-OBS_T_X, OBS_T_A, OBS_COOP = 0, 1, 5
+OBS_T_X, OBS_T_A, OBS_COOP, OBS_MOTION_DONE = 0, 1, 5, 13
 
 
 @dataclass
@@ -53,6 +55,12 @@ class LanguageController:
         limits: The env's pace limits (for the action map).
         decision_hz: Decision rate; 500 reproduces the paper's 500 Hz loop exactly.
         action_dim: The env's action size (3 for ``choice_mode="target"``).
+        k_em: Extra feedback of the base-pace misalignment ``EM = t_a - t_x`` on the physical
+            pace command (1/s): ``p_cmd = p* - clip(k_em EM, ±em_clip)`` while the motion goes
+            on. 0 (the paper's LC) by default; ``"lc-em"`` uses 1. Not in the paper: an analytic
+            reference for the learned aligner, which finds a correction of this kind
+            (``docs/learned.md``).
+        em_clip: Bound of that correction (pace units).
     """
 
     name: str = "lc"
@@ -62,6 +70,16 @@ class LanguageController:
     decision_hz: int = 500
     action_dim: int = 3
     env_kwargs: dict[str, Any] = field(default_factory=dict)
+    k_em: float = 0.0
+    em_clip: float = 0.5
+
+    def __post_init__(self) -> None:
+        for name in ("k_em", "em_clip"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ConfigError(
+                    f"LanguageController.{name} must be finite and >= 0, got {value!r}"
+                )
 
     def reset(self) -> None:
         """Stateless."""
@@ -73,6 +91,8 @@ class LanguageController:
         c = 0.5 * (float(observation[OBS_COOP]) + 1.0)
         p_star, a_star = optimal_paces(t_x, t_a)
         a_cmd = audio_command(a_star, c, self.gains)
+        if self.k_em > 0.0 and observation[OBS_MOTION_DONE] < 0.0:
+            p_star -= min(self.em_clip, max(-self.em_clip, self.k_em * (t_a - t_x)))
         action = np.zeros(self.action_dim, np.float32)
         action[0] = action_from_command(p_star, self.limits.p_max)
         action[1] = action_from_command(a_cmd, self.limits.a_max)
@@ -82,7 +102,7 @@ class LanguageController:
 def make_analytic(
     name: str, decision_hz: int | None = None
 ) -> AdmittanceController | LanguageController:
-    """Build ``"ac"``, ``"lc-noap"`` or ``"lc"``.
+    """Build ``"ac"``, ``"lc-noap"``, ``"lc"`` or ``"lc-em"`` (LC with ``k_em = 1``).
 
     Args:
         name: The controller.
@@ -100,4 +120,6 @@ def make_analytic(
         )
     if name == "lc":
         return LanguageController(decision_hz=decision_hz or 500)
-    raise KeyError(f"unknown analytic policy {name!r}; known: ac, lc-noap, lc")
+    if name == "lc-em":
+        return LanguageController(name="lc-em", decision_hz=decision_hz or 500, k_em=1.0)
+    raise KeyError(f"unknown analytic policy {name!r}; known: ac, lc-noap, lc, lc-em")

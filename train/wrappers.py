@@ -42,7 +42,7 @@ class ResidualLCWrapper(gym.ActionWrapper[np.ndarray, np.ndarray, np.ndarray]):
     Args:
         env: A ``LangCtrl-v0`` env (possibly wrapped).
         pace_scale: Largest change of the physical pace command (pace units).
-        audio_scale: Largest change of the audio pace command (pace units); ``None``: ``pace_scale``.
+        audio_scale: Largest change of the audio pace command (pace units); ``None``: pace_scale.
         choice_scale: Largest change of the choice action.
         choice_mode: Must equal the env's ``choice_mode`` when given (a safety check for configs).
 
