@@ -70,6 +70,26 @@ def test_train_smoke_resume_and_load(tmp_path: Path) -> None:
         obs, *_ = env.step(action)
     assert np.isfinite(obs).all()
 
+    # a checkpoint exported as a model acts exactly like the model saved at that step count
+    from train.export import main as export_main
+
+    assert export_main([str(out), "--steps", "4096", "--out", str(tmp_path / "m" / "x")]) == 0
+    exported = PPOPolicy.load(tmp_path / "m" / "x.zip")
+    assert yaml.safe_load((tmp_path / "m" / "x_config.yaml").read_text())["num_timesteps"] == 4096
+    obs, _ = env.reset(seed=1)
+    policy.reset()
+    exported.reset()
+    assert np.array_equal(policy.act(obs), exported.act(obs))
+
+
+def test_export_names_the_missing_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from train.export import main as export_main
+
+    (tmp_path / "checkpoints").mkdir()
+    assert export_main([str(tmp_path), "--steps", "5", "--out", str(tmp_path / "x")]) == 2
+    assert "ppo_langctrl_5_steps.zip" in capsys.readouterr().err
+    assert not (tmp_path / "x.zip").exists()
+
 
 def test_resume_without_checkpoint_fails_cleanly(tmp_path: Path) -> None:
     res = _train("--out", str(tmp_path), "--resume", "--total-timesteps", "100")

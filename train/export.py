@@ -1,0 +1,102 @@
+"""Export a checkpoint of a training run as a model ``PPOPolicy`` loads (``ppo:PATH``).
+
+Run::
+
+    python -m train.export runs/ppo --steps 550000 --out models/ppo_langctrl
+
+copies ``RUN/checkpoints/NAME_<steps>_steps.zip`` and its ``NAME_vecnormalize_<steps>_steps.pkl``
+to ``OUT.zip`` and ``OUT_vecnormalize.pkl``, writes the run's config (``RUN/run_config.yaml``) as
+``OUT_config.yaml`` with the checkpoint's step count and origin, and loads the result once with
+:meth:`policies.learned.PPOPolicy.load` so that a broken export fails here, not in an evaluation.
+Nothing is written when an input is missing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import yaml
+
+__all__ = ["ExportArgs", "export", "main", "parse_args"]
+
+
+@dataclass(frozen=True)
+class ExportArgs:
+    """Arguments of ``python -m train.export``.
+
+    Attributes:
+        run: Output directory of a ``python -m train.ppo`` run.
+        steps: Step count of the checkpoint to export (``checkpoints/NAME_<steps>_steps.zip``).
+        out: Stem of the exported model (``OUT.zip``, ``OUT_vecnormalize.pkl``,
+            ``OUT_config.yaml``).
+        name: The run's model name (``train.name`` of its config).
+    """
+
+    run: Path
+    steps: int
+    out: Path
+    name: str = "ppo_langctrl"
+
+
+def parse_args(argv: Sequence[str] | None = None) -> ExportArgs:
+    """Parse the command line into :class:`ExportArgs`."""
+    p = argparse.ArgumentParser(prog="python -m train.export", description=__doc__.split("\n")[0])
+    p.add_argument("run", type=Path, help="output directory of a python -m train.ppo run")
+    p.add_argument("--steps", type=int, required=True, help="step count of the checkpoint")
+    p.add_argument("--out", type=Path, required=True, help="stem of the exported model")
+    p.add_argument("--name", default=ExportArgs.name, help="the run's model name")
+    ns = p.parse_args(argv)
+    return ExportArgs(run=ns.run, steps=ns.steps, out=ns.out, name=ns.name)
+
+
+def export(args: ExportArgs) -> Path:
+    """Export the checkpoint; returns the model zip.
+
+    Raises:
+        FileNotFoundError: naming the missing checkpoint, normalisation or run config.
+        ValueError: if the exported model does not load.
+    """
+    from policies.learned import PPOPolicy, model_files
+
+    ckpt = args.run / "checkpoints"
+    sources = (
+        ckpt / f"{args.name}_{args.steps}_steps.zip",
+        ckpt / f"{args.name}_vecnormalize_{args.steps}_steps.pkl",
+        args.run / "run_config.yaml",
+    )
+    for f in sources:
+        if not f.is_file():
+            raise FileNotFoundError(f"train.export: not found: {f}")
+    config = yaml.safe_load(sources[2].read_text())
+    if not isinstance(config, dict):
+        raise ValueError(f"{sources[2]}: not a run config")
+    config["num_timesteps"] = args.steps
+    config["exported_from"] = str(sources[0])
+    targets = model_files(args.out)
+    targets[0].parent.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(sources[0], targets[0])
+    shutil.copyfile(sources[1], targets[1])
+    targets[2].write_text(yaml.safe_dump(config, sort_keys=False))
+    PPOPolicy.load(targets[0])
+    return targets[0]
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point; returns the process exit code."""
+    args = parse_args(argv)
+    try:
+        path = export(args)
+    except (FileNotFoundError, ValueError) as exc:
+        print(f"train.export: error: {exc}", file=sys.stderr)
+        return 2
+    print(path)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
