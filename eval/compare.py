@@ -88,6 +88,7 @@ class Job:
     figures: bool
     decision_hz: int | None
     phrase_graph: str | None = None
+    name: str | None = None  # the policy's name in outputs (default: its own name)
 
 
 class UsageError(Exception):
@@ -220,6 +221,8 @@ def run_episode(job: Job) -> dict[str, Any]:
     from policies import load_policy
 
     policy = load_policy(job.policy)
+    if job.name is not None:
+        policy.name = job.name
     hz = job.decision_hz or policy.decision_hz
     graph = policy.phrase_graph
     if job.phrase_graph is not None and _chooses_phrases(job.policy):
@@ -296,6 +299,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 args.figures,
                 args.decision_hz,
                 str(args.phrase_graph) if args.phrase_graph else None,
+                policy_names(names)[n],
             )
             for n in names
             for (u, s, sess) in users
@@ -344,7 +348,7 @@ def _write_outputs(
     for row in rows:
         log = EpisodeLog.load_npz(tmp / "sessions" / f"{row['policy']}_{row['user']}.npz")
         logs.setdefault(str(row["policy"]), []).append(log)
-    order = [n for n in (_policy_name(s) for s in names) if n in logs]
+    order = [n for n in policy_names(names).values() if n in logs]
     violin_figure({n: logs[n] for n in order}, tmp / "summary.png")
     reference = "lc" if "lc" in logs else order[0]
     write_summary_md(
@@ -358,8 +362,27 @@ def _write_outputs(
     )
 
 
-def _policy_name(spec: str) -> str:
-    return "ppo" if spec.startswith("ppo:") else spec
+def policy_names(specs: Sequence[str]) -> dict[str, str]:
+    """Name of each policy spec in the outputs (rows, files, tables), all distinct.
+
+    Analytic policies keep their names; a single ``ppo:PATH`` is ``"ppo"``; several are
+    ``"ppo-STEM"`` after their model files (``"ppo-STEM-2"``... if two stems are equal).
+    """
+    learned = [s for s in specs if s.startswith("ppo:")]
+    names: dict[str, str] = {}
+    for spec in specs:
+        if not spec.startswith("ppo:"):
+            names[spec] = spec
+        elif len(learned) == 1:
+            names[spec] = "ppo"
+        else:
+            name = base = "ppo-" + Path(spec.removeprefix("ppo:")).name.removesuffix(".zip")
+            k = 1
+            while name in names.values():
+                k += 1
+                name = f"{base}-{k}"
+            names[spec] = name
+    return names
 
 
 def _replace_dir(tmp: Path, out: Path) -> None:

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from eval.compare import main
+from eval.compare import main, policy_names
 
 ROOT = Path(__file__).resolve().parents[1]
 SESSIONS = ROOT.parent / "shared" / "sessions"
@@ -88,3 +88,14 @@ def test_replay_sessions_one_episode_per_csv(tmp_path: Path) -> None:
     assert rc == 0
     rows = list(csv.DictReader((out / "sessions.csv").open()))
     assert [(r["policy"], r["user"]) for r in rows] == [("lc", "u2_lc")]
+
+
+def test_policy_names_are_distinct_for_several_learned_models() -> None:
+    assert policy_names(["lc", "ppo:models/a.zip"]) == {"lc": "lc", "ppo:models/a.zip": "ppo"}
+    names = policy_names(["lc", "ppo:runs/x/m.zip", "ppo:runs/y/m.zip", "ppo:runs/z/k"])
+    assert names == {
+        "lc": "lc",
+        "ppo:runs/x/m.zip": "ppo-m",
+        "ppo:runs/y/m.zip": "ppo-m-2",
+        "ppo:runs/z/k": "ppo-k",
+    }
