@@ -205,7 +205,9 @@ def test_load_missing_files_name_the_path(tmp_path: Path) -> None:
 def test_shipped_model_acts_deterministically() -> None:
     policy = load_policy(f"ppo:{SHIPPED}")
     assert isinstance(policy, PPOPolicy)
-    env = _make(phrase_graph=policy.phrase_graph, **policy.env_kwargs)
+    env = _make(
+        phrase_graph=policy.phrase_graph, decision_hz=policy.decision_hz, **policy.env_kwargs
+    )
     assert policy.decision_hz == env.unwrapped.decision_hz
     obs, _ = env.reset(seed=5)
     policy.reset()
