@@ -70,16 +70,21 @@ def test_train_smoke_resume_and_load(tmp_path: Path) -> None:
         obs, *_ = env.step(action)
     assert np.isfinite(obs).all()
 
-    # a checkpoint exported as a model acts exactly like the model saved at that step count
+    # a checkpoint exported as a model: the checkpoint's weights and normalisation, loadable
     from train.export import main as export_main
 
-    assert export_main([str(out), "--steps", "4096", "--out", str(tmp_path / "m" / "x")]) == 0
-    exported = PPOPolicy.load(tmp_path / "m" / "x.zip")
-    assert yaml.safe_load((tmp_path / "m" / "x_config.yaml").read_text())["num_timesteps"] == 4096
+    assert export_main([str(out), "--steps", "2048", "--out", str(tmp_path / "m" / "x")]) == 0
+    x_zip, x_norm, x_cfg = model_files(tmp_path / "m" / "x.zip")
+    ckpt = out / "checkpoints"
+    assert x_zip.read_bytes() == (ckpt / "ppo_langctrl_2048_steps.zip").read_bytes()
+    assert x_norm.read_bytes() == (ckpt / "ppo_langctrl_vecnormalize_2048_steps.pkl").read_bytes()
+    x_config = yaml.safe_load(x_cfg.read_text())
+    assert x_config["num_timesteps"] == 2048
+    assert x_config["exported_from"].endswith("ppo_langctrl_2048_steps.zip")
+    exported = PPOPolicy.load(x_zip)
     obs, _ = env.reset(seed=1)
-    policy.reset()
     exported.reset()
-    assert np.array_equal(policy.act(obs), exported.act(obs))
+    assert env.action_space.contains(exported.act(obs))
 
 
 def test_export_names_the_missing_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
