@@ -288,6 +288,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
     try:
         (tmp / "sessions").mkdir()
+        labels = policy_names(names)
         jobs = [
             Job(
                 n,
@@ -299,13 +300,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                 args.figures,
                 args.decision_hz,
                 str(args.phrase_graph) if args.phrase_graph else None,
-                policy_names(names)[n],
+                labels[n],
             )
             for n in names
             for (u, s, sess) in users
         ]
         rows = _run_jobs(jobs, args.workers)
-        _write_outputs(rows, names, tmp, args)
+        _write_outputs(rows, list(labels.values()), tmp, args)
         cfg = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(args).items()}
         (tmp / "config.json").write_text(json.dumps(cfg, indent=2) + "\n")
         _replace_dir(tmp, out)
@@ -337,7 +338,7 @@ def _run_jobs(jobs: list[Job], workers: int) -> list[dict[str, Any]]:
 
 
 def _write_outputs(
-    rows: list[dict[str, Any]], names: list[str], tmp: Path, args: CompareArgs
+    rows: list[dict[str, Any]], labels: list[str], tmp: Path, args: CompareArgs
 ) -> None:
     from eval.episode import EpisodeLog
     from eval.plots import violin_figure
@@ -348,7 +349,7 @@ def _write_outputs(
     for row in rows:
         log = EpisodeLog.load_npz(tmp / "sessions" / f"{row['policy']}_{row['user']}.npz")
         logs.setdefault(str(row["policy"]), []).append(log)
-    order = [n for n in policy_names(names).values() if n in logs]
+    order = [n for n in labels if n in logs]
     violin_figure({n: logs[n] for n in order}, tmp / "summary.png")
     reference = "lc" if "lc" in logs else order[0]
     write_summary_md(

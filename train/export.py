@@ -62,11 +62,10 @@ def export(args: ExportArgs) -> Path:
         ValueError: if the exported model does not load.
     """
     from policies.learned import PPOPolicy, model_files
+    from train.ppo import checkpoint_files
 
-    ckpt = args.run / "checkpoints"
     sources = (
-        ckpt / f"{args.name}_{args.steps}_steps.zip",
-        ckpt / f"{args.name}_vecnormalize_{args.steps}_steps.pkl",
+        *checkpoint_files(args.run / "checkpoints", args.name, args.steps),
         args.run / "run_config.yaml",
     )
     for f in sources:

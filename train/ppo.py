@@ -56,7 +56,7 @@ from stable_baselines3.common.vec_env import VecNormalize
 
 from langenv.errors import ConfigError
 
-__all__ = ["TrainArgs", "load_config", "main", "parse_args", "train"]
+__all__ = ["TrainArgs", "checkpoint_files", "load_config", "main", "parse_args", "train"]
 
 #: Keys of a zoo-style section that are not PPO constructor arguments.
 _ZOO_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_wrapper", "env_kwargs")
@@ -425,6 +425,15 @@ def _save_triple(model: Any, env: Any, stem: Path, config: dict[str, Any]) -> No
     cfg_path.write_text(yaml.safe_dump(cfg, sort_keys=False))
 
 
+def checkpoint_files(ckpt_dir: Path, name: str, steps: int) -> tuple[Path, Path]:
+    """A checkpoint's model zip and VecNormalize pickle, as SB3's ``CheckpointCallback`` names
+    them (``NAME_<steps>_steps.zip``, ``NAME_vecnormalize_<steps>_steps.pkl``)."""
+    return (
+        ckpt_dir / f"{name}_{steps}_steps.zip",
+        ckpt_dir / f"{name}_vecnormalize_{steps}_steps.pkl",
+    )
+
+
 def _latest_checkpoint(ckpt_dir: Path, name: str) -> tuple[Path, Path, int] | None:
     best: tuple[Path, Path, int] | None = None
     for zip_path in ckpt_dir.glob(f"{name}_*_steps.zip"):
@@ -432,7 +441,7 @@ def _latest_checkpoint(ckpt_dir: Path, name: str) -> tuple[Path, Path, int] | No
         if not m:
             continue
         steps = int(m.group(1))
-        pkl = ckpt_dir / f"{name}_vecnormalize_{steps}_steps.pkl"
+        pkl = checkpoint_files(ckpt_dir, name, steps)[1]
         if pkl.is_file() and (best is None or steps > best[2]):
             best = (zip_path, pkl, steps)
     return best
@@ -513,12 +522,14 @@ def train(args: TrainArgs, given: set[str] | None = None) -> Path:
             tb_log_name="ppo",
         )
     except KeyboardInterrupt:
-        n = int(model.num_timesteps)
-        model.save(ckpt_dir / f"{a.name}_{n}_steps.zip")
+        zip_path, pkl = checkpoint_files(ckpt_dir, a.name, int(model.num_timesteps))
+        model.save(zip_path)
         vn = model.get_vec_normalize_env()
         if vn is not None:
-            vn.save(str(ckpt_dir / f"{a.name}_vecnormalize_{n}_steps.pkl"))
-        print(f"interrupted at {n} steps; continue with --resume", file=sys.stderr)
+            vn.save(str(pkl))
+        print(
+            f"interrupted at {model.num_timesteps} steps; continue with --resume", file=sys.stderr
+        )
         raise
     finally:
         env.close()
