@@ -43,7 +43,8 @@ class CompareArgs:
     """Arguments of ``python -m eval.compare``.
 
     Attributes:
-        policies: Comma-separated policies: ``ac``, ``lc-noap``, ``lc``, ``lc-em``, ``ppo:PATH``.
+        policies: Comma-separated policies: ``ac``, ``lc-noap``, ``lc``, ``lc-em``, ``lc-end``,
+            ``ppo:PATH``.
         users: ``synthetic:N`` (N seeded synthetic users), or None with ``sessions``.
         sessions: Directory of session CSVs (at least ``t, cooperation``) to replay, one episode
             per CSV, the CSV's stem as the user name.
@@ -164,7 +165,7 @@ def _check_policies(spec: str) -> list[str]:
 
 
 def _chooses_phrases(spec: str) -> bool:
-    return spec in ("lc", "lc-em") or spec.startswith("ppo:")
+    return spec in ("lc", "lc-em", "lc-end") or spec.startswith("ppo:")
 
 
 def _check_options(args: CompareArgs) -> None:

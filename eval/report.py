@@ -42,7 +42,14 @@ __all__ = [
 AM_TOLERANCE = 1.0
 """The study's bound on LC's |AM| (s)."""
 
-_NAMES = {"ac": "AC", "lc-noap": "LC-noAP", "lc": "LC", "lc-em": "LC-EM", "ppo": "PPO"}
+_NAMES = {
+    "ac": "AC",
+    "lc-noap": "LC-noAP",
+    "lc": "LC",
+    "lc-em": "LC-EM",
+    "lc-end": "LC-end",
+    "ppo": "PPO",
+}
 
 Row = Mapping[str, object]
 

@@ -1,7 +1,7 @@
 """Policies of LangCtrl-v0: the paper's analytic controllers and learned aligners.
 
 ``load_policy(spec)`` builds one from its command-line name: ``"ac"``, ``"lc-noap"``, ``"lc"``,
-``"lc-em"`` or ``"ppo:PATH"`` (a trained model saved by ``python -m train.ppo``).
+``"lc-em"``, ``"lc-end"`` or ``"ppo:PATH"`` (a trained model saved by ``python -m train.ppo``).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ __all__ = ["AdmittanceController", "LanguageController", "Policy", "load_policy"
 
 
 def load_policy(spec: str) -> Any:
-    """Build a policy from ``ac``, ``lc-noap``, ``lc``, ``lc-em`` or ``ppo:PATH``.
+    """Build a policy from ``ac``, ``lc-noap``, ``lc``, ``lc-em``, ``lc-end`` or ``ppo:PATH``.
 
     Raises:
         KeyError: unknown policy name.

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -23,7 +23,15 @@ from policies.aligner import AlignerGains, audio_command, optimal_paces
 __all__ = ["AdmittanceController", "LanguageController", "make_analytic"]
 
 # observation indices (see LangCtrlEnv's docstring)
-OBS_T_X, OBS_T_A, OBS_COOP, OBS_MOTION_DONE = 0, 1, 5, 13
+OBS_T_X, OBS_T_A, OBS_COOP, OBS_SPEECH_DONE, OBS_MOTION_DONE, OBS_ELAPSED = 0, 1, 5, 12, 13, 15
+OBS_ELAPSED_SCALE = 60.0  # s, scale of the elapsed-time observation
+
+#: Time constant (s) of the terminal phase's estimate of the motion's actual rate ``-dt_x/dt``.
+RATE_TAU = 0.04
+#: Lowest motion rate the terminal phase plans with (a stalled hand must not ask for a = 0).
+RATE_FLOOR = 0.3
+
+Phase = Literal["aligning", "terminal", "finishing", "over"]
 
 
 @dataclass
@@ -61,6 +69,15 @@ class LanguageController:
             reference for the learned aligner, which finds a correction of this kind
             (``docs/learned.md``).
         em_clip: Bound of that correction (pace units).
+        terminal: Horizon (s of ``t_x``) of the *terminal phase*; 0 (the paper's LC) turns it
+            off; ``"lc-end"`` uses 1. Not in the paper. Once ``t_x < terminal`` the physical pace
+            is commanded back to 1 (near the end the braking guide, not ``p``, sets how fast the
+            hand arrives, so LC's ``p*`` there mostly misleads its own plan) and the audio pace is
+            set so that the speech left ends when the motion is observed to end:
+            ``a_cmd = t_a / (t_x / r)``, with ``r`` the motion's actual rate ``-dt_x/dt``
+            (averaged over ``RATE_TAU``, at least ``RATE_FLOOR``). After one of the two has
+            ended, the other is finished as fast as allowed (``a_max`` or ``p_max``). See
+            :meth:`phase`. This makes the policy stateful: call :meth:`reset` at each episode.
     """
 
     name: str = "lc"
@@ -72,9 +89,12 @@ class LanguageController:
     env_kwargs: dict[str, Any] = field(default_factory=dict)
     k_em: float = 0.0
     em_clip: float = 0.5
+    terminal: float = 0.0
+    _last: tuple[float, float] | None = field(default=None, init=False, repr=False)
+    _rate: float = field(default=1.0, init=False, repr=False)
 
     def __post_init__(self) -> None:
-        for name in ("k_em", "em_clip"):
+        for name in ("k_em", "em_clip", "terminal"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ConfigError(
@@ -82,10 +102,54 @@ class LanguageController:
                 )
 
     def reset(self) -> None:
-        """Stateless."""
+        """Forget the motion-rate estimate (used only by the terminal phase)."""
+        self._last = None
+        self._rate = 1.0
+
+    @property
+    def motion_rate(self) -> float:
+        """The terminal phase's estimate of the motion's actual rate ``-dt_x/dt`` (1 at rest)."""
+        return self._rate
+
+    def phase(self, observation: np.ndarray) -> Phase:
+        """Which law acts on this observation.
+
+        Returns:
+            ``"aligning"``: the paper's aligner; ``"terminal"``: the terminal phase (see
+            ``terminal``); ``"finishing"``: one of motion and speech is over and the other is
+            finished as fast as allowed; ``"over"``: both are over. Without a terminal phase
+            (``terminal == 0``) only ``"aligning"`` and ``"over"`` occur.
+        """
+        motion_done = bool(observation[OBS_MOTION_DONE] > 0.0)
+        speech_done = bool(observation[OBS_SPEECH_DONE] > 0.0)
+        if motion_done and speech_done:
+            return "over"
+        if self.terminal <= 0.0:
+            return "aligning"
+        if motion_done or speech_done:
+            return "finishing"
+        t_x = float(observation[OBS_T_X]) * T_SCALE
+        return "terminal" if t_x < self.terminal else "aligning"
+
+    def _update_rate(self, observation: np.ndarray) -> None:
+        """Average ``-dt_x/dt`` over ``RATE_TAU``; idempotent for a repeated observation."""
+        t_x = float(observation[OBS_T_X]) * T_SCALE
+        now = float(observation[OBS_ELAPSED]) * OBS_ELAPSED_SCALE
+        if observation[OBS_MOTION_DONE] > 0.0:
+            self._last = None
+            return
+        if self._last is not None:
+            dt = now - self._last[1]
+            if dt <= 0.0:
+                return  # the same observation again (or time did not advance)
+            w = dt / (RATE_TAU + dt)
+            self._rate += w * ((self._last[0] - t_x) / dt - self._rate)
+        self._last = (t_x, now)
 
     def act(self, observation: np.ndarray) -> np.ndarray:
         """Pace commands from the ETCs and cooperation; the paper's phrase rule."""
+        if self.terminal > 0.0:
+            self._update_rate(observation)
         t_x = max(0.0, float(observation[OBS_T_X]) * T_SCALE)
         t_a = max(0.0, float(observation[OBS_T_A]) * T_SCALE)
         c = 0.5 * (float(observation[OBS_COOP]) + 1.0)
@@ -93,6 +157,15 @@ class LanguageController:
         a_cmd = audio_command(a_star, c, self.gains)
         if self.k_em > 0.0 and observation[OBS_MOTION_DONE] < 0.0:
             p_star -= min(self.em_clip, max(-self.em_clip, self.k_em * (t_a - t_x)))
+        phase = self.phase(observation)
+        if phase == "terminal":
+            p_star = 1.0
+            a_cmd = t_a * max(self._rate, RATE_FLOOR) / max(t_x, 1e-6)
+        elif phase == "finishing":
+            if observation[OBS_MOTION_DONE] > 0.0:
+                a_cmd = self.limits.a_max
+            else:
+                p_star = self.limits.p_max
         action = np.zeros(self.action_dim, np.float32)
         action[0] = action_from_command(p_star, self.limits.p_max)
         action[1] = action_from_command(a_cmd, self.limits.a_max)
@@ -102,7 +175,8 @@ class LanguageController:
 def make_analytic(
     name: str, decision_hz: int | None = None
 ) -> AdmittanceController | LanguageController:
-    """Build ``"ac"``, ``"lc-noap"``, ``"lc"`` or ``"lc-em"`` (LC with ``k_em = 1``).
+    """Build ``"ac"``, ``"lc-noap"``, ``"lc"``, ``"lc-em"`` (LC with ``k_em = 1``) or ``"lc-end"``
+    (LC with a 1 s terminal phase).
 
     Args:
         name: The controller.
@@ -122,4 +196,6 @@ def make_analytic(
         return LanguageController(decision_hz=decision_hz or 500)
     if name == "lc-em":
         return LanguageController(name="lc-em", decision_hz=decision_hz or 500, k_em=1.0)
-    raise KeyError(f"unknown analytic policy {name!r}; known: ac, lc-noap, lc, lc-em")
+    if name == "lc-end":
+        return LanguageController(name="lc-end", decision_hz=decision_hz or 500, terminal=1.0)
+    raise KeyError(f"unknown analytic policy {name!r}; known: ac, lc-noap, lc, lc-em, lc-end")

@@ -88,6 +88,11 @@ class ResidualSpec:
         choice_scale: Largest change of the choice action (``"target"``: of ``u``, where ``u = 1``
             is two octaves; ``"scores"``: of the score, whose LC prior spans ``[-1, 1]``), > 0.
         decision_hz: Decision rate the correction was trained at (for the motion-rate feature).
+        terminal: Terminal-phase horizon of the base controller (s of ``t_x``; see
+            :class:`policies.analytic.LanguageController`); 0: the base is the paper's LC. While
+            the base is in its terminal or finishing phase, the pace corrections are off (the
+            base ends speech and motion together to the millisecond; the correction acts on the
+            alignment before that and on the phrase choice).
     """
 
     choice_mode: Literal["target", "scores"] = "target"
@@ -96,6 +101,7 @@ class ResidualSpec:
     choice_scale: float = 0.5
     audio_scale: float | None = None
     decision_hz: int = 50
+    terminal: float = 0.0
 
     def __post_init__(self) -> None:
         if self.choice_mode not in ("target", "scores"):
@@ -116,6 +122,14 @@ class ResidualSpec:
             raise ConfigError(
                 f"ResidualSpec.decision_hz must be a positive int, got {self.decision_hz!r}"
             )
+        if not (
+            isinstance(self.terminal, int | float)
+            and math.isfinite(self.terminal)
+            and self.terminal >= 0.0
+        ):
+            raise ConfigError(
+                f"ResidualSpec.terminal must be finite and >= 0, got {self.terminal!r}"
+            )
 
     @property
     def audio_gain(self) -> float:
@@ -134,7 +148,8 @@ class ResidualSpec:
 
 
 class ResidualLC:
-    """LC plus a bounded correction; augments the observation with :data:`FEATURES`.
+    """LC (with ``spec.terminal``'s terminal phase) plus a bounded correction; augments the
+    observation with :data:`FEATURES`.
 
     Stateful over an episode (the motion-rate features): call :meth:`start` with the observation
     returned by ``reset`` and :meth:`observe` with each later one, in order; :meth:`action` maps a
@@ -148,7 +163,7 @@ class ResidualLC:
     def __init__(self, spec: ResidualSpec, limits: PaceLimits | None = None) -> None:
         self.spec = spec
         self.limits = limits if limits is not None else PaceLimits()
-        self.lc = LanguageController(limits=self.limits, action_dim=3)
+        self.lc = LanguageController(limits=self.limits, action_dim=3, terminal=spec.terminal)
         self._obs = np.zeros(0, np.float32)
         self._t_x0 = 0.0
         self._rate = 0.0
@@ -163,6 +178,7 @@ class ResidualLC:
     def start(self, obs: np.ndarray) -> np.ndarray:
         """Begin an episode at its first observation; returns the augmented observation."""
         self._obs = np.asarray(obs, dtype=np.float32)
+        self.lc.reset()
         self._t_x0 = float(self._obs[_T_X]) * T_SCALE
         self._rate = self._rate_avg = 0.0
         self._last_r = np.zeros(2)
@@ -233,6 +249,8 @@ class ResidualLC:
         r = np.clip(r, -1.0, 1.0)
         obs, lim = self._obs, self.limits
         lc = self.lc.act(obs)
+        if self.lc.phase(obs) in ("terminal", "finishing"):
+            r[:2] = 0.0  # the base's terminal law has the last word on the paces
         out = np.zeros(spec.action_dim, np.float32)
         p_cmd = command_from_action(float(lc[0]), lim.p_max) + spec.pace_scale * r[0]
         a_cmd = command_from_action(float(lc[1]), lim.a_max) + spec.audio_gain * r[1]

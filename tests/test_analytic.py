@@ -1,4 +1,5 @@
-"""The analytic controllers as policies (policies/analytic.py): names, checks, EM feedback."""
+"""The analytic controllers as policies (policies/analytic.py): names, checks, EM feedback and the
+terminal phase."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import langenv
 from langenv.env import T_SCALE
 from langenv.errors import ConfigError
 from langenv.pacing import command_from_action
@@ -17,10 +19,19 @@ from policies.analytic import (
 )
 
 
-def _obs(t_x: float, t_a: float, coop: float = 1.0, motion_done: bool = False) -> np.ndarray:
+def _obs(
+    t_x: float,
+    t_a: float,
+    coop: float = 1.0,
+    motion_done: bool = False,
+    speech_done: bool = False,
+    time: float = 0.0,
+) -> np.ndarray:
     obs = np.zeros(19, np.float32)
     obs[0], obs[1], obs[5] = t_x / T_SCALE, t_a / T_SCALE, 2.0 * coop - 1.0
+    obs[12] = 1.0 if speech_done else -1.0
     obs[13] = 1.0 if motion_done else -1.0
+    obs[15] = time / 60.0
     return obs
 
 
@@ -30,12 +41,21 @@ def test_names_build_the_right_controllers() -> None:
     assert (lc.name, lc.phrase_graph, lc.decision_hz, lc.k_em) == ("lc", "lc", 500, 0.0)
     assert (noap.name, noap.phrase_graph) == ("lc-noap", "lc-noap")
     assert (em.name, em.phrase_graph, em.k_em) == ("lc-em", "lc", 1.0)
+    end = make_analytic("lc-end")
+    assert isinstance(end, LanguageController)
+    assert (end.name, end.phrase_graph, end.terminal, end.k_em, lc.terminal) == (
+        "lc-end",
+        "lc",
+        1.0,
+        0.0,
+        0.0,
+    )
     assert make_analytic("lc", decision_hz=25).decision_hz == 25
     with pytest.raises(KeyError, match="lc-em"):
         make_analytic("lq")
 
 
-@pytest.mark.parametrize("field", ["k_em", "em_clip"])
+@pytest.mark.parametrize("field", ["k_em", "em_clip", "terminal"])
 @pytest.mark.parametrize("bad", [-0.1, float("nan"), float("inf")])
 def test_bad_feedback_parameters_raise(field: str, bad: float) -> None:
     with pytest.raises(ConfigError, match=field):
@@ -66,3 +86,71 @@ def test_em_feedback_is_off_once_the_motion_is_over() -> None:
     lc, em = LanguageController(), LanguageController(k_em=2.0)
     obs = _obs(0.0, 3.0, motion_done=True)
     assert np.array_equal(lc.act(obs), em.act(obs))
+
+
+def test_phases() -> None:
+    lc, end = LanguageController(), LanguageController(terminal=1.0)
+    cases = [
+        (_obs(5.0, 5.0), "aligning", "aligning"),
+        (_obs(0.8, 0.9), "aligning", "terminal"),
+        (_obs(0.0, 0.5, motion_done=True), "aligning", "finishing"),
+        (_obs(0.5, 0.0, speech_done=True), "aligning", "finishing"),
+        (_obs(0.0, 0.0, motion_done=True, speech_done=True), "over", "over"),
+    ]
+    for obs, want_lc, want_end in cases:
+        assert (lc.phase(obs), end.phase(obs)) == (want_lc, want_end)
+
+
+def test_terminal_phase_matches_the_speech_to_the_observed_motion_rate() -> None:
+    """``p_cmd = 1`` and ``a_cmd = t_a r / t_x`` with ``r`` the observed rate of ``t_x``."""
+    end = LanguageController(terminal=1.0, decision_hz=25)
+    end.reset()
+    # the hand moves at half the rate t_x assumes, for long enough to settle the estimate
+    t_x, t = 0.9, 10.0
+    for _ in range(60):
+        act = end.act(_obs(t_x, 0.6, time=t))
+        t_x, t = t_x - 0.5 * 0.01, t + 0.01
+    assert end.motion_rate == pytest.approx(0.5, rel=1e-3)
+    assert command_from_action(float(act[0]), 1.4) == pytest.approx(1.0)
+    t_x_last = t_x + 0.005
+    want = 0.6 * end.motion_rate / t_x_last
+    assert command_from_action(float(act[1]), 1.4) == pytest.approx(want, rel=1e-3)
+    again = end.act(_obs(t_x_last, 0.6, time=t - 0.01))  # the same observation: no new estimate
+    assert end.motion_rate == pytest.approx(0.5, rel=1e-3) and np.array_equal(again, act)
+    end.reset()
+    assert end.motion_rate == 1.0
+
+
+def test_finishing_phase_ends_the_other_channel_as_fast_as_allowed() -> None:
+    end = LanguageController(terminal=1.0)
+    talk = end.act(_obs(0.0, 0.5, motion_done=True))
+    move = end.act(_obs(0.5, 0.0, speech_done=True))
+    assert command_from_action(float(talk[1]), 1.4) == pytest.approx(1.4)
+    assert command_from_action(float(move[0]), 1.4) == pytest.approx(1.4)
+
+
+@pytest.mark.parametrize("hz", [25, 500])
+@pytest.mark.parametrize("push", [0.0, -20.0])
+def test_terminal_phase_ends_speech_and_motion_together(hz: int, push: float) -> None:
+    """Closed loop: with the terminal phase |AM| is a few ms, well below LC's on the same user."""
+    import gymnasium as gym
+
+    results = {}
+    for name in ("lc", "lc-end"):
+        pol = make_analytic(name, decision_hz=hz)
+        env = gym.make(
+            langenv.ENV_ID,
+            decision_hz=hz,
+            max_episode_steps=60 * hz,
+            users=lambda t, v, b, push=push: push * b if 4.0 < t < 7.0 else 0.0 * b,
+        )
+        obs, _ = env.reset(seed=0)
+        pol.reset()
+        done, info = False, {}
+        while not done:
+            obs, _, term, trunc, info = env.step(pol.act(obs))
+            done = term or trunc
+        assert term
+        results[name] = abs(info["am"])
+    assert results["lc-end"] < 0.005
+    assert results["lc-end"] < results["lc"]

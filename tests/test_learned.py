@@ -43,18 +43,19 @@ def _obs(t_x: float, t_a: float, coop: float, mids: list[float], n_children: int
     return obs
 
 
-@pytest.mark.parametrize("mode", ["target", "scores"])
-def test_zero_residual_is_lc_on_the_env(mode: str) -> None:
-    """At r = 0 the wrapped env follows exactly LC's trajectory (same infos step by step)."""
-    wrapped = ResidualLCWrapper(_make(choice_mode=mode))
+@pytest.mark.parametrize(("mode", "terminal"), [("target", 0.0), ("scores", 0.0), ("target", 1.0)])
+def test_zero_residual_is_lc_on_the_env(mode: str, terminal: float) -> None:
+    """At r = 0 the wrapped env follows exactly LC's (or LC-end's) trajectory, step by step."""
+    wrapped = ResidualLCWrapper(_make(choice_mode=mode), terminal=terminal)
     plain = _make(choice_mode=mode)
-    lc = load_policy("lc")
+    lc = load_policy("lc-end" if terminal else "lc")
     lc.action_dim = plain.action_space.shape[0]
+    lc.reset()
     w_obs, _ = wrapped.reset(seed=7)
     obs, _ = plain.reset(seed=7)
     assert w_obs.shape == (plain.observation_space.shape[0] + len(FEATURES),)
     assert np.array_equal(w_obs[: obs.size], obs)
-    for _ in range(400):
+    for _ in range(2000):
         act = lc.act(obs)
         if mode == "scores":  # LC's rule as scores: the wrapper's prior
             act = wrapped.core.action(np.zeros(wrapped.residual_spec.action_dim))
@@ -127,6 +128,18 @@ def test_audio_scale_bounds_the_audio_correction_only(audio_scale: float | None)
     assert spec.audio_gain == pytest.approx(d_a, abs=1e-5)
 
 
+def test_terminal_phase_switches_the_pace_correction_off() -> None:
+    """With a terminal base, the pace correction acts before the terminal phase, not in it."""
+    core = ResidualLC(ResidualSpec(terminal=1.0))
+    push = np.array([1.0, 1.0, 1.0])
+    core.start(_obs(5.0, 5.5, 1.0, [5.0], 1))
+    assert not np.array_equal(core.action(push)[:2], core.action(np.zeros(3))[:2])
+    core.observe(_obs(0.8, 0.9, 1.0, [5.0], 1))
+    zero, act = core.action(np.zeros(3)), core.action(push)
+    assert np.array_equal(act[:2], zero[:2]) and act[2] != zero[2]
+    assert np.array_equal(core.observe(_obs(0.78, 0.88, 1.0, [5.0], 1))[-2:], np.zeros(2))
+
+
 def test_residual_spec_and_core_reject_bad_input() -> None:
     with pytest.raises(ConfigError, match="choice_mode"):
         ResidualSpec(choice_mode="argmax")  # type: ignore[arg-type]
@@ -134,6 +147,8 @@ def test_residual_spec_and_core_reject_bad_input() -> None:
         ResidualSpec(pace_scale=0.0)
     with pytest.raises(ConfigError, match="audio_scale"):
         ResidualSpec(audio_scale=float("nan"))
+    with pytest.raises(ConfigError, match="terminal"):
+        ResidualSpec(terminal=-1.0)
     core = ResidualLC(ResidualSpec())
     with pytest.raises(ConfigError, match="before start"):
         core.action(np.zeros(3))

@@ -33,7 +33,7 @@ __all__ = ["AlignmentReward", "ResidualLCWrapper", "SeedCycle"]
 
 
 class ResidualLCWrapper(gym.ActionWrapper[np.ndarray, np.ndarray, np.ndarray]):
-    """Residual RL on top of the analytic Language Controller.
+    """Residual RL on top of the analytic Language Controller (optionally with its terminal phase).
 
     The action is a correction ``r`` in ``[-1, 1]^(2 + n_choice)`` added to LC's action computed
     from the latest observation (see :mod:`policies.learned`); ``r = 0`` is exactly LC. The
@@ -45,6 +45,8 @@ class ResidualLCWrapper(gym.ActionWrapper[np.ndarray, np.ndarray, np.ndarray]):
         audio_scale: Largest change of the audio pace command (pace units); ``None``: pace_scale.
         choice_scale: Largest change of the choice action.
         choice_mode: Must equal the env's ``choice_mode`` when given (a safety check for configs).
+        terminal: Terminal-phase horizon of the base LC (s; 0: the paper's LC; see
+            :class:`policies.learned.ResidualSpec`).
 
     Raises:
         ConfigError: if ``choice_mode`` differs from the env's or a scale is invalid.
@@ -57,6 +59,7 @@ class ResidualLCWrapper(gym.ActionWrapper[np.ndarray, np.ndarray, np.ndarray]):
         choice_scale: float = 0.5,
         choice_mode: Literal["target", "scores"] | None = None,
         audio_scale: float | None = None,
+        terminal: float = 0.0,
     ) -> None:
         super().__init__(env)
         base: Any = env.unwrapped
@@ -72,6 +75,7 @@ class ResidualLCWrapper(gym.ActionWrapper[np.ndarray, np.ndarray, np.ndarray]):
             choice_scale=float(choice_scale),
             audio_scale=None if audio_scale is None else float(audio_scale),
             decision_hz=int(base.decision_hz),
+            terminal=float(terminal),
         )
         self.core = ResidualLC(self.residual_spec, base.paces.limits)
         n_obs = int(np.prod(env.observation_space.shape or (0,))) + self.core.n_features
