@@ -3,7 +3,7 @@
 Run, for instance::
 
     python -m eval.compare --policies ac,lc-noap,lc --users synthetic:12 --seed 0 --out out/compare
-    python -m eval.compare --policies lc,ppo:models/ppo_langctrl.zip \
+    python -m eval.compare --policies lc,ppo:models/ppo_langctrl.yaml \
         --sessions ../shared/sessions --pattern '*_lc.csv' --out out/replay
 
 Writes (only when every episode ran; nothing partial is left on error):
@@ -378,7 +378,10 @@ def policy_names(specs: Sequence[str]) -> dict[str, str]:
         elif len(learned) == 1:
             names[spec] = "ppo"
         else:
-            name = base = "ppo-" + Path(spec.removeprefix("ppo:")).name.removesuffix(".zip")
+            path = Path(spec.removeprefix("ppo:"))
+            name = base = "ppo-" + (
+                path.stem if path.suffix in (".zip", ".yaml", ".yml") else path.name
+            )
             k = 1
             while name in names.values():
                 k += 1

@@ -1,7 +1,8 @@
 """Policies of LangCtrl-v0: the paper's analytic controllers and learned aligners.
 
 ``load_policy(spec)`` builds one from its command-line name: ``"ac"``, ``"lc-noap"``, ``"lc"``,
-``"lc-em"``, ``"lc-end"`` or ``"ppo:PATH"`` (a trained model saved by ``python -m train.ppo``).
+``"lc-em"``, ``"lc-end"`` or ``"ppo:PATH"`` (a trained model saved by ``python -m train.ppo``, or
+an ensemble manifest ``ppo:PATH.yaml`` written by ``python -m train.ensemble``).
 """
 
 from __future__ import annotations
@@ -19,10 +20,16 @@ def load_policy(spec: str) -> Any:
 
     Raises:
         KeyError: unknown policy name.
-        FileNotFoundError: ``ppo:PATH`` whose model file does not exist.
+        FileNotFoundError: ``ppo:PATH`` whose model file (or a member's) does not exist.
+        ValueError: a corrupt or inconsistent model or ensemble manifest (naming the file).
     """
     if spec.startswith("ppo:"):
+        path = spec.removeprefix("ppo:")
+        if path.endswith((".yaml", ".yml")):
+            from policies.ensemble import PPOEnsemble
+
+            return PPOEnsemble.load(path)
         from policies.learned import PPOPolicy
 
-        return PPOPolicy.load(spec.removeprefix("ppo:"))
+        return PPOPolicy.load(path)
     return make_analytic(spec)

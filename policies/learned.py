@@ -455,15 +455,23 @@ class PPOPolicy:
         """Start a new episode (the next observation is the one ``reset`` returned)."""
         self._started = False
 
-    def act(self, observation: np.ndarray) -> np.ndarray:
-        """The env's action for one observation (deterministic), float32."""
+    def correction(self, observation: np.ndarray) -> np.ndarray:
+        """The network's correction ``r`` for the next observation of the episode (deterministic).
+
+        Advances the residual map's episode state (features); follow it with
+        ``self.residual.action(r)`` for this observation, as :meth:`act` does.
+        """
         if not self._started:
             aug = self.residual.start(observation)
             self._started = True
         else:
             aug = self.residual.observe(observation)
         norm = self.normalizer.normalize_obs(aug[None, :].astype(np.float32))
-        return self.residual.action(self.model(norm[0]))
+        return self.model(norm[0])
+
+    def act(self, observation: np.ndarray) -> np.ndarray:
+        """The env's action for one observation (deterministic), float32."""
+        return self.residual.action(self.correction(observation))
 
     def config(self) -> dict[str, Any]:
         """The residual design (for reports)."""

@@ -21,7 +21,7 @@ from policies.learned import FEATURES, PPOPolicy, ResidualLC, ResidualSpec, mode
 from train.wrappers import AlignmentReward, ResidualLCWrapper, SeedCycle
 
 REPO = Path(__file__).resolve().parents[1]
-SHIPPED = REPO / "models" / "ppo_langctrl.zip"
+SHIPPED = REPO / "models" / "ppo_langctrl_s1000000.zip"  # a member of the shipped ensemble
 
 
 def _make(**kw: Any) -> Any:
@@ -239,7 +239,7 @@ def test_shipped_model_acts_deterministically() -> None:
 @pytest.mark.parametrize("broken", ["zip", "pkl", "yaml"])
 def test_corrupt_files_raise_value_error_naming_them(tmp_path: Path, broken: str) -> None:
     for src in model_files(SHIPPED):
-        shutil.copy(src, tmp_path / src.name.replace("ppo_langctrl", "m"))
+        shutil.copy(src, tmp_path / src.name.replace("ppo_langctrl_s1000000", "m"))
     z, n, c = model_files(tmp_path / "m.zip")
     target = {"zip": z, "pkl": n, "yaml": c}[broken]
     target.write_bytes(b"\x00garbage: [" if broken == "yaml" else b"not a real file")

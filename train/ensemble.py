@@ -1,0 +1,63 @@
+"""Write an ensemble manifest: several exported PPO models acting as one (``ppo:OUT.yaml``).
+
+Run::
+
+    python -m train.ensemble --out models/ppo_langctrl.yaml \\
+        models/ppo_langctrl_s1000000.zip models/ppo_langctrl_s2000000.zip ...
+
+The members (made with ``python -m train.export``) must lie in the manifest's folder and share
+their residual design, decision rate, phrase graph and env arguments. The manifest records each
+member's SHA-256 and is loaded once before it is written, so a broken ensemble fails here.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+__all__ = ["EnsembleArgs", "main", "parse_args"]
+
+
+@dataclass(frozen=True)
+class EnsembleArgs:
+    """Arguments of ``python -m train.ensemble``.
+
+    Attributes:
+        models: The member model zips.
+        out: The manifest to write (``.yaml``).
+    """
+
+    models: tuple[Path, ...]
+    out: Path
+
+
+def parse_args(argv: Sequence[str] | None = None) -> EnsembleArgs:
+    """Parse the command line into :class:`EnsembleArgs`."""
+    p = argparse.ArgumentParser(prog="python -m train.ensemble", description=__doc__.split("\n")[0])
+    p.add_argument("models", type=Path, nargs="+", help="member model zips (train.export)")
+    p.add_argument("--out", type=Path, required=True, help="the manifest to write (.yaml)")
+    ns = p.parse_args(argv)
+    if ns.out.suffix not in (".yaml", ".yml"):
+        p.error(f"--out must end in .yaml, got {ns.out}")
+    return EnsembleArgs(models=tuple(ns.models), out=ns.out)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point; returns the process exit code."""
+    from policies.ensemble import write_manifest
+
+    args = parse_args(argv)
+    try:
+        path = write_manifest(args.out, list(args.models))
+    except (FileNotFoundError, ValueError) as exc:
+        print(f"train.ensemble: error: {exc}", file=sys.stderr)
+        return 2
+    print(path)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
