@@ -17,7 +17,6 @@ arguments, since one env serves them all.
 
 from __future__ import annotations
 
-import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -25,17 +24,12 @@ from typing import Any
 import numpy as np
 import yaml
 
-from policies.learned import PPOPolicy
+from policies.learned import PPOPolicy, file_sha256
 
-__all__ = ["MANIFEST_KIND", "PPOEnsemble", "file_sha256", "write_manifest"]
+__all__ = ["MANIFEST_KIND", "PPOEnsemble", "write_manifest"]
 
 #: The ``kind`` of an ensemble manifest.
 MANIFEST_KIND = "ppo-ensemble"
-
-
-def file_sha256(path: Path) -> str:
-    """SHA-256 of a file's bytes (hex)."""
-    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 @dataclass

@@ -46,6 +46,7 @@ __all__ = [
     "PPOPolicy",
     "ResidualLC",
     "ResidualSpec",
+    "file_sha256",
     "graph_digest",
     "model_files",
 ]
@@ -165,6 +166,8 @@ class ResidualLC:
         self.limits = limits if limits is not None else PaceLimits()
         self.lc = LanguageController(limits=self.limits, action_dim=3, terminal=spec.terminal)
         self._obs = np.zeros(0, np.float32)
+        self._base = np.zeros(3, np.float32)  # the base's action for _obs
+        self._base_final = False  # whether the base is in its terminal or finishing phase
         self._t_x0 = 0.0
         self._rate = 0.0
         self._rate_avg = 0.0
@@ -205,7 +208,8 @@ class ResidualLC:
         t_a = max(0.0, float(obs[_T_A]) * T_SCALE)
         p = 1.0 + 0.4 * float(obs[_P])
         a = 1.0 + 0.4 * float(obs[_A])
-        lc = self.lc.act(obs)
+        lc = self._base = self.lc.act(obs)  # once per observation: action() reuses it
+        self._base_final = self.lc.phase(obs) in ("terminal", "finishing")
         elapsed = float(obs[_ELAPSED]) * 60.0
         lost = elapsed - (self._t_x0 - t_x)
         feats = np.array(
@@ -247,9 +251,8 @@ class ResidualLC:
         if self._obs.size == 0:
             raise ConfigError("ResidualLC.action called before start(observation)")
         r = np.clip(r, -1.0, 1.0)
-        obs, lim = self._obs, self.limits
-        lc = self.lc.act(obs)
-        if self.lc.phase(obs) in ("terminal", "finishing"):
+        obs, lim, lc = self._obs, self.limits, self._base
+        if self._base_final:
             r[:2] = 0.0  # the base's terminal law has the last word on the paces
         out = np.zeros(spec.action_dim, np.float32)
         p_cmd = command_from_action(float(lc[0]), lim.p_max) + spec.pace_scale * r[0]
@@ -347,14 +350,18 @@ class MlpActor:
         )
 
 
-def graph_digest(phrase_graph: str | Path) -> str:
-    """SHA-256 of a phrase graph's YAML (a shipped key such as ``"lc"`` or a path)."""
+def file_sha256(path: str | Path) -> str:
+    """SHA-256 of a file's bytes (hex)."""
     import hashlib
 
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def graph_digest(phrase_graph: str | Path) -> str:
+    """SHA-256 of a phrase graph's YAML (a shipped key such as ``"lc"`` or a path)."""
     from langenv.env import DEFAULT_GRAPHS
 
-    path = DEFAULT_GRAPHS.get(str(phrase_graph), Path(phrase_graph))
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    return file_sha256(DEFAULT_GRAPHS.get(str(phrase_graph), Path(phrase_graph)))
 
 
 def model_files(path: str | Path) -> tuple[Path, Path, Path]:

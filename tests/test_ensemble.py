@@ -29,11 +29,10 @@ def _members() -> list[Path]:
 
 
 def _copy(model: Path, folder: Path, stem: str) -> Path:
-    for src, suffix in zip(
-        model_files(model), (".zip", "_vecnormalize.pkl", "_config.yaml"), strict=True
-    ):
-        shutil.copy(src, folder / f"{stem}{suffix}")
-    return folder / f"{stem}.zip"
+    targets = model_files(folder / stem)
+    for src, dst in zip(model_files(model), targets, strict=True):
+        shutil.copy(src, dst)
+    return targets[0]
 
 
 def _env(policy: Any) -> Any:
