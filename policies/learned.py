@@ -94,6 +94,8 @@ class ResidualSpec:
             the base is in its terminal or finishing phase, the pace corrections are off (the
             base ends speech and motion together to the millisecond; the correction acts on the
             alignment before that and on the phrase choice).
+        k_em: Extra feedback of the base-pace misalignment on the base's physical pace (1/s;
+            see :class:`policies.analytic.LanguageController`); 0: the paper's LC, 1: ``lc-em``.
     """
 
     choice_mode: Literal["target", "scores"] = "target"
@@ -103,6 +105,7 @@ class ResidualSpec:
     audio_scale: float | None = None
     decision_hz: int = 50
     terminal: float = 0.0
+    k_em: float = 0.0
 
     def __post_init__(self) -> None:
         if self.choice_mode not in ("target", "scores"):
@@ -123,14 +126,10 @@ class ResidualSpec:
             raise ConfigError(
                 f"ResidualSpec.decision_hz must be a positive int, got {self.decision_hz!r}"
             )
-        if not (
-            isinstance(self.terminal, int | float)
-            and math.isfinite(self.terminal)
-            and self.terminal >= 0.0
-        ):
-            raise ConfigError(
-                f"ResidualSpec.terminal must be finite and >= 0, got {self.terminal!r}"
-            )
+        for name in ("terminal", "k_em"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0.0):
+                raise ConfigError(f"ResidualSpec.{name} must be finite and >= 0, got {value!r}")
 
     @property
     def audio_gain(self) -> float:
@@ -149,7 +148,7 @@ class ResidualSpec:
 
 
 class ResidualLC:
-    """LC (with ``spec.terminal``'s terminal phase) plus a bounded correction; augments the
+    """LC (with ``spec.terminal``'s terminal phase and ``spec.k_em``'s feedback) plus a bounded correction; augments the
     observation with :data:`FEATURES`.
 
     Stateful over an episode (the motion-rate features): call :meth:`start` with the observation
@@ -164,7 +163,9 @@ class ResidualLC:
     def __init__(self, spec: ResidualSpec, limits: PaceLimits | None = None) -> None:
         self.spec = spec
         self.limits = limits if limits is not None else PaceLimits()
-        self.lc = LanguageController(limits=self.limits, action_dim=3, terminal=spec.terminal)
+        self.lc = LanguageController(
+            limits=self.limits, action_dim=3, terminal=spec.terminal, k_em=spec.k_em
+        )
         self._obs = np.zeros(0, np.float32)
         self._base = np.zeros(3, np.float32)  # the base's action for _obs
         self._base_final = False  # whether the base is in its terminal or finishing phase

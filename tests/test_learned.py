@@ -17,6 +17,7 @@ from langenv.env import T_SCALE
 from langenv.errors import ConfigError
 from langenv.pacing import command_from_action
 from policies import load_policy
+from policies.analytic import LanguageController
 from policies.learned import FEATURES, PPOPolicy, ResidualLC, ResidualSpec, model_files
 from train.wrappers import AlignmentReward, ResidualLCWrapper, SeedCycle
 
@@ -43,12 +44,16 @@ def _obs(t_x: float, t_a: float, coop: float, mids: list[float], n_children: int
     return obs
 
 
-@pytest.mark.parametrize(("mode", "terminal"), [("target", 0.0), ("scores", 0.0), ("target", 1.0)])
-def test_zero_residual_is_lc_on_the_env(mode: str, terminal: float) -> None:
-    """At r = 0 the wrapped env follows exactly LC's (or LC-end's) trajectory, step by step."""
-    wrapped = ResidualLCWrapper(_make(choice_mode=mode), terminal=terminal)
+@pytest.mark.parametrize(
+    ("mode", "terminal", "k_em"),
+    [("target", 0.0, 0.0), ("scores", 0.0, 0.0), ("target", 1.0, 0.0), ("target", 1.0, 1.0)],
+)
+def test_zero_residual_is_lc_on_the_env(mode: str, terminal: float, k_em: float) -> None:
+    """At r = 0 the wrapped env follows exactly its base's trajectory (LC, LC with a terminal
+    phase, or with the misalignment feedback too), step by step."""
+    wrapped = ResidualLCWrapper(_make(choice_mode=mode), terminal=terminal, k_em=k_em)
     plain = _make(choice_mode=mode)
-    lc = load_policy("lc-end" if terminal else "lc")
+    lc = LanguageController(decision_hz=50, terminal=terminal, k_em=k_em)
     lc.action_dim = plain.action_space.shape[0]
     lc.reset()
     w_obs, _ = wrapped.reset(seed=7)
@@ -149,6 +154,8 @@ def test_residual_spec_and_core_reject_bad_input() -> None:
         ResidualSpec(audio_scale=float("nan"))
     with pytest.raises(ConfigError, match="terminal"):
         ResidualSpec(terminal=-1.0)
+    with pytest.raises(ConfigError, match="k_em"):
+        ResidualSpec(k_em=float("inf"))
     core = ResidualLC(ResidualSpec())
     with pytest.raises(ConfigError, match="before start"):
         core.action(np.zeros(3))

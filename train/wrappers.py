@@ -47,6 +47,8 @@ class ResidualLCWrapper(gym.ActionWrapper[np.ndarray, np.ndarray, np.ndarray]):
         choice_mode: Must equal the env's ``choice_mode`` when given (a safety check for configs).
         terminal: Terminal-phase horizon of the base LC (s; 0: the paper's LC; see
             :class:`policies.learned.ResidualSpec`).
+        k_em: Extra feedback of the base-pace misalignment on the base LC's physical pace (1/s;
+            0: the paper's LC; see :class:`policies.learned.ResidualSpec`).
 
     Raises:
         ConfigError: if ``choice_mode`` differs from the env's or a scale is invalid.
@@ -60,6 +62,7 @@ class ResidualLCWrapper(gym.ActionWrapper[np.ndarray, np.ndarray, np.ndarray]):
         choice_mode: Literal["target", "scores"] | None = None,
         audio_scale: float | None = None,
         terminal: float = 0.0,
+        k_em: float = 0.0,
     ) -> None:
         super().__init__(env)
         base: Any = env.unwrapped
@@ -76,6 +79,7 @@ class ResidualLCWrapper(gym.ActionWrapper[np.ndarray, np.ndarray, np.ndarray]):
             audio_scale=None if audio_scale is None else float(audio_scale),
             decision_hz=int(base.decision_hz),
             terminal=float(terminal),
+            k_em=float(k_em),
         )
         self.core = ResidualLC(self.residual_spec, base.paces.limits)
         n_obs = int(np.prod(env.observation_space.shape or (0,))) + self.core.n_features
