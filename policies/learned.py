@@ -148,8 +148,8 @@ class ResidualSpec:
 
 
 class ResidualLC:
-    """LC (with ``spec.terminal``'s terminal phase and ``spec.k_em``'s feedback) plus a bounded correction; augments the
-    observation with :data:`FEATURES`.
+    """LC (with ``spec.terminal``'s terminal phase and ``spec.k_em``'s feedback) plus a bounded
+    correction; augments the observation with :data:`FEATURES`.
 
     Stateful over an episode (the motion-rate features): call :meth:`start` with the observation
     returned by ``reset`` and :meth:`observe` with each later one, in order; :meth:`action` maps a
