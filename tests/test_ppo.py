@@ -92,7 +92,18 @@ def test_export_names_the_missing_file(tmp_path: Path, capsys: pytest.CaptureFix
 
     (tmp_path / "checkpoints").mkdir()
     assert export_main([str(tmp_path), "--steps", "5", "--out", str(tmp_path / "x")]) == 2
-    assert "ppo_langctrl_5_steps.zip" in capsys.readouterr().err
+    assert "run_config.yaml" in capsys.readouterr().err
+    (tmp_path / "run_config.yaml").write_text("train: {seed: 1}\n")
+    assert export_main([str(tmp_path), "--steps", "5", "--out", str(tmp_path / "x")]) == 2
+    assert "no train.name" in capsys.readouterr().err
+    (tmp_path / "run_config.yaml").write_text("train: {name: my_run}\n")
+    assert export_main([str(tmp_path), "--steps", "5", "--out", str(tmp_path / "x")]) == 2
+    assert "my_run_5_steps.zip" in capsys.readouterr().err
+    assert (
+        export_main([str(tmp_path), "--steps", "5", "--out", str(tmp_path / "x"), "--name", "b"])
+        == 2
+    )
+    assert "b_5_steps.zip" in capsys.readouterr().err
     assert not (tmp_path / "x.zip").exists()
 
 

@@ -34,13 +34,13 @@ class ExportArgs:
         steps: Step count of the checkpoint to export (``checkpoints/NAME_<steps>_steps.zip``).
         out: Stem of the exported model (``OUT.zip``, ``OUT_vecnormalize.pkl``,
             ``OUT_config.yaml``).
-        name: The run's model name (``train.name`` of its config).
+        name: The run's model name; None: ``train.name`` of ``RUN/run_config.yaml``.
     """
 
     run: Path
     steps: int
     out: Path
-    name: str = "ppo_langctrl"
+    name: str | None = None
 
 
 def parse_args(argv: Sequence[str] | None = None) -> ExportArgs:
@@ -49,7 +49,9 @@ def parse_args(argv: Sequence[str] | None = None) -> ExportArgs:
     p.add_argument("run", type=Path, help="output directory of a python -m train.ppo run")
     p.add_argument("--steps", type=int, required=True, help="step count of the checkpoint")
     p.add_argument("--out", type=Path, required=True, help="stem of the exported model")
-    p.add_argument("--name", default=ExportArgs.name, help="the run's model name")
+    p.add_argument(
+        "--name", default=None, help="the run's model name (default: train.name of its config)"
+    )
     ns = p.parse_args(argv)
     return ExportArgs(run=ns.run, steps=ns.steps, out=ns.out, name=ns.name)
 
@@ -64,16 +66,22 @@ def export(args: ExportArgs) -> Path:
     from policies.learned import PPOPolicy, model_files
     from train.ppo import checkpoint_files
 
-    sources = (
-        *checkpoint_files(args.run / "checkpoints", args.name, args.steps),
-        args.run / "run_config.yaml",
-    )
+    run_config = args.run / "run_config.yaml"
+    if not run_config.is_file():
+        raise FileNotFoundError(f"train.export: not found: {run_config}")
+    config = yaml.safe_load(run_config.read_text())
+    if not isinstance(config, dict):
+        raise ValueError(f"{run_config}: not a run config")
+    name = args.name
+    if name is None:
+        train = config.get("train")
+        name = train.get("name") if isinstance(train, dict) else None
+        if not isinstance(name, str) or not name:
+            raise ValueError(f"{run_config}: no train.name (pass --name)")
+    sources = (*checkpoint_files(args.run / "checkpoints", name, args.steps), run_config)
     for f in sources:
         if not f.is_file():
             raise FileNotFoundError(f"train.export: not found: {f}")
-    config = yaml.safe_load(sources[2].read_text())
-    if not isinstance(config, dict):
-        raise ValueError(f"{sources[2]}: not a run config")
     config["num_timesteps"] = args.steps
     config["exported_from"] = str(sources[0])
     targets = model_files(args.out)
