@@ -82,10 +82,11 @@ class ResidualSpec:
         choice_mode: The env's next-phrase action design: ``"target"`` or ``"scores"``.
         max_children: Number of choice scores (the phrase graph's largest out-degree) for
             ``"scores"``; ignored for ``"target"``.
-        pace_scale: Largest change of the physical pace command (pace units, > 0).
-        audio_scale: Largest change of the audio pace command (pace units, > 0); ``None``: the
-            same as ``pace_scale``. A small value keeps the learned corrections on the motion side,
-            where they cost no audio distortion.
+        pace_scale: Largest change of the physical pace command (pace units, >= 0; 0: the base's
+            physical pace as it is, the network's output for it is ignored).
+        audio_scale: Largest change of the audio pace command (pace units, >= 0; 0 as for
+            ``pace_scale``); ``None``: the same as ``pace_scale``. A small value keeps the learned
+            corrections on the motion side, where they cost no audio distortion.
         choice_scale: Largest change of the choice action (``"target"``: of ``u``, where ``u = 1``
             is two octaves; ``"scores"``: of the score, whose LC prior spans ``[-1, 1]``), > 0.
         decision_hz: Decision rate the correction was trained at (for the motion-rate feature).
@@ -120,8 +121,10 @@ class ResidualSpec:
             value = getattr(self, name)
             if name == "audio_scale" and value is None:
                 continue
-            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0.0):
-                raise ConfigError(f"ResidualSpec.{name} must be finite and > 0, got {value!r}")
+            low_ok = value > 0.0 if name == "choice_scale" else value >= 0.0
+            if not (isinstance(value, int | float) and math.isfinite(value) and low_ok):
+                bound = "> 0" if name == "choice_scale" else ">= 0"
+                raise ConfigError(f"ResidualSpec.{name} must be finite and {bound}, got {value!r}")
         if not isinstance(self.decision_hz, int) or self.decision_hz <= 0:
             raise ConfigError(
                 f"ResidualSpec.decision_hz must be a positive int, got {self.decision_hz!r}"
@@ -255,6 +258,10 @@ class ResidualLC:
         obs, lim, lc = self._obs, self.limits, self._base
         if self._base_final:
             r[:2] = 0.0  # the base's terminal law has the last word on the paces
+        if spec.pace_scale == 0.0:
+            r[0] = 0.0  # no physical pace correction (the ignored output is not fed back)
+        if spec.audio_gain == 0.0:
+            r[1] = 0.0
         out = np.zeros(spec.action_dim, np.float32)
         p_cmd = command_from_action(float(lc[0]), lim.p_max) + spec.pace_scale * r[0]
         a_cmd = command_from_action(float(lc[1]), lim.a_max) + spec.audio_gain * r[1]

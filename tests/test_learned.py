@@ -145,11 +145,29 @@ def test_terminal_phase_switches_the_pace_correction_off() -> None:
     assert np.array_equal(core.observe(_obs(0.78, 0.88, 1.0, [5.0], 1))[-2:], np.zeros(2))
 
 
+def test_zero_pace_scales_leave_the_paces_to_the_base() -> None:
+    """pace_scale = audio_scale = 0: only the phrase choice is learned; the paces are the base's
+    and the ignored pace outputs are not fed back as features."""
+    choice_only = ResidualLC(ResidualSpec(pace_scale=0.0, audio_scale=0.0, k_em=1.0))
+    base = ResidualLC(ResidualSpec(k_em=1.0))
+    obs = _obs(6.0, 4.0, 0.7, [3.0, 8.0], 2)
+    choice_only.start(obs)
+    base.start(obs)
+    r = np.array([1.0, -1.0, 0.6])
+    got = choice_only.action(r)
+    want = base.action(np.array([0.0, 0.0, 0.6]))
+    np.testing.assert_allclose(got, want, atol=1e-6)
+    assert got[2] == pytest.approx(0.3)
+    assert np.array_equal(choice_only.observe(obs)[-2:], np.zeros(2))
+
+
 def test_residual_spec_and_core_reject_bad_input() -> None:
     with pytest.raises(ConfigError, match="choice_mode"):
         ResidualSpec(choice_mode="argmax")  # type: ignore[arg-type]
     with pytest.raises(ConfigError, match="pace_scale"):
-        ResidualSpec(pace_scale=0.0)
+        ResidualSpec(pace_scale=-0.1)
+    with pytest.raises(ConfigError, match="choice_scale"):
+        ResidualSpec(choice_scale=0.0)
     with pytest.raises(ConfigError, match="audio_scale"):
         ResidualSpec(audio_scale=float("nan"))
     with pytest.raises(ConfigError, match="terminal"):
