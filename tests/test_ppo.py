@@ -13,6 +13,7 @@ import yaml
 
 import langenv
 from langenv.errors import ConfigError
+from policies.analytic import LanguageController
 from policies.learned import PPOPolicy, model_files
 from train.ppo import TrainArgs, _policy_kwargs, _schedule, load_config, parse_args
 
@@ -85,6 +86,24 @@ def test_train_smoke_resume_and_load(tmp_path: Path) -> None:
     obs, _ = env.reset(seed=1)
     exported.reset()
     assert env.action_space.contains(exported.act(obs))
+
+    # --choice-only: the same network, only its phrase-choice correction kept
+    c_stem = tmp_path / "m" / "c"
+    assert export_main([str(out), "--steps", "2048", "--choice-only", "--out", str(c_stem)]) == 0
+    c_config = yaml.safe_load(model_files(c_stem)[2].read_text())
+    assert c_config["choice_only"] is True
+    assert (c_config["residual"]["pace_scale"], c_config["residual"]["audio_scale"]) == (0.0, 0.0)
+    assert c_config["residual"]["choice_scale"] == x_config["residual"]["choice_scale"]
+    choice = PPOPolicy.load(model_files(c_stem)[0])
+    spec = choice.residual.spec
+    base = LanguageController(action_dim=3, terminal=spec.terminal, k_em=spec.k_em)
+    obs, _ = env.reset(seed=2)
+    choice.reset()
+    base.reset()
+    for _ in range(30):
+        act, want = choice.act(obs), base.act(obs)
+        np.testing.assert_allclose(act[:2], want[:2], atol=1e-6)
+        obs, *_ = env.step(act)
 
 
 def test_export_names_the_missing_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -9,6 +9,11 @@ to ``OUT.zip`` and ``OUT_vecnormalize.pkl``, writes the run's config (``RUN/run_
 ``OUT_config.yaml`` with the checkpoint's step count and origin, and loads the result once with
 :meth:`policies.learned.PPOPolicy.load` so that a broken export fails here, not in an evaluation.
 Nothing is written when an input is missing.
+
+``--choice-only`` exports only the phrase-choice part of the learned correction: the exported
+config's residual gets ``pace_scale = audio_scale = 0``, so the paces are the base controller's
+and the network only moves the next-phrase target (``choice_only: true`` records it). The
+shipped model is exported this way (``docs/learned.md``).
 """
 
 from __future__ import annotations
@@ -35,12 +40,14 @@ class ExportArgs:
         out: Stem of the exported model (``OUT.zip``, ``OUT_vecnormalize.pkl``,
             ``OUT_config.yaml``).
         name: The run's model name; None: ``train.name`` of ``RUN/run_config.yaml``.
+        choice_only: Keep only the phrase-choice correction (pace corrections off).
     """
 
     run: Path
     steps: int
     out: Path
     name: str | None = None
+    choice_only: bool = False
 
 
 def parse_args(argv: Sequence[str] | None = None) -> ExportArgs:
@@ -52,8 +59,15 @@ def parse_args(argv: Sequence[str] | None = None) -> ExportArgs:
     p.add_argument(
         "--name", default=None, help="the run's model name (default: train.name of its config)"
     )
+    p.add_argument(
+        "--choice-only",
+        action="store_true",
+        help="keep only the phrase-choice correction (the paces stay the base controller's)",
+    )
     ns = p.parse_args(argv)
-    return ExportArgs(run=ns.run, steps=ns.steps, out=ns.out, name=ns.name)
+    return ExportArgs(
+        run=ns.run, steps=ns.steps, out=ns.out, name=ns.name, choice_only=ns.choice_only
+    )
 
 
 def export(args: ExportArgs) -> Path:
@@ -83,6 +97,13 @@ def export(args: ExportArgs) -> Path:
         if not f.is_file():
             raise FileNotFoundError(f"train.export: not found: {f}")
     config["num_timesteps"] = args.steps
+    if args.choice_only:
+        residual = config.get("residual")
+        if not isinstance(residual, dict):
+            raise ValueError(f"{run_config}: no residual section, so no correction to restrict")
+        residual["pace_scale"] = 0.0
+        residual["audio_scale"] = 0.0
+        config["choice_only"] = True
     config["exported_from"] = str(sources[0])
     targets = model_files(args.out)
     targets[0].parent.mkdir(parents=True, exist_ok=True)
