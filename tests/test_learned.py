@@ -22,7 +22,8 @@ from policies.learned import FEATURES, PPOPolicy, ResidualLC, ResidualSpec, mode
 from train.wrappers import AlignmentReward, ResidualLCWrapper, SeedCycle
 
 REPO = Path(__file__).resolve().parents[1]
-SHIPPED = REPO / "models" / "ppo_langctrl_s1000000.zip"  # a member of the shipped ensemble
+SHIPPED = REPO / "models" / "ppo_langctrl_s1000000.zip"  # a member of the previous ensemble
+CHOICE = REPO / "models" / "ppo_phrase_choice.zip"  # the shipped learned aligner
 
 
 def _make(**kw: Any) -> Any:
@@ -270,3 +271,29 @@ def test_corrupt_files_raise_value_error_naming_them(tmp_path: Path, broken: str
     target.write_bytes(b"\x00garbage: [" if broken == "yaml" else b"not a real file")
     with pytest.raises(ValueError, match=target.name):
         PPOPolicy.load(z)
+
+
+def test_shipped_phrase_choice_model_keeps_the_base_paces() -> None:
+    """The shipped model learns only the phrase choice: over a whole session its paces are those
+    of its analytic base (LC with lc-em's feedback and the terminal phase), its choices are not."""
+    policy = load_policy(f"ppo:{CHOICE}")
+    assert isinstance(policy, PPOPolicy)
+    spec = policy.residual.spec
+    assert (spec.pace_scale, spec.audio_gain, spec.k_em, spec.terminal) == (0.0, 0.0, 1.0, 1.0)
+    env = _make(
+        phrase_graph=policy.phrase_graph, decision_hz=policy.decision_hz, **policy.env_kwargs
+    )
+    base = LanguageController(action_dim=3, terminal=spec.terminal, k_em=spec.k_em)
+    obs, _ = env.reset(seed=11)
+    policy.reset()
+    base.reset()
+    choices = []
+    for _ in range(policy.decision_hz * 60):
+        act, want = policy.act(obs), base.act(obs)
+        np.testing.assert_allclose(act[:2], want[:2], atol=1e-6)
+        choices.append(float(act[2]))
+        obs, _, term, trunc, _ = env.step(act)
+        if term or trunc:
+            break
+    assert term
+    assert np.any(np.abs(choices) > 0.01)  # the network does move the phrase target
