@@ -168,3 +168,28 @@ def test_schedules_and_cli_overrides() -> None:
     assert given == {"total_timesteps", "seed", "resume"}
     with pytest.raises(ConfigError, match="vec_env"):
         TrainArgs(vec_env="threads")
+
+
+def test_periodic_evaluation_meets_exactly_the_held_out_seeds() -> None:
+    """The evaluation env's resets go eval_seed, eval_seed + 1, ... from the very first one (SB3's
+    make_vec_env would seed the first reset at random, a different user in every run)."""
+    import gymnasium as gym
+
+    from train.ppo import _make_envs, _resolve
+
+    args, given = parse_args(["--config", str(CONFIG), "--n-eval-episodes", "3", "--n-envs", "1"])
+    run = _resolve(args, given)
+    env, eval_env = _make_envs(run)
+    try:
+        assert run.wrapper is not None
+        got = []
+        for _ in range(4):
+            eval_env.reset()
+            got.append(eval_env.envs[0].unwrapped.np_random.bit_generator.state)
+        for i, k in enumerate([0, 1, 2, 0]):
+            plain = run.wrapper(gym.make(args.env_id, **run.env_kwargs))
+            plain.reset(seed=args.eval_seed + k)
+            assert got[i] == plain.unwrapped.np_random.bit_generator.state, f"reset {i}"
+    finally:
+        env.close()
+        eval_env.close()

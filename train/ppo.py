@@ -322,7 +322,9 @@ def _ppo_kwargs(run: _Run) -> dict[str, Any]:
 
 def _make_envs(run: _Run) -> tuple[Any, Any]:
     """Training VecEnv (normalised) and evaluation VecEnv (normalisation in eval mode)."""
+    import gymnasium as gym
     from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
     import langenv  # noqa: F401  (registers the env)
@@ -340,19 +342,19 @@ def _make_envs(run: _Run) -> tuple[Any, Any]:
     )
     if run.normalize is not None:
         env = VecNormalize(env, **run.normalize)
-    eval_env = None
+    eval_env: Any = None
     if a.n_eval_episodes > 0:
         seeds = [a.eval_seed + i for i in range(a.n_eval_episodes)]
         chain = run.wrapper.chain if run.wrapper is not None else []
         eval_wrapper = _WrapperChain(chain, ((SeedCycle, {"seeds": seeds}),))
-        eval_env = make_vec_env(
-            a.env_id,
-            n_envs=1,
-            seed=None,  # SeedCycle picks eval_seed, eval_seed + 1, ... (no duplicate first seed)
-            vec_env_cls=DummyVecEnv,
-            env_kwargs=run.env_kwargs,
-            wrapper_class=eval_wrapper,
-        )
+
+        def make_eval_env() -> gym.Env[Any, Any]:
+            return eval_wrapper(Monitor(gym.make(a.env_id, **run.env_kwargs)))
+
+        # Not make_vec_env: it seeds the first reset at random even with seed=None, which would
+        # override SeedCycle and make the first evaluation episode a random user. A bare
+        # DummyVecEnv passes seed=None, so SeedCycle picks eval_seed, eval_seed + 1, ...
+        eval_env = DummyVecEnv([make_eval_env])
         if run.normalize is not None:
             kw = {k: v for k, v in run.normalize.items() if k != "norm_reward"}
             eval_env = VecNormalize(eval_env, training=False, norm_reward=False, **kw)
