@@ -117,22 +117,22 @@ class ResidualSpec:
             raise ConfigError(
                 f"ResidualSpec.max_children must be an int >= 1, got {self.max_children!r}"
             )
-        for name in ("pace_scale", "choice_scale", "audio_scale"):
-            value = getattr(self, name)
-            if name == "audio_scale" and value is None:
-                continue
-            low_ok = value > 0.0 if name == "choice_scale" else value >= 0.0
-            if not (isinstance(value, int | float) and math.isfinite(value) and low_ok):
-                bound = "> 0" if name == "choice_scale" else ">= 0"
-                raise ConfigError(f"ResidualSpec.{name} must be finite and {bound}, got {value!r}")
         if not isinstance(self.decision_hz, int) or self.decision_hz <= 0:
             raise ConfigError(
                 f"ResidualSpec.decision_hz must be a positive int, got {self.decision_hz!r}"
             )
-        for name in ("terminal", "k_em"):
+        for name in ("pace_scale", "audio_scale", "choice_scale", "terminal", "k_em"):
             value = getattr(self, name)
-            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0.0):
-                raise ConfigError(f"ResidualSpec.{name} must be finite and >= 0, got {value!r}")
+            if name == "audio_scale" and value is None:
+                continue
+            strict = name == "choice_scale"  # 0 would switch the phrase choice off
+            if not (
+                isinstance(value, int | float)
+                and math.isfinite(value)
+                and (value > 0.0 if strict else value >= 0.0)
+            ):
+                bound = "> 0" if strict else ">= 0"
+                raise ConfigError(f"ResidualSpec.{name} must be finite and {bound}, got {value!r}")
 
     @property
     def audio_gain(self) -> float:

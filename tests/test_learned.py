@@ -167,6 +167,8 @@ def test_residual_spec_and_core_reject_bad_input() -> None:
         ResidualSpec(choice_mode="argmax")  # type: ignore[arg-type]
     with pytest.raises(ConfigError, match="pace_scale"):
         ResidualSpec(pace_scale=-0.1)
+    with pytest.raises(ConfigError, match="pace_scale"):
+        ResidualSpec(pace_scale="0.5")  # type: ignore[arg-type]
     with pytest.raises(ConfigError, match="choice_scale"):
         ResidualSpec(choice_scale=0.0)
     with pytest.raises(ConfigError, match="audio_scale"):
