@@ -6,6 +6,7 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -193,3 +194,84 @@ def test_periodic_evaluation_meets_exactly_the_held_out_seeds() -> None:
     finally:
         env.close()
         eval_env.close()
+
+
+def _fresh_model(seed: int, config: Path = CONFIG, normalize: bool = True) -> tuple[Any, Any]:
+    """An untrained PPO on the config's env (one in-process env), and its VecEnv."""
+    from stable_baselines3 import PPO
+
+    from train.ppo import _make_envs, _ppo_kwargs, _resolve
+
+    run = _resolve(TrainArgs(config=config, n_envs=1, vec_env="dummy", n_eval_episodes=0))
+    if not normalize:
+        run.normalize = None
+    env, _ = _make_envs(run)
+    return PPO("MlpPolicy", env, seed=seed, device="cpu", **_ppo_kwargs(run)), env
+
+
+def test_init_from_copies_weights_and_normalisation(tmp_path: Path) -> None:
+    """--init-from: the new run starts with the source's network and statistics, nothing else."""
+    from train.ppo import _init_from
+
+    src, src_env = _fresh_model(1)
+    src_env.obs_rms.mean = np.random.default_rng(0).normal(size=src_env.obs_rms.mean.shape)
+    src_env.ret_rms.var = np.array(7.0)
+    src.save(tmp_path / "src.zip")
+    src_env.save(str(tmp_path / "src_vecnormalize.pkl"))
+    # the attempt-15 config (pace corrections off) has the same spaces, so the network fits
+    dst, dst_env = _fresh_model(2, REPO / "configs" / "ppo_attempt15.yaml")
+    before = {k: v.clone() for k, v in dst.policy.state_dict().items()}
+    digest = _init_from(dst, dst_env, tmp_path / "src")
+    for key, value in src.policy.state_dict().items():
+        assert np.array_equal(dst.policy.state_dict()[key].numpy(), value.numpy()), key
+    assert any(
+        not np.array_equal(before[k].numpy(), v.numpy()) for k, v in src.policy.state_dict().items()
+    )
+    np.testing.assert_array_equal(dst_env.obs_rms.mean, src_env.obs_rms.mean)
+    assert float(dst_env.ret_rms.var) == 7.0
+    assert dst_env.training  # statistics go on adapting during the fine-tune
+    assert dst.learning_rate == pytest.approx(1e-4)  # the new config's hyperparameters
+    assert len(digest) == 64
+
+    # a checkpoint's pickle is found by its own name
+    src.save(tmp_path / "run_2048_steps.zip")
+    src_env.save(str(tmp_path / "run_vecnormalize_2048_steps.pkl"))
+    dst2, dst2_env = _fresh_model(3)
+    _init_from(dst2, dst2_env, tmp_path / "run_2048_steps.zip")
+    np.testing.assert_array_equal(dst2_env.obs_rms.mean, src_env.obs_rms.mean)
+
+
+def test_init_from_rejects_what_does_not_fit(tmp_path: Path) -> None:
+    from train.ppo import _init_from, init_files
+
+    with pytest.raises(FileNotFoundError, match=r"nope\.zip"):
+        init_files(tmp_path / "nope")
+    src, _ = _fresh_model(1)
+    src.save(tmp_path / "src.zip")
+    dst, dst_env = _fresh_model(2)
+    with pytest.raises(FileNotFoundError, match=r"src_vecnormalize\.pkl"):
+        _init_from(dst, dst_env, tmp_path / "src.zip")  # weights without their statistics
+    plain, plain_env = _fresh_model(2, normalize=False)
+    src_env_path = tmp_path / "src_vecnormalize.pkl"
+    _fresh_model(1)[1].save(str(src_env_path))
+    with pytest.raises(ConfigError, match="has none"):
+        _init_from(plain, plain_env, tmp_path / "src.zip")
+    # another network shape (config with pi=[32])
+    cfg = yaml.safe_load(CONFIG.read_text())
+    cfg["LangCtrl-v0"]["policy_kwargs"] = "dict(net_arch=dict(pi=[32], vf=[32]))"
+    small_cfg = tmp_path / "small.yaml"
+    small_cfg.write_text(yaml.safe_dump(cfg))
+    small, small_env = _fresh_model(2, small_cfg)
+    with pytest.raises(ConfigError, match="does not fit"):
+        _init_from(small, small_env, tmp_path / "src.zip")
+    # another observation space (scores choice mode: more children scores in the action)
+    cfg = yaml.safe_load(CONFIG.read_text())
+    cfg["LangCtrl-v0"]["env_kwargs"]["choice_mode"] = "scores"
+    cfg["LangCtrl-v0"]["env_wrapper"][1]["train.wrappers.ResidualLCWrapper"]["choice_mode"] = (
+        "scores"
+    )
+    scores_cfg = tmp_path / "scores.yaml"
+    scores_cfg.write_text(yaml.safe_dump(cfg))
+    other, other_env = _fresh_model(2, scores_cfg)
+    with pytest.raises(ConfigError, match="space has shape"):
+        _init_from(other, other_env, tmp_path / "src.zip")

@@ -5,6 +5,7 @@ Run::
     python -m train.ppo --config configs/ppo.yaml                       # the shipped model
     python -m train.ppo --config configs/ppo.yaml --total-timesteps 4000 --out /tmp/ppo_smoke
     python -m train.ppo --config configs/ppo.yaml --out runs/ppo --resume  # after an interruption
+    python -m train.ppo --config CONFIG --init-from runs/ppo/NAME.zip  # fine-tune a model
 
 The YAML is keyed like rl-baselines3-zoo's (top-level key ``LangCtrl-v0`` with ``n_envs``,
 ``n_timesteps``, ``policy``, ``normalize``, ``env_wrapper``, ``env_kwargs``, ``policy_kwargs`` and
@@ -56,7 +57,15 @@ from stable_baselines3.common.vec_env import VecNormalize
 
 from langenv.errors import ConfigError
 
-__all__ = ["TrainArgs", "checkpoint_files", "load_config", "main", "parse_args", "train"]
+__all__ = [
+    "TrainArgs",
+    "checkpoint_files",
+    "init_files",
+    "load_config",
+    "main",
+    "parse_args",
+    "train",
+]
 
 #: Keys of a zoo-style section that are not PPO constructor arguments.
 _ZOO_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_wrapper", "env_kwargs")
@@ -84,6 +93,13 @@ class TrainArgs:
         n_envs: Parallel training envs; ``None``: the YAML's ``n_envs``.
         vec_env: ``"subproc"`` (one process per env) or ``"dummy"`` (in this process).
         resume: Continue from the latest checkpoint in ``out/checkpoints``.
+        init_from: Fine-tune: start from this saved model's network weights and normalisation
+            statistics instead of random weights (a model zip written by this script or by
+            ``train.export``, with its ``_vecnormalize.pkl``; or a checkpoint
+            ``NAME_<steps>_steps.zip`` with its ``NAME_vecnormalize_<steps>_steps.pkl``). The
+            config's hyperparameters, wrappers and seeds apply; the optimiser starts afresh. Its
+            observation and action spaces must equal the new env's. Ignored by ``resume``, which
+            continues the fine-tuning run itself.
         progress_bar: Show SB3's progress bar (tqdm + rich).
         tensorboard: Write TensorBoard logs to ``out/tb``.
         device: Torch device for PPO (``"cpu"`` suits this small MLP).
@@ -104,6 +120,7 @@ class TrainArgs:
     n_envs: int | None = None
     vec_env: str = "subproc"
     resume: bool = False
+    init_from: Path | None = None
     progress_bar: bool = True
     tensorboard: bool = True
     device: str = "cpu"
@@ -148,6 +165,7 @@ def parse_args(argv: Sequence[str] | None = None) -> tuple[TrainArgs, set[str]]:
     p.add_argument("--n-envs", type=int, default=None)
     p.add_argument("--vec-env", choices=("subproc", "dummy"), default=None)
     p.add_argument("--resume", action="store_true", default=None)
+    p.add_argument("--init-from", type=Path, default=None)
     p.add_argument("--no-progress-bar", dest="progress_bar", action="store_false", default=None)
     p.add_argument("--no-tensorboard", dest="tensorboard", action="store_false", default=None)
     p.add_argument("--device", default=None)
@@ -300,8 +318,9 @@ def _resolve(args: TrainArgs, given: set[str] | None = None) -> _Run:
     hyper, section = load_config(args.config, args.env_id)
     given = given if given is not None else set()
     defaults = {k: v for k, v in section.items() if k not in given}
-    if "out" in defaults:
-        defaults["out"] = Path(defaults["out"])
+    for key in ("out", "init_from"):
+        if defaults.get(key) is not None:
+            defaults[key] = Path(defaults[key])
     args = replace(args, **defaults) if defaults else args
     n_envs = int(args.n_envs or hyper.get("n_envs", 1))
     total = int(args.total_timesteps or float(hyper.get("n_timesteps", 100_000)))
@@ -436,6 +455,75 @@ def checkpoint_files(ckpt_dir: Path, name: str, steps: int) -> tuple[Path, Path]
     )
 
 
+def init_files(path: Path) -> tuple[Path, Path]:
+    """The model zip and normalisation pickle that ``--init-from PATH`` reads.
+
+    ``PATH`` is a model (``NAME.zip`` or its stem; pickle ``NAME_vecnormalize.pkl``) or a
+    checkpoint ``NAME_<steps>_steps.zip`` (pickle ``NAME_vecnormalize_<steps>_steps.pkl``). The
+    pickle need not exist (a run without normalisation).
+
+    Raises:
+        FileNotFoundError: naming the model zip, if it does not exist.
+    """
+    from policies.learned import model_files
+
+    zip_path, pkl, _cfg = model_files(path)
+    m = re.fullmatch(r"(.+)_(\d+)_steps\.zip", zip_path.name)
+    if m and not pkl.is_file():
+        pkl = checkpoint_files(zip_path.parent, m.group(1), int(m.group(2)))[1]
+    if not zip_path.is_file():
+        raise FileNotFoundError(f"--init-from: model not found: {zip_path}")
+    return zip_path, pkl
+
+
+def _init_from(model: Any, env: Any, path: Path) -> str:
+    """Copy a saved model's network weights (and normalisation statistics) into ``model``;
+    returns the source zip's SHA-256.
+
+    Raises:
+        FileNotFoundError: for a missing model zip, or a missing pickle when ``env`` normalises.
+        ConfigError: naming the file, if its spaces, network or normalisation do not fit.
+    """
+    import pickle
+
+    from policies.learned import file_sha256
+
+    zip_path, pkl = init_files(path)
+    src = PPO.load(zip_path, device="cpu")
+    for what in ("observation_space", "action_space"):
+        old, new = getattr(src, what).shape, getattr(model, what).shape
+        if old != new:
+            raise ConfigError(
+                f"--init-from {zip_path}: its {what} has shape {old}, the config's env {new}"
+            )
+    try:
+        model.policy.load_state_dict(src.policy.state_dict())
+    except RuntimeError as exc:
+        first = str(exc).splitlines()[0]
+        raise ConfigError(
+            f"--init-from {zip_path}: its network does not fit the config's policy: {first}"
+        ) from None
+    if isinstance(env, VecNormalize):
+        if not pkl.is_file():
+            raise FileNotFoundError(
+                f"--init-from: {pkl} not found (the config normalises observations, so the "
+                f"weights need the statistics they were trained with)"
+            )
+        with pkl.open("rb") as fh:
+            stats = pickle.load(fh)
+        old_rms: Any = stats.obs_rms
+        new_rms: Any = env.obs_rms
+        if np.shape(old_rms.mean) != np.shape(new_rms.mean):
+            raise ConfigError(f"--init-from {pkl}: statistics for another observation shape")
+        env.obs_rms, env.ret_rms = stats.obs_rms, stats.ret_rms
+    elif pkl.is_file():
+        raise ConfigError(
+            f"--init-from {zip_path}: it was trained with normalisation ({pkl.name}) but the "
+            f"config has none (set 'normalize')"
+        )
+    return file_sha256(zip_path)
+
+
 def _latest_checkpoint(ckpt_dir: Path, name: str) -> tuple[Path, Path, int] | None:
     best: tuple[Path, Path, int] | None = None
     for zip_path in ckpt_dir.glob(f"{name}_*_steps.zip"):
@@ -488,6 +576,10 @@ def train(args: TrainArgs, given: set[str] | None = None) -> Path:
             verbose=a.verbose,
             **_ppo_kwargs(run),
         )
+        if a.init_from is not None:
+            config["init_from_sha256"] = _init_from(model, env, a.init_from)
+            (out / "run_config.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
+            print(f"starting from the weights of {a.init_from}", file=sys.stderr)
 
     class _SaveBest(BaseCallback):
         def _on_step(self) -> bool:
