@@ -16,7 +16,14 @@ import langenv
 from langenv.errors import ConfigError
 from policies.analytic import LanguageController
 from policies.learned import PPOPolicy, model_files
-from train.ppo import TrainArgs, _policy_kwargs, _schedule, load_config, parse_args
+from train.ppo import (
+    TrainArgs,
+    _policy_kwargs,
+    _schedule,
+    checkpoint_files,
+    load_config,
+    parse_args,
+)
 
 REPO = Path(__file__).resolve().parents[1]
 CONFIG = REPO / "configs" / "ppo.yaml"
@@ -275,3 +282,35 @@ def test_init_from_rejects_what_does_not_fit(tmp_path: Path) -> None:
     other, other_env = _fresh_model(2, scores_cfg)
     with pytest.raises(ConfigError, match="space has shape"):
         _init_from(other, other_env, tmp_path / "src.zip")
+
+
+@pytest.mark.parametrize(
+    "config", sorted((REPO / "configs").glob("ppo*.yaml")), ids=lambda p: p.name
+)
+def test_every_shipped_config_resolves(config: Path) -> None:
+    """Each training config parses: its train section, wrappers, schedules and network."""
+    from train.ppo import _ppo_kwargs, _resolve
+
+    run = _resolve(TrainArgs(config=config))
+    kwargs = _ppo_kwargs(run)
+    assert isinstance(kwargs["policy_kwargs"], dict)
+    assert run.args.seed >= 1_000_000 and run.wrapper is not None
+
+
+def test_finetune_config_starts_from_the_first_stage_checkpoint() -> None:
+    """configs/ppo_finetune.yaml's default init_from is where configs/ppo.yaml's documented run
+    writes its 150 000-step checkpoint, and its env differs only in the pace corrections."""
+    from train.ppo import _resolve
+
+    first = _resolve(TrainArgs(config=CONFIG, out=Path("runs/ppo")))
+    second = _resolve(TrainArgs(config=REPO / "configs" / "ppo_finetune.yaml"))
+    assert (
+        second.args.init_from
+        == checkpoint_files(Path("runs/ppo/checkpoints"), first.args.name, 150_000)[0]
+    )
+    assert second.env_kwargs == first.env_kwargs
+    wrap1 = dict(first.wrapper.chain[1][1]) if first.wrapper else {}
+    wrap2 = dict(second.wrapper.chain[1][1]) if second.wrapper else {}
+    assert (wrap2.pop("pace_scale"), wrap2.pop("audio_scale")) == (0.0, 0.0)
+    wrap1.pop("pace_scale"), wrap1.pop("audio_scale")
+    assert wrap1 == wrap2
