@@ -15,7 +15,7 @@ import yaml
 import langenv
 from langenv.errors import ConfigError
 from policies.analytic import LanguageController
-from policies.learned import PPOPolicy, model_files
+from policies.learned import PPOPolicy, file_sha256, model_files
 from train.ppo import (
     TrainArgs,
     _policy_kwargs,
@@ -112,6 +112,31 @@ def test_train_smoke_resume_and_load(tmp_path: Path) -> None:
         act, want = choice.act(obs), base.act(obs)
         np.testing.assert_allclose(act[:2], want[:2], atol=1e-6)
         obs, *_ = env.step(act)
+
+    # stage two of the shipped recipe: the fine-tune config, started from the checkpoint
+    tuned = tmp_path / "tuned"
+    ckpt_zip = ckpt / "ppo_langctrl_2048_steps.zip"
+    fine = _train(
+        "--config",
+        str(REPO / "configs" / "ppo_finetune.yaml"),
+        "--out",
+        str(tuned),
+        "--init-from",
+        str(ckpt_zip),
+        "--n-envs",
+        "2",
+        "--total-timesteps",
+        "2048",
+        "--n-eval-episodes",
+        "0",
+    )
+    assert fine.returncode == 0, fine.stderr[-3000:]
+    assert "starting from the weights of" in fine.stderr
+    t_cfg = yaml.safe_load(model_files(tuned / "ppo_finetune.zip")[2].read_text())
+    assert t_cfg["train"]["init_from"] == str(ckpt_zip)
+    assert t_cfg["init_from_sha256"] == file_sha256(ckpt_zip)
+    assert t_cfg["residual"]["pace_scale"] == 0.0
+    assert isinstance(PPOPolicy.load(tuned / "ppo_finetune.zip"), PPOPolicy)
 
 
 def test_export_names_the_missing_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
