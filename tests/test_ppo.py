@@ -288,6 +288,19 @@ def test_init_from_rejects_what_does_not_fit(tmp_path: Path) -> None:
     _fresh_model(1)[1].save(str(src_env_path))
     with pytest.raises(ConfigError, match="has none"):
         _init_from(plain, plain_env, tmp_path / "src.zip")
+    # unreadable files
+    (tmp_path / "bad.zip").write_bytes(b"not a zip")
+    with pytest.raises(ConfigError, match=r"bad\.zip"):
+        _init_from(dst, dst_env, tmp_path / "bad.zip")
+    src_env_path.write_bytes(b"garbage")
+    with pytest.raises(ConfigError, match=r"src_vecnormalize\.pkl"):
+        _init_from(dst, dst_env, tmp_path / "src.zip")
+    import pickle
+
+    src_env_path.write_bytes(pickle.dumps({"obs_rms": 1}))
+    with pytest.raises(ConfigError, match="not a VecNormalize"):
+        _init_from(dst, dst_env, tmp_path / "src.zip")
+    _fresh_model(1)[1].save(str(src_env_path))
     # another network shape (config with pi=[32])
     cfg = yaml.safe_load(CONFIG.read_text())
     cfg["LangCtrl-v0"]["policy_kwargs"] = "dict(net_arch=dict(pi=[32], vf=[32]))"

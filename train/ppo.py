@@ -482,14 +482,18 @@ def _init_from(model: Any, env: Any, path: Path) -> str:
 
     Raises:
         FileNotFoundError: for a missing model zip, or a missing pickle when ``env`` normalises.
-        ConfigError: naming the file, if its spaces, network or normalisation do not fit.
+        ConfigError: naming the file, if it is unreadable, or its spaces, network or
+            normalisation do not fit.
     """
     import pickle
 
     from policies.learned import file_sha256
 
     zip_path, pkl = init_files(path)
-    src = PPO.load(zip_path, device="cpu")
+    try:
+        src = PPO.load(zip_path, device="cpu")
+    except Exception as exc:  # a corrupt zip fails in zipfile, json, torch or pickle
+        raise ConfigError(f"--init-from {zip_path}: not a readable SB3 PPO model: {exc}") from None
     for what in ("observation_space", "action_space"):
         old, new = getattr(src, what).shape, getattr(model, what).shape
         if old != new:
@@ -509,8 +513,13 @@ def _init_from(model: Any, env: Any, path: Path) -> str:
                 f"--init-from: {pkl} not found (the config normalises observations, so the "
                 f"weights need the statistics they were trained with)"
             )
-        with pkl.open("rb") as fh:
-            stats = pickle.load(fh)
+        try:
+            with pkl.open("rb") as fh:
+                stats = pickle.load(fh)
+        except Exception as exc:
+            raise ConfigError(f"--init-from {pkl}: not a readable VecNormalize: {exc}") from None
+        if not isinstance(stats, VecNormalize):
+            raise ConfigError(f"--init-from {pkl}: not a VecNormalize ({type(stats).__name__})")
         old_rms: Any = stats.obs_rms
         new_rms: Any = env.obs_rms
         if np.shape(old_rms.mean) != np.shape(new_rms.mean):
@@ -552,9 +561,10 @@ def train(args: TrainArgs, given: set[str] | None = None) -> Path:
     out = a.out
     out.mkdir(parents=True, exist_ok=True)
     ckpt_dir, eval_dir, best_dir = out / "checkpoints", out / "eval", out / "best"
+    if a.init_from is not None and not a.resume:
+        init_files(a.init_from)  # a missing file fails before any env starts
     env, eval_env = _make_envs(run)
     config = _config_dict(run, _residual_section(env), {})
-    (out / "run_config.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
     tb = str(out / "tb") if a.tensorboard else None
 
     if a.resume:
@@ -578,8 +588,9 @@ def train(args: TrainArgs, given: set[str] | None = None) -> Path:
         )
         if a.init_from is not None:
             config["init_from_sha256"] = _init_from(model, env, a.init_from)
-            (out / "run_config.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
             print(f"starting from the weights of {a.init_from}", file=sys.stderr)
+    # written once the model is set up, so that a failed start leaves an earlier run's file alone
+    (out / "run_config.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
 
     class _SaveBest(BaseCallback):
         def _on_step(self) -> bool:
