@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["CompareArgs", "Job", "main", "parse_args", "run_episode"]
+__all__ = ["CompareArgs", "Job", "main", "parse_args", "run_episode", "run_jobs"]
 
 
 @dataclass(frozen=True)
@@ -306,7 +306,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             for n in names
             for (u, s, sess) in users
         ]
-        rows = _run_jobs(jobs, args.workers)
+        rows = run_jobs(jobs, args.workers)
         _write_outputs(rows, list(labels.values()), tmp, args)
         cfg = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(args).items()}
         (tmp / "config.json").write_text(json.dumps(cfg, indent=2) + "\n")
@@ -318,7 +318,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     return 0
 
 
-def _run_jobs(jobs: list[Job], workers: int) -> list[dict[str, Any]]:
+def run_jobs(jobs: list[Job], workers: int) -> list[dict[str, Any]]:
+    """Run ``jobs`` (in ``workers`` processes if > 1) with a progress bar; their rows, in order."""
     from tqdm import tqdm
 
     bar = tqdm(total=len(jobs), desc="episodes", unit="ep", file=sys.stderr)
