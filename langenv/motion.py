@@ -8,8 +8,12 @@
 3. the guide finds the closest point ``x_d`` (locally), tracks the stops, and gives
    ``F_virtual = K (x_d - x) + F_prop b``;
 4. the variable admittance ``A(p)`` turns ``F~ + F_virtual`` into ``v_ref``;
-5. the velocity controller ``C`` drives the hand to ``v_ref`` and MuJoCo steps the arm;
-6. the motion ETC ``t_x`` is estimated from the new state.
+5. the velocity command sent to the robot follows ``v_ref`` with at most ``max_acceleration``
+   (the ``a`` of a UR's ``speedL``); once the last leg is done it brakes to 0 at that rate;
+6. the velocity controller ``C`` drives the hand to the command and MuJoCo steps the arm;
+7. the motion ETC ``t_x`` is estimated from the new state.
+
+Motion is over when the command has come to rest after the last leg.
 
 The paces ``p`` (and its rate) come from outside: they are the aligner's business.
 """
@@ -21,6 +25,7 @@ import math
 import numpy as np
 
 from langenv.control.admittance import AdmittanceParams, VariableAdmittance
+from langenv.control.command import follow
 from langenv.control.cooperation import CooperationFilter
 from langenv.control.guide import Guide, GuideState
 from langenv.control.motion_etc import FastETC
@@ -61,9 +66,11 @@ class GuidedArm:
         self.dt: float = arm.dt
         self.state: GuideState = self.guide.initial_state()
         self.v_ref = np.zeros(3)
+        self.v_cmd = np.zeros(3)
         self.f_user = np.zeros(3)
         self.f_measured = np.zeros(3)
         self.t_x: float = 0.0
+        self._dv_max = params.max_acceleration * arm.dt
         self.t_motion_end: float | None = None
         self.time: float = 0.0
         self._hand_velocity = np.zeros(3)
@@ -92,8 +99,8 @@ class GuidedArm:
 
     @property
     def motion_done(self) -> bool:
-        """Whether the hand has come to rest at the trajectory's end."""
-        return bool(self.state.done)
+        """Whether the hand has come to rest after the last leg."""
+        return self.t_motion_end is not None
 
     @property
     def progress(self) -> float:
@@ -115,11 +122,12 @@ class GuidedArm:
         self.coop.reset()
         self.state = self.guide.initial_state()
         self.v_ref = np.zeros(3)
+        self.v_cmd = np.zeros(3)
         self.f_user = np.zeros(3)
         self.f_measured = np.zeros(3)
         self.time = 0.0
         self.t_motion_end = None
-        self.t_x = self.etc.etc(self.state, self.arm.hand_position(), self.v_ref)
+        self.t_x = self.etc.etc(self.state, self.arm.hand_position(), self.v_ref, self.v_cmd)
         self._measure_hand()
 
     def _measure_hand(self) -> None:
@@ -149,18 +157,22 @@ class GuidedArm:
         self.coop.update(math.sqrt(float(f_meas @ f_meas)), self.dt)
         x = self.arm.hand_position()
         if not self.state.done:
-            self.guide.update(self.state, x, self.v_ref)
-        if self.state.done:
-            if self.t_motion_end is None:
-                self.t_motion_end = self.time
-            # motion over: the robot holds still
+            self.guide.update(self.state, x)
+        braking = self.state.done
+        if braking:
             self.v_ref = np.zeros(3)
-            self.arm.step(self.v_ref, f_user)
-            self.t_x = 0.0
         else:
             force = f_meas + self.guide.virtual_force(self.state, x, self.v_ref, p)
             self.v_ref = self.admittance.step(self.v_ref, force, p, p_dot, self.dt)
-            self.arm.step(self.v_ref, f_user)
-            self.t_x = self.etc.etc(self.state, self.arm.hand_position(), self.v_ref)
+        was_moving = bool(self.v_cmd.any())
+        self.v_cmd = follow(self.v_cmd, self.v_ref, self._dv_max)
+        self.arm.step(self.v_cmd, f_user)
+        if braking:
+            moving = bool(self.v_cmd.any())
+            if not moving and self.t_motion_end is None:
+                self.t_motion_end = self.time + (self.dt if was_moving else 0.0)
+            self.t_x = math.sqrt(float(self.v_cmd @ self.v_cmd)) / self.params.max_acceleration
+        else:
+            self.t_x = self.etc.etc(self.state, self.arm.hand_position(), self.v_ref, self.v_cmd)
         self._measure_hand()
         self.time += self.dt
