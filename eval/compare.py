@@ -90,6 +90,7 @@ class Job:
     decision_hz: int | None
     phrase_graph: str | None = None
     name: str | None = None  # the policy's name in outputs (default: its own name)
+    user_params: Any = None  # SyntheticUserParams for synthetic users (default: calibrated)
 
 
 class UsageError(Exception):
@@ -218,7 +219,7 @@ def run_episode(job: Job) -> dict[str, Any]:
     from eval.metrics import episode_metrics
     from eval.plots import session_figure
     from langenv.speech.render import render_history
-    from langenv.users import ReplayUser
+    from langenv.users import ReplayUser, SyntheticUser
     from policies import load_policy
 
     policy = load_policy(job.policy)
@@ -238,7 +239,11 @@ def run_episode(job: Job) -> dict[str, Any]:
             max_episode_steps=int(60 * hz),
             **policy.env_kwargs,
         )
-    options = {"user": ReplayUser.from_csv(job.session)} if job.session else None
+    options: dict[str, Any] | None = None
+    if job.session:
+        options = {"user": ReplayUser.from_csv(job.session)}
+    elif job.user_params is not None:
+        options = {"user": SyntheticUser(job.user_params)}
     obs, info = env.reset(seed=job.seed, options=options)
     policy.reset()
     rec = EpisodeRecorder(policy=policy.name, user=job.user)

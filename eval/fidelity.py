@@ -113,6 +113,7 @@ class Trace:
         speed: Hand speed over the motion (m/s), shape (n,).
         p: Physical pace over the motion, shape (n,).
         a: Audio pace over the motion while speech goes on, shape (m,).
+        em: Estimated misalignment ``t_a - t_x`` over the motion (s), shape (n,).
         speech_at_start: Speech ETC ``t_a`` at the start (s).
         am: Actual misalignment (s), NaN when unknown (recordings).
     """
@@ -124,6 +125,7 @@ class Trace:
     speed: np.ndarray = field(repr=False)
     p: np.ndarray = field(repr=False)
     a: np.ndarray = field(repr=False)
+    em: np.ndarray = field(repr=False)
     speech_at_start: float
     am: float = float("nan")
 
@@ -161,6 +163,7 @@ def trace_from_session(session: Any, controller: str) -> Trace:
         speed=col("ee_speed", 0.0),
         p=col("physical_pace", 1.0),
         a=col("audio_pace", 1.0),
+        em=col("em", float("nan")),
         speech_at_start=start,
     )
 
@@ -178,6 +181,7 @@ def trace_from_log(log: Any, name: str, controller: str) -> Trace:
         speed=_held(log.t, log.hand_speed, grid),
         p=_held(log.t, log.p, grid),
         a=_held(log.t, log.a, grid)[speaking],
+        em=_held(log.t, log.em, grid),
         speech_at_start=float(log.t_a[0]),
         am=float(log.am),
     )
@@ -222,6 +226,8 @@ class Measures:
         a_median: Median audio pace (LC-noAP, LC).
         speech_at_start: Median speech length at the start (s).
         am_median: Median AM (s), NaN for recordings.
+        em_median: Median estimated misalignment over the motion (s; for context: the lab's
+            motion ETC was not ours).
     """
 
     length: dict[str, dict[str, float]]
@@ -231,6 +237,7 @@ class Measures:
     a_median: dict[str, float]
     speech_at_start: dict[str, float]
     am_median: dict[str, float]
+    em_median: dict[str, float]
 
 
 def measure(traces: Sequence[Trace]) -> Measures:
@@ -251,6 +258,7 @@ def measure(traces: Sequence[Trace]) -> Measures:
             c: float(np.median([tr.speech_at_start for tr in trs])) for c, trs in by.items()
         },
         am_median={c: float(np.median([tr.am for tr in trs])) for c, trs in by.items()},
+        em_median={c: _pooled_median(trs, "em") for c, trs in by.items()},
     )
 
 
@@ -375,7 +383,7 @@ def synthetic_checks(
 
 # ------------------------------------------------------------------------------------ running
 def _simulate(
-    jobs: Sequence[tuple[str, str, int, str | None]], workers: int
+    jobs: Sequence[tuple[str, str, int, str | None]], workers: int, user_params: Any = None
 ) -> list[tuple[str, str, Any]]:
     """Run ``(policy, user name, seed, session CSV or None)`` episodes; return their logs."""
     from eval.compare import Job, run_jobs
@@ -383,7 +391,8 @@ def _simulate(
 
     with tempfile.TemporaryDirectory(prefix="fidelity-") as tmp:
         specs = [
-            Job(pol, user, seed, sess, tmp, False, False, None) for pol, user, seed, sess in jobs
+            Job(pol, user, seed, sess, tmp, False, False, None, user_params=user_params)
+            for pol, user, seed, sess in jobs
         ]
         run_jobs(specs, workers)
         return [
@@ -402,12 +411,20 @@ def replay_traces(sessions: Sequence[Any], workers: int) -> list[Trace]:
     return [trace_from_log(log, user, pol) for user, pol, log in _simulate(jobs, workers)]
 
 
-def synthetic_traces(n: int, seed: int, workers: int) -> list[Trace]:
-    """``n`` synthetic users (seeds ``seed..seed+n-1``) under each of the three controllers."""
+def synthetic_traces(n: int, seed: int, workers: int, params: Any = None) -> list[Trace]:
+    """``n`` synthetic users (seeds ``seed..seed+n-1``) under each of the three controllers.
+
+    Args:
+        n: Number of users.
+        seed: Seed of the first (``env.reset(seed=...)`` draws the user).
+        workers: Worker processes.
+        params: :class:`~langenv.users.SyntheticUserParams` (default: the calibrated ones).
+    """
     jobs: list[tuple[str, str, int, str | None]] = [
         (c, f"s{seed + i}", seed + i, None) for c in CONTROLLERS.values() for i in range(n)
     ]
-    return [trace_from_log(log, user, pol) for user, pol, log in _simulate(jobs, workers)]
+    logs = _simulate(jobs, workers, params)
+    return [trace_from_log(log, user, pol) for user, pol, log in logs]
 
 
 # ------------------------------------------------------------------------------------ outputs

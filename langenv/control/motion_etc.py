@@ -116,14 +116,17 @@ class _Law:
         w: np.ndarray,
         length: float,
         q_sw: float,
+        lateral: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
         t_max: float = 60.0,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Vectorised discrete law on one leg from states ``(q, u, w)`` until each switches.
 
-        The same update as :func:`reference_etc` projected on the path: force ``F_prop`` on the
-        leg, ``F_prop + K (q - length)`` behind its start; the command ramps towards ``u`` by at
-        most ``a dt``; ``q -= w dt``. A state switches once ``q < q_sw`` (checked before the
-        tick, as the guide does).
+        The same update as :func:`reference_etc` in the leg's frame: along it, force ``F_prop``
+        on the leg and ``F_prop + K (q - length)`` behind its start; across it (``lateral``:
+        offset ``y``, ``v_ref`` and command components, for the turn just after a switch) the
+        spring ``-K y``. The command moves towards ``v_ref`` by at most ``a dt`` (the two
+        components share that budget, as in 3-D); ``q -= w dt``. A state switches once
+        ``q < q_sw`` (checked before the tick, as the guide does).
 
         Returns:
             ``(time, u, w)`` at the switch, flat arrays; ``inf`` time if not within ``t_max``.
@@ -131,6 +134,10 @@ class _Law:
         q = np.array(q, dtype=np.float64).ravel()
         u = np.array(u, dtype=np.float64).ravel()
         w = np.array(w, dtype=np.float64).ravel()
+        if lateral is None:
+            y, ul, wl = np.zeros(q.size), np.zeros(q.size), np.zeros(q.size)
+        else:
+            y, ul, wl = (np.array(a, dtype=np.float64).ravel() for a in lateral)
         t_out = np.full(q.size, np.inf)
         u_out, w_out = u.copy(), w.copy()
         idx = np.arange(q.size)
@@ -143,12 +150,19 @@ class _Law:
                 t_out[where], u_out[where], w_out[where] = n * self.dt, u[hit], w[hit]
                 keep = ~hit
                 q, u, w, idx = q[keep], u[keep], w[keep], idx[keep]
+                y, ul, wl = y[keep], ul[keep], wl[keep]
                 if idx.size == 0:
                     break
             f = self.f_prop + self.k * np.maximum(q - length, 0.0)
             u = u * self.decay + f * gain
-            w = w + np.clip(u - w, -dw, dw)
+            ul = ul * self.decay - (self.k * gain) * y
+            du, dl = u - w, ul - wl
+            norm = np.sqrt(du * du + dl * dl)
+            scale = np.where(norm > dw, dw / np.maximum(norm, 1e-300), 1.0)
+            w = w + du * scale
+            wl = wl + dl * scale
             q = q - w * self.dt
+            y = y + wl * self.dt
         return t_out, u_out, w_out
 
     def ramp_end(self, u0: float, w0: float) -> tuple[float, float]:
@@ -161,7 +175,7 @@ class _Law:
         ui, tau, acc = self.u_inf, self.tau, self.acc
         gap = u0 - w0
         slope0 = (ui - u0) / tau
-        if -1e-12 < gap < 1e-12 and -acc <= slope0 <= acc:
+        if acc == math.inf or (-1e-12 < gap < 1e-12 and -acc <= slope0 <= acc):
             return 0.0, 0.0
         s = (1.0 if gap > 0.0 else -1.0) if abs(gap) >= 1e-12 else (1.0 if slope0 > 0 else -1.0)
 
@@ -343,13 +357,16 @@ class FastETC:
         self._rest: list[_Table2] = [_Table2(self._u0, u_step, self._u0, u_step, brake)] * len(ends)
         for k in range(len(ends) - 2, -1, -1):
             c, j = self._cos[k], k + 1
+            sn = math.sqrt(max(1.0 - c * c, 0.0))
             q_next = self._lengths[j] + self._q_sw[k] * c
+            lateral = (np.full(uu.size, -self._q_sw[k] * sn), uu.ravel() * sn, ww.ravel() * sn)
             t1, u1, w1 = law.simulate(
                 np.full(uu.size, q_next),
                 uu.ravel() * c,
                 ww.ravel() * c,
                 self._lengths[j],
                 self._q_sw[j],
+                lateral,
             )
             if not np.all(np.isfinite(t1)):
                 raise ConfigError("FastETC: some states never finish the next leg (check params)")
@@ -383,29 +400,34 @@ class FastETC:
         dist = q - self._q_sw[k]
         if dist > 0.0:
             tp, u, w = self._law.to_switch(dist, u, w)
-            t += tp
+            # the guide checks at the start of each tick: the switch comes on the next one
+            t += math.ceil(tp / self.dt - 1e-9) * self.dt
         return t + self._rest[k](u, w)
 
-    def along_path(self, state: GuideState, x: np.ndarray, v: np.ndarray) -> tuple[float, float]:
-        """The 1-D state: distance left to the leg's end (m) and the speed ``v`` along the path.
+    def along_path(
+        self, state: GuideState, x: np.ndarray, v_ref: np.ndarray, v_cmd: np.ndarray
+    ) -> tuple[float, float, float]:
+        """The 1-D state: distance left to the leg's end and the two speeds along the path.
 
         Args:
             state: Guide state.
             x: Hand position, shape (3,), m.
-            v: A velocity (``v_ref`` or the command), shape (3,), m/s.
+            v_ref: The admittance's reference velocity, shape (3,), m/s.
+            v_cmd: The velocity command (the hand's), shape (3,), m/s.
 
         Returns:
-            ``(q, u)``: ``q`` is negative past the leg's end and larger than the leg's length
-            behind its start; ``u`` is negative when moving backwards.
+            ``(q, u, w)``: ``q`` (m) is negative past the leg's end and larger than the leg's
+            length behind its start; ``u``, ``w`` (m/s) are negative when moving backwards.
         """
         s = state.s
         s_end = self._ends[state.leg]
         seg, t = self._traj.locate(s, s >= s_end)
         xd, b, _ = seg.frame(t)
         x0, x1, x2 = x.tolist()
-        v0, v1, v2 = v.tolist()
         q = s_end - s - ((x0 - xd[0]) * b[0] + (x1 - xd[1]) * b[1] + (x2 - xd[2]) * b[2])
-        return q, v0 * b[0] + v1 * b[1] + v2 * b[2]
+        v0, v1, v2 = v_ref.tolist()
+        c0, c1, c2 = v_cmd.tolist()
+        return q, v0 * b[0] + v1 * b[1] + v2 * b[2], c0 * b[0] + c1 * b[1] + c2 * b[2]
 
     def etc(
         self,
@@ -428,8 +450,7 @@ class FastETC:
         w_vec = v_ref if v_cmd is None else v_cmd
         if state.done:
             return math.sqrt(float(w_vec @ w_vec)) * self._inv_acc
-        q, u = self.along_path(state, x, v_ref)
-        w = u if v_cmd is None else self.along_path(state, x, v_cmd)[1]
+        q, u, w = self.along_path(state, x, v_ref, w_vec)
         return self._finish(state.leg, q, u, w)
 
     def nominal(self) -> float:
