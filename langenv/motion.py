@@ -8,8 +8,9 @@
 3. the guide finds the closest point ``x_d`` (locally), tracks the stops, and gives
    ``F_virtual = K (x_d - x) + F_prop b``;
 4. the variable admittance ``A(p)`` turns ``F~ + F_virtual`` into ``v_ref``;
-5. the velocity command sent to the robot follows ``v_ref`` with at most ``max_acceleration``
-   (the ``a`` of a UR's ``speedL``); once the last leg is done it brakes to 0 at that rate;
+5. the velocity command sent to the robot follows ``v_ref`` (capped by the guide's speed
+   governor while the person pushes the hand along) with at most ``max_acceleration`` (the ``a``
+   of a UR's ``speedL``); once the last leg is done it brakes to 0 at that rate;
 6. the velocity controller ``C`` drives the hand to the command and MuJoCo steps the arm;
 7. the motion ETC ``t_x`` is estimated from the new state.
 
@@ -25,7 +26,7 @@ import math
 import numpy as np
 
 from langenv.control.admittance import AdmittanceParams, VariableAdmittance
-from langenv.control.command import follow
+from langenv.control.command import cap_speed, follow
 from langenv.control.cooperation import CooperationFilter
 from langenv.control.guide import Guide, GuideState
 from langenv.control.motion_etc import FastETC
@@ -108,12 +109,8 @@ class GuidedArm:
         return float(self.state.s / self.trajectory.length)
 
     def tangent(self) -> np.ndarray:
-        """Unit direction of travel along the path at the closest point, shape (3,).
-
-        At a stop not yet reached this is the arriving segment's direction (the right derivative
-        there would already point along the next segment).
-        """
-        return self.guide.tangent(self.state)
+        """Unit direction of progress at the hand, shape (3,) (:meth:`Guide.tangent`)."""
+        return self.guide.tangent(self.state, self.arm.hand_position())
 
     # ------------------------------------------------------------------ loop
     def reset(self) -> None:
@@ -165,7 +162,10 @@ class GuidedArm:
             force = f_meas + self.guide.virtual_force(self.state, x, self.v_ref, p)
             self.v_ref = self.admittance.step(self.v_ref, force, p, p_dot, self.dt)
         was_moving = bool(self.v_cmd.any())
-        self.v_cmd = follow(self.v_cmd, self.v_ref, self._dv_max)
+        target = self.v_ref
+        if not braking and float(f_meas @ self.tangent()) > 0.0:  # pushed along: the governor
+            target = cap_speed(target, self.guide.speed_limit(self.state, self.v_cmd))
+        self.v_cmd = follow(self.v_cmd, target, self._dv_max)
         self.arm.step(self.v_cmd, f_user)
         if braking:
             moving = bool(self.v_cmd.any())

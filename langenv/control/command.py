@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-__all__ = ["follow"]
+__all__ = ["cap_speed", "follow"]
 
 
 def follow(current: np.ndarray, target: np.ndarray, dv_max: float) -> np.ndarray:
@@ -37,3 +37,13 @@ def follow(current: np.ndarray, target: np.ndarray, dv_max: float) -> np.ndarray
         return np.array((t0, t1, t2))
     k = dv_max / math.sqrt(d2n)
     return np.array((c0 + k * d0, c1 + k * d1, c2 + k * d2))
+
+
+def cap_speed(v: np.ndarray, v_max: float) -> np.ndarray:
+    """``v`` scaled down to at most ``v_max`` in norm (m/s); ``v`` itself when within it."""
+    v0, v1, v2 = v.tolist()
+    n2 = v0 * v0 + v1 * v1 + v2 * v2
+    if n2 <= v_max * v_max:
+        return v
+    k = v_max / math.sqrt(n2)
+    return np.array((k * v0, k * v1, k * v2))

@@ -14,6 +14,16 @@ to slow down: about 3.5 cm before the end point on the default exercise. The han
 towards the next leg in a short V-shaped dip of its speed. Motion is over when the last leg's end
 pose is reached the same way; the robot then holds still.
 
+Speed governor (an addition to the study, :meth:`Guide.speed_limit`). The hand follows ``v_ref``
+changing its velocity at most at ``max_acceleration``, so a hand that a person pushes along
+faster than the guided plateau speed ``F_prop / D0`` would overshoot the corners (by 20 cm at
+0.25 m/s) and leave the arcs. While a person pushes the hand along, the command is therefore
+capped at the speed from which the hand can still brake to the plateau speed by the switch
+point, at the plateau speed while it turns into a new leg, and on arcs at the speed whose
+centripetal acceleration is half the limit (0.16 m/s on the default arcs), planning with half the
+limit so that the other half stays for the guide's corrections. Without a helping push (the
+study's sessions, and the motion ETC's assumption) the governor does nothing.
+
 Curvature feed-forward (an addition to the paper, switch ``curvature_feedforward``). On an arc of
 radius R the hand needs a centripetal force ``M0 v^2 / R``; without it the guide spring supplies it
 from a lateral offset ``M0 v^2 / (R K)``, about 1.2 cm at the default parameters on the 0.368 m
@@ -36,7 +46,12 @@ from langenv.control.admittance import AdmittanceParams
 from langenv.control.trajectory import Trajectory
 from langenv.errors import ConfigError
 
-__all__ = ["Guide", "GuideState"]
+__all__ = ["GOVERNOR_SHARE", "Guide", "GuideState"]
+
+GOVERNOR_SHARE = 0.5
+"""Share of ``max_acceleration`` the speed governor plans its braking and turning with (the rest
+is left for the guide's corrections)."""
+_TURNED_COS2 = math.cos(math.radians(25.0)) ** 2
 
 
 @dataclass
@@ -91,6 +106,9 @@ class Guide:
         self._f_prop = params.propel_force
         self._tol2 = params.switch_tol**2
         self._ff_mass = params.mass if params.curvature_feedforward else 0.0
+        self._acc = params.max_acceleration
+        self._v_turn2 = params.plateau_speed**2
+        self._q_sw = [self.switch_distance(k) for k in range(self._n_legs)]
 
     @property
     def n_legs(self) -> int:
@@ -116,25 +134,70 @@ class Guide:
         w = self.trajectory.turn_rate(self._ends[leg], arriving=True)
         return self.params.switch_tol / math.sqrt(1.0 + w * w)
 
-    def tangent(self, state: GuideState) -> np.ndarray:
-        """Direction of travel ``b`` at the closest point, shape (3,).
+    def speed_limit(self, state: GuideState, v_cmd: np.ndarray) -> float:
+        """Top speed of the velocity command at the closest point (m/s): the speed governor.
 
-        Unlike :meth:`Trajectory.tangent` (the right derivative), when the closest point sits at
-        the current leg's end this is the tangent of the segment *arriving* there: the direction
-        the hand is being guided in (a user resisting the motion pushes along ``-b``). Once motion
-        is over it is the tangent at the end of the trajectory.
+        ``sqrt(v_turn^2 + 2 a' (q - q_sw))`` with ``q`` the distance left to the leg's end,
+        ``q_sw`` its switch distance, ``v_turn = F_prop / D0`` (the guided plateau speed) and
+        ``a' = GOVERNOR_SHARE * max_acceleration``, and on an arc at most ``sqrt(a' R)``; while
+        the hand is still turning into the leg (its command less than 25 deg off the leg's
+        direction) ``v_turn``; ``inf`` without an acceleration limit.
 
         Args:
             state: Guide state.
+            v_cmd: The velocity command now, shape (3,), m/s.
+        """
+        acc = self._acc
+        if acc == math.inf or state.done:
+            return math.inf
+        k = state.leg
+        seg, t = self.trajectory.locate(state.s, state.s >= self._ends[k])
+        b = seg.unit_tangent(t)
+        c0, c1, c2 = v_cmd.tolist()
+        along = c0 * b[0] + c1 * b[1] + c2 * b[2]
+        if along * along < _TURNED_COS2 * (c0 * c0 + c1 * c1 + c2 * c2) or along < 0.0:
+            return math.sqrt(self._v_turn2)
+        room = self._ends[k] - state.s - self._q_sw[k]
+        acc *= GOVERNOR_SHARE
+        cap = math.sqrt(self._v_turn2 + 2.0 * acc * (room if room > 0.0 else 0.0))
+        radius = getattr(seg, "radius", None)
+        if radius is not None:
+            bend = math.sqrt(acc * radius)
+            cap = bend if bend < cap else cap
+        return cap
+
+    def tangent(self, state: GuideState, x: np.ndarray | None = None) -> np.ndarray:
+        """Direction of progress at the closest point, shape (3,): where the hand is guided.
+
+        On the leg it is the unit tangent ``b`` there; unlike :meth:`Trajectory.tangent` (the
+        right derivative), at the current leg's end it is the tangent of the segment *arriving*
+        there. A hand that has gone past the leg's end without coming close enough to switch is
+        guided back to the end point: given ``x``, the direction is then towards it. Users push
+        along it to help and against it to resist. Once motion is over it is the tangent at the
+        end of the trajectory.
+
+        Args:
+            state: Guide state.
+            x: Hand position, shape (3,), m; ``None``: the path's direction only.
 
         Returns:
             Unit vector, shape (3,).
         """
         if state.done:
             seg, t = self.trajectory.locate(self._ends[-1], True)
-        else:
-            seg, t = self.trajectory.locate(state.s, state.s >= self._ends[state.leg])
-        return np.array(seg.unit_tangent(t))
+            return np.array(seg.unit_tangent(t))
+        end = self._ends[state.leg]
+        seg, t = self.trajectory.locate(state.s, state.s >= end)
+        b = seg.unit_tangent(t)
+        if x is not None and state.s >= end:
+            p = self._end_pts[state.leg]
+            x0, x1, x2 = x.tolist()
+            d0, d1, d2 = p[0] - x0, p[1] - x1, p[2] - x2
+            past = -(d0 * b[0] + d1 * b[1] + d2 * b[2])
+            if past > 1e-6:  # beyond the end point: guided back to it
+                n = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+                return np.array((d0 / n, d1 / n, d2 / n))
+        return np.array(b)
 
     def pose_distance(self, state: GuideState, x: np.ndarray) -> float:
         """The lab's 6-D distance (m, rad) from the hand's pose to the current leg's end pose."""

@@ -88,7 +88,7 @@ def reference_etc(
                 return (n + 1) * dt
         else:
             v = step(v, force(st, x, v, 1.0), 1.0, 0.0, dt)
-            w = follow(w, v, dv_max)
+            w = follow(w, v, dv_max)  # no push along: the speed governor does nothing
         x += w * dt
     return math.inf
 

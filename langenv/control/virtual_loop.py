@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from langenv.control.admittance import AdmittanceParams, VariableAdmittance
-from langenv.control.command import follow
+from langenv.control.command import cap_speed, follow
 from langenv.control.guide import Guide, GuideState
 from langenv.control.trajectory import Trajectory
 from langenv.errors import ConfigError
@@ -138,10 +138,14 @@ def simulate_virtual(
             w = follow(w, zero, dv_max)
         else:
             if force is not None:
-                f_ext = np.asarray(force(t, w, guide.tangent(state)), dtype=np.float64)
+                b = guide.tangent(state, x)
+                f_ext = np.asarray(force(t, w, b), dtype=np.float64)
             p_dot = (float(pace(t + dt)) - pk) / dt
             v = adm.step(v, guide.virtual_force(state, x, v, pk) + f_ext, pk, p_dot, dt)
-            w = follow(w, v, dv_max)
+            target = v
+            if force is not None and float(f_ext @ b) > 0.0:  # pushed along: the governor
+                target = cap_speed(v, guide.speed_limit(state, w))
+            w = follow(w, target, dv_max)
         rows["f"].append(f_ext)
         x = x + w * dt
         if state.done and not w.any():
