@@ -28,9 +28,11 @@ M0, D0, K, FP = P.mass, P.damping, P.stiffness, P.propel_force
         ("damping", 0.0),
         ("stiffness", -5.0),
         ("propel_force", -0.1),
-        ("brake_distance", -0.1),
-        ("stop_tol_pos", 0.0),
-        ("stop_tol_vel", -1.0),
+        ("switch_tol", 0.0),
+        ("switch_tol", -1.0),
+        ("max_acceleration", 0.0),
+        ("max_acceleration", -math.inf),
+        ("max_acceleration", math.nan),
         ("mass", math.nan),
         ("damping", math.inf),
         ("mass", True),
@@ -217,7 +219,7 @@ def _passivity_run(
     guide = Guide(traj, P)
     adm = VariableAdmittance(P)
     u = traj.tangent(0.0)
-    state = GuideState(s=10.0, stop_index=0, done=False)
+    state = GuideState(s=10.0, leg=0, done=False)
     x = traj.position(10.0) + np.array([0.0, 0.02, -0.01])
     v = np.array([0.05, -0.02, 0.0])
     seg = 0.25  # the force changes every 0.25 s
@@ -233,7 +235,7 @@ def _passivity_run(
     for k in range(n):
         t = k * dt
         f_ext = np.array(forces[min(int(t / seg), len(forces) - 1)])
-        guide.update(state, x, v)
+        guide.update(state, x)
         pk, pn = p(t), p(t + dt)
         v_new = adm.step(v, guide.virtual_force(state, x, v, pk) + f_ext, pk, (pn - pk) / dt, dt)
         x = x + v_new * dt

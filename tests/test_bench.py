@@ -22,8 +22,10 @@ def test_unknown_section_is_an_error() -> None:
 
 
 def test_nominal_exercise_matches_the_study() -> None:
-    """F_ext = 0, p = 1 on the full MuJoCo arm: the study's nominal time and speed, on the path."""
+    """F_ext = 0, p = 1 on the full MuJoCo arm: the recordings' nominal time and speed, on the
+    path along the legs; at the corners the braking hand overshoots by a few centimetres."""
     fig = measure_nominal()
-    assert 10.0 <= fig["nominal_s"] <= 12.5
+    assert 9.5 <= fig["nominal_s"] <= 12.5
     assert 0.11 <= fig["plateau_speed"] <= 0.14
     assert fig["max_path_dev_m"] <= 0.01
+    assert fig["max_path_dev_m"] <= fig["corner_overshoot_m"] <= 0.04

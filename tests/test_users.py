@@ -1,4 +1,4 @@
-"""Simulated users (langenv.users): protocol, callable, replay, synthetic and calibration."""
+"""Simulated users (langenv.users): protocol, callable, replay and synthetic."""
 
 from __future__ import annotations
 
@@ -11,7 +11,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from langenv.control.admittance import AdmittanceParams
 from langenv.control.cooperation import CooperationFilter
 from langenv.errors import ConfigError
 from langenv.robot.force_sensor import ForceSensor
@@ -27,17 +26,9 @@ from langenv.users import (
     invert_cooperation,
     load_sessions,
 )
-from langenv.users.calibration import (
-    CALIBRATED_PARAMS,
-    ENV_TUNED,
-    LoopParams,
-    compare_quantiles,
-    extract_episodes,
-    fit_params,
-    round_params,
-    simulate_loop,
-)
-from langenv.users.synthetic import Episode
+from langenv.users.synthetic import CALIBRATED_YAML, Episode
+
+CALIBRATED_PARAMS = SyntheticUserParams.calibrated()
 
 SESSIONS = Path(__file__).parents[2] / "shared" / "sessions"
 DT = 0.002
@@ -373,63 +364,38 @@ def test_lognormal_validation_and_fit() -> None:
 
 
 # --------------------------------------------------------------------------------------------
-# calibration: 1-D closed loop and the quantile check
+# the calibrated parameters: stored as YAML
 # --------------------------------------------------------------------------------------------
 
 
-class _Constant:
-    def __init__(self, f: float, until: float = math.inf) -> None:
-        self.f = f
-        self.until = until
-
-    def magnitude_array(self, t: np.ndarray) -> np.ndarray:
-        return np.where(np.asarray(t) < self.until, self.f, 0.0)
-
-
-def test_loop_nominal_time_and_resistance_lengthens() -> None:
-    result = simulate_loop([_Constant(0.0), _Constant(7.0, until=6.0)], LoopParams(max_time=40.0))
-    assert result.finished.tolist() == [True, True]
-    nominal, resisted = result.completion
-    assert 10.0 < nominal < 12.5  # SPEC §2: about 11.5 s
-    # 6 s at (10 - 2) / 10 of the speed would cost about 1.2 s; the stop approach costs more.
-    assert nominal + 1.0 < resisted < nominal + 6.0
-    # 7 N -> measured 2 N -> cooperation settles at 1 - 2/15.
-    c = result.cooperation[1]
-    settled = (result.sample_times > 4.0) & (result.sample_times < 6.0)
-    np.testing.assert_allclose(c[settled], 1 - 2 / 15, atol=2e-3)
-    assert np.all(np.isnan(result.cooperation[0][result.sample_times > nominal + 0.02]))
-    with pytest.raises(ConfigError, match="dt"):
-        LoopParams(dt=0.0)
+def test_calibrated_params_load_from_the_shipped_yaml() -> None:
+    assert SyntheticUserParams.load(CALIBRATED_YAML) == CALIBRATED_PARAMS
+    tweaked = SyntheticUserParams.calibrated(noise_std=0.1)
+    assert tweaked.noise_std == 0.1 and tweaked.magnitude == CALIBRATED_PARAMS.magnitude
+    with pytest.raises(ConfigError, match="no field"):
+        SyntheticUserParams.calibrated(loudness=3.0)
 
 
-@pytest.mark.slow
-def test_synthetic_cooperation_quantiles_match_recorded() -> None:
-    sessions = _sessions()
-    cmp = compare_quantiles(sessions, n_sessions=150, seed=2024)
-    table = ", ".join(
-        f"q{q:.0%}: rec {a:.3f} syn {b:.3f}"
-        for q, a, b in zip(cmp.levels, cmp.recorded, cmp.synthetic, strict=True)
-    )
-    print(f"cooperation quantiles: {table}")
-    np.testing.assert_array_less(np.abs(cmp.recorded - cmp.synthetic), 0.1)
+def test_params_yaml_round_trip_and_errors(tmp_path: Path) -> None:
+    import yaml
 
-
-def test_stored_calibration_is_what_the_fit_gives() -> None:
-    sessions = _sessions()
-    direct, episodes = fit_params(sessions)
-    assert len(episodes) >= 2 * len(sessions)
-    fitted = round_params(direct)
-    stored = CALIBRATED_PARAMS
-    # All but the env-tuned fields come straight from the direct fit...
-    env_tuned = {name: getattr(stored, name) for name in ENV_TUNED}
-    assert dataclasses.replace(fitted, **env_tuned) == stored
-    # ...including the episode count distribution, which is the recorded one.
-    counts = np.bincount([len(extract_episodes(s)) for s in sessions])
-    assert stored.count_pmf is not None
-    np.testing.assert_allclose(stored.count_pmf, counts / counts.sum(), atol=1e-4)
-    # The env-tuned magnitudes keep the hand creeping forward on the straight parts: the
-    # force above the deadband never exceeds the propelling force.
-    assert stored.max_excess <= AdmittanceParams().propel_force
+    path = tmp_path / "users.yaml"
+    path.write_text(yaml.safe_dump({"params": CALIBRATED_PARAMS.to_dict()}))
+    assert SyntheticUserParams.load(path) == CALIBRATED_PARAMS
+    bad = CALIBRATED_PARAMS.to_dict()
+    bad["magnitude"] = {"median": -1.0, "sigma": 0.2}
+    path.write_text(yaml.safe_dump({"params": bad}))
+    with pytest.raises(ConfigError, match=r"users\.yaml.*median"):
+        SyntheticUserParams.load(path)
+    bad = dict(CALIBRATED_PARAMS.to_dict(), loudness=1.0)
+    path.write_text(yaml.safe_dump({"params": bad}))
+    with pytest.raises(ConfigError, match=r"users\.yaml.*loudness"):
+        SyntheticUserParams.load(path)
+    path.write_text("params: [1, 2")
+    with pytest.raises(ConfigError, match=r"users\.yaml"):
+        SyntheticUserParams.load(path)
+    with pytest.raises(ConfigError, match="nowhere"):
+        SyntheticUserParams.load(tmp_path / "nowhere.yaml")
 
 
 def test_synthetic_episode_counts_follow_the_pmf() -> None:
@@ -447,6 +413,8 @@ def test_synthetic_episode_counts_follow_the_pmf() -> None:
 
 
 def test_synthetic_onsets_spread_like_the_recorded_ones() -> None:
+    from eval.calibrate import extract_episodes
+
     sessions = _sessions()
     recorded = [extract_episodes(s) for s in sessions]
     rec_last = np.array([eps[-1].onset for eps in recorded if eps])

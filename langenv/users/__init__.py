@@ -2,7 +2,7 @@
 
 - :class:`User`: the protocol the environment calls every tick (``reset(rng)``, ``force(...)``).
 - :class:`SyntheticUser`: seeded random resistance episodes, calibrated against the study's
-  sessions (:mod:`langenv.users.calibration`, ``python -m langenv.users.calibration``).
+  sessions (``assets/users/synthetic.yaml``, written by ``python -m eval.calibrate``).
 - :class:`ReplayUser`: the force that reproduces a recorded session's cooperation.
 - :class:`CallableUser`: any ``fn(t, hand_velocity, tangent) -> (3,)``.
 - :func:`load_session`, :func:`load_sessions`: recorded-session CSVs (:class:`Session`).

@@ -1,4 +1,4 @@
-"""Synthetic users: seeded, randomised resistance episodes (calibrated in ``calibration.py``).
+"""Synthetic users: seeded, randomised resistance episodes, calibrated against the recordings.
 
 A synthetic person resists in *episodes*. Each episode is a trapezoid of the force measured after
 the sensor's deadband ("excess" force ``E``, N): it ramps up from 0 over ``rise`` seconds, holds a
@@ -27,8 +27,13 @@ Everything is drawn from the generator given to :meth:`SyntheticUser.reset`.
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, fields
+from functools import lru_cache
+from pathlib import Path
+from typing import Self
 
 import numpy as np
 
@@ -40,7 +45,12 @@ from langenv.users.base import (
     sample_table_array,
 )
 
-__all__ = ["Episode", "LogNormal", "SyntheticUser", "SyntheticUserParams"]
+__all__ = ["CALIBRATED_YAML", "Episode", "LogNormal", "SyntheticUser", "SyntheticUserParams"]
+
+CALIBRATED_YAML = Path(__file__).resolve().parents[1] / "assets" / "users" / "synthetic.yaml"
+"""The calibrated parameters shipped with the package (written by ``python -m eval.calibrate``)."""
+
+_LOGNORMAL_FIELDS = frozenset({"first_onset", "gap", "duration", "rise", "fall", "magnitude"})
 
 
 def _finite(owner: str, name: str, value: float, *, low: float, strict: bool) -> None:
@@ -202,20 +212,82 @@ class SyntheticUserParams:
 
     @classmethod
     def calibrated(cls, **overrides: object) -> SyntheticUserParams:
-        """The parameters fitted to the study's sessions, with ``overrides`` replaced.
+        """The parameters fitted to the study's sessions (:data:`CALIBRATED_YAML`, written by
+        ``python -m eval.calibrate``), with ``overrides`` replaced.
 
         Raises:
             ConfigError: on an unknown or invalid override (names the field).
         """
-        import dataclasses
-
-        from langenv.users.calibration import CALIBRATED_PARAMS
-
         names = {f.name for f in fields(cls)}
         unknown = sorted(set(overrides) - names)
         if unknown:
             raise ConfigError(f"SyntheticUserParams has no field(s) {', '.join(unknown)}")
-        return dataclasses.replace(CALIBRATED_PARAMS, **overrides)  # type: ignore[arg-type]
+        return dataclasses.replace(_calibrated(), **overrides)  # type: ignore[arg-type]
+
+    def to_dict(self) -> dict[str, object]:
+        """Plain data (numbers, lists, ``{median, sigma}`` for the log-normals), for YAML."""
+        out: dict[str, object] = {}
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, LogNormal):
+                value = {"median": value.median, "sigma": value.sigma}
+            elif isinstance(value, tuple):
+                value = list(value)
+            out[f.name] = value
+        return out
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, object], where: str = "SyntheticUserParams") -> Self:
+        """Parameters from :meth:`to_dict`'s form.
+
+        Raises:
+            ConfigError: naming ``where`` and the field, for an unknown, missing or bad field.
+        """
+        if not isinstance(data, Mapping):
+            raise ConfigError(f"{where}: expected a mapping of fields, got {type(data).__name__}")
+        names = {f.name for f in fields(cls)}
+        unknown = sorted(set(data) - names)
+        if unknown:
+            raise ConfigError(f"{where}: unknown field(s) {', '.join(unknown)}")
+        kwargs: dict[str, object] = {}
+        for key, value in data.items():
+            if key in _LOGNORMAL_FIELDS:
+                if not (isinstance(value, Mapping) and set(value) == {"median", "sigma"}):
+                    raise ConfigError(f"{where}: {key} must be {{median: ..., sigma: ...}}")
+                value = LogNormal(float(value["median"]), float(value["sigma"]))  # type: ignore[arg-type]
+            elif key == "count_pmf" and value is not None:
+                if not isinstance(value, list):
+                    raise ConfigError(f"{where}: count_pmf must be a list of probabilities")
+                value = tuple(value)
+            kwargs[key] = value
+        try:
+            return cls(**kwargs)  # type: ignore[arg-type]
+        except TypeError as exc:
+            raise ConfigError(f"{where}: {exc}") from None
+        except ConfigError as exc:
+            raise ConfigError(f"{where}: {exc}") from None
+
+    @classmethod
+    def load(cls, path: str | Path) -> Self:
+        """Parameters from a YAML file (:meth:`to_dict`'s form under the key ``params``).
+
+        Raises:
+            ConfigError: naming the file, when it cannot be read or holds bad parameters.
+        """
+        import yaml
+
+        try:
+            data = yaml.safe_load(Path(path).read_text())
+        except (OSError, yaml.YAMLError) as exc:
+            raise ConfigError(f"{path}: cannot read synthetic-user parameters: {exc}") from None
+        if not isinstance(data, Mapping) or "params" not in data:
+            raise ConfigError(f"{path}: expected a mapping with a 'params' entry")
+        return cls.from_dict(data["params"], where=str(path))
+
+
+@lru_cache(maxsize=1)
+def _calibrated() -> SyntheticUserParams:
+    return SyntheticUserParams.load(CALIBRATED_YAML)
 
 
 @dataclass(frozen=True)
