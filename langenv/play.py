@@ -52,11 +52,20 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     p.add_argument("--seconds", type=float, default=None, help="stop after N s (headless: needed)")
     p.add_argument("--audio-out", type=Path, default=None, help="write the audio to this WAV")
     p.add_argument("--device", default=None, help="sound card (name or index; default: system's)")
+    p.add_argument(
+        "--trace-out",
+        type=Path,
+        default=None,
+        help="write one CSV row per step: session, t, p, a, cooperation, em, force, phrase",
+    )
     ns = p.parse_args(argv)
     if ns.headless and (ns.seconds is None or ns.audio_out is None):
         p.error("--headless needs --seconds N and --audio-out X.wav")
     if ns.seconds is not None and not ns.seconds > 0:
         p.error(f"--seconds must be > 0, got {ns.seconds}")
+    for flag, path in (("--audio-out", ns.audio_out), ("--trace-out", ns.trace_out)):
+        if path is not None and not path.parent.is_dir():
+            p.error(f"{flag}: no directory {path.parent}")
     if ns.user is None:
         ns.user = "synthetic" if ns.headless else "drag"
     if ns.headless and ns.user == "drag":
@@ -116,12 +125,31 @@ def run(ns: argparse.Namespace) -> str:
             from langenv.live.viewer import ViewerHooks
 
             hooks = ViewerHooks(env, drag)
-        loop = RealTimeLoop(env, policy, make_sink, seed=ns.seed, hooks=hooks)
+        loop = RealTimeLoop(
+            env, policy, make_sink, seed=ns.seed, hooks=hooks, record=ns.trace_out is not None
+        )
         report = loop.run(ns.seconds)
     finally:
+        close = getattr(hooks, "close", None)
+        if close is not None:
+            close()
         env.close()
     line = f"play: {ns.policy}, user {ns.user}: {report.summary()}"
-    return line + (f"; wrote {out}" if out is not None else "")
+    written = [str(p) for p in (out, ns.trace_out) if p is not None]
+    if ns.trace_out is not None:
+        _write_trace(ns.trace_out, loop.rows)
+    return line + (f"; wrote {', '.join(written)}" if written else "")
+
+
+def _write_trace(path: Path, rows: list[tuple[Any, ...]]) -> None:
+    import csv
+
+    from langenv.live.loop import TRACE_COLUMNS
+
+    with path.open("w", newline="") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(TRACE_COLUMNS)
+        writer.writerows(rows)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -30,13 +30,18 @@ from langenv.live.ring import AudioRing
 from langenv.live.sinks import AudioSink
 from langenv.live.stream import BLOCK, DEFAULT_LAG, SpeechStream
 
-__all__ = ["PREFILL", "LiveHooks", "LoopReport", "RealTimeLoop"]
+__all__ = ["PREFILL", "TRACE_COLUMNS", "LiveHooks", "LoopReport", "RealTimeLoop"]
 
 PREFILL = 0.05
 """Seconds of audio in the ring before the sink starts."""
 
 TICK = 0.002
 """Control period (s)."""
+
+TRACE_COLUMNS = ("session", "t", "p", "a", "cooperation", "em", "fx", "fy", "fz", "phrase")
+"""Columns of the rows the loop records (``record=True``): the session's index, its time (s),
+the paces, cooperation, EM (s), the person's force on the handle (N) and the phrase being said
+(empty in pauses)."""
 
 
 @dataclass(frozen=True)
@@ -108,6 +113,7 @@ class RealTimeLoop:
         prefill: Seconds of audio in the ring before the sink starts (also the most the loop
             can fall behind before the sound underruns).
         hooks: The front end.
+        record: Keep one row per step in :attr:`rows` (see :data:`TRACE_COLUMNS`).
     """
 
     def __init__(
@@ -121,12 +127,15 @@ class RealTimeLoop:
         lag: float = DEFAULT_LAG,
         prefill: float = PREFILL,
         hooks: LiveHooks | None = None,
+        record: bool = False,
     ) -> None:
         if not (math.isfinite(rest) and rest >= 0.0):
             raise ConfigError(f"rest must be finite and >= 0 s, got {rest!r}")
         if not (math.isfinite(prefill) and 0.0 < prefill <= 0.9):
             raise ConfigError(f"prefill must be in (0, 0.9] s, got {prefill!r}")
         self.prefill = float(prefill)
+        self.record = bool(record)
+        self.rows: list[tuple[Any, ...]] = []
         self.env, self.policy = env, policy
         self.base: Any = env.unwrapped
         self.seed, self.rest, self.lag = int(seed), float(rest), float(lag)
@@ -171,6 +180,23 @@ class RealTimeLoop:
         obs, _, terminated, truncated, info = self.env.step(self.policy.act(self._obs))
         self._obs, self.info = obs, info
         self._record()
+        if self.record:
+            speech, f = self.base.speech, self.base.motion.f_user
+            said = "" if speech.phrase is None or speech.in_pause else speech.phrase
+            self.rows.append(
+                (
+                    self.sessions,
+                    info["time"],
+                    info["p"],
+                    info["a"],
+                    info["cooperation"],
+                    info["em"],
+                    float(f[0]),
+                    float(f[1]),
+                    float(f[2]),
+                    said,
+                )
+            )
         if terminated or truncated:
             self.sessions += 1
             self._ended_at = self._session_start + float(info["time"])
