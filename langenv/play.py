@@ -124,7 +124,9 @@ def run(ns: argparse.Namespace) -> str:
         if not ns.headless:
             from langenv.live.viewer import ViewerHooks
 
-            hooks = ViewerHooks(env, drag)
+            viewer = ViewerHooks(env, drag)
+            hooks = viewer
+            viewer.countdown()
         loop = RealTimeLoop(
             env, policy, make_sink, seed=ns.seed, hooks=hooks, record=ns.trace_out is not None
         )

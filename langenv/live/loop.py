@@ -60,6 +60,7 @@ class LoopReport:
         starved: Vocoder pulls short of content (0 unless the stream lag is too small).
         sessions: Sessions finished.
         audio_s: Seconds of audio rendered.
+        ams: AM (speech end - motion end, s) of each finished session; NaN if it was cut off.
     """
 
     wall_s: float
@@ -73,6 +74,7 @@ class LoopReport:
     starved: int
     sessions: int
     audio_s: float
+    ams: tuple[float, ...] = ()
 
     def summary(self) -> str:
         """One line for the terminal."""
@@ -83,6 +85,7 @@ class LoopReport:
             f"audio underruns {self.underruns} ({self.missing_ms:.0f} ms missing, device "
             f"xruns {self.device_xruns}), {self.audio_s:.1f} s of audio, "
             f"vocoder starved {self.starved}, sessions finished {self.sessions}"
+            + (" (AM " + ", ".join(f"{am:+.2f}" for am in self.ams) + " s)" if self.ams else "")
         )
 
 
@@ -146,6 +149,7 @@ class RealTimeLoop:
         self.step_dt = self.base.ticks_per_step * TICK
         self.info: dict[str, Any] = {}
         self.sessions = 0
+        self.ams: list[float] = []
         self._obs: np.ndarray = np.zeros(0)
         self._stream: SpeechStream | None = None
         self._session_start = 0.0  # loop time the session started (s)
@@ -199,6 +203,8 @@ class RealTimeLoop:
             )
         if terminated or truncated:
             self.sessions += 1
+            am = info.get("am")
+            self.ams.append(float(am) if am is not None else math.nan)
             self._ended_at = self._session_start + float(info["time"])
             self.hooks.session_end(self, info)
 
@@ -263,4 +269,5 @@ class RealTimeLoop:
             starved=starved_before + self.stream.starved,
             sessions=self.sessions,
             audio_s=audio / self.sr,
+            ams=tuple(self.ams),
         )
