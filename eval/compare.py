@@ -15,7 +15,12 @@ Writes (only when every episode ran; nothing partial is left on error):
 * ``OUT/sessions/<policy>_<user>.png``: the paper's close-up figure of each session;
 * ``OUT/sessions/<policy>_<user>.wav``: what the robot said, at the paces it used;
 * ``OUT/sessions/<policy>_<user>.npz``: the episode log (``eval.episode.EpisodeLog.load_npz``);
+* ``OUT/sessions/<policy>_<user>.mp4``: with ``--video``, the session video with the robot's
+  speech as its sound track (:mod:`eval.video`);
 * ``OUT/config.json``: the arguments of the run.
+
+It ends with the verdict on the terminal: per policy the medians of the main metrics, the
+study's findings (PASS/FAIL) and where the files are.
 """
 
 from __future__ import annotations
@@ -60,6 +65,7 @@ class CompareArgs:
             instead of the shipped LC graph.
         stat: Statistic of the differences against LC in ``summary.md``: ``median`` (of the
             per-user differences) or ``mean``.
+        video: Render each session's video (MP4 with the speech as its sound track).
     """
 
     policies: str = "ac,lc-noap,lc"
@@ -74,6 +80,7 @@ class CompareArgs:
     decision_hz: int | None = None
     phrase_graph: Path | None = None
     stat: str = "median"
+    video: bool = False
 
 
 @dataclass(frozen=True)
@@ -90,6 +97,7 @@ class Job:
     decision_hz: int | None
     phrase_graph: str | None = None
     name: str | None = None  # the policy's name in outputs (default: its own name)
+    video: bool = False
     user_params: Any = None  # SyntheticUserParams for synthetic users (default: calibrated)
 
 
@@ -112,6 +120,11 @@ def parse_args(argv: Sequence[str] | None = None) -> CompareArgs:
     p.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
     p.add_argument("--no-audio", action="store_true", help="skip WAV rendering")
     p.add_argument("--no-figures", action="store_true", help="skip per-session figures")
+    p.add_argument(
+        "--video",
+        action="store_true",
+        help="also write each session's video (MP4: the arm, traces, captions, the speech)",
+    )
     p.add_argument("--decision-hz", type=int, default=None, help="override every policy's rate")
     p.add_argument(
         "--phrase-graph",
@@ -146,6 +159,7 @@ def parse_args(argv: Sequence[str] | None = None) -> CompareArgs:
         decision_hz=ns.decision_hz,
         phrase_graph=ns.phrase_graph,
         stat=ns.stat,
+        video=ns.video,
     )
 
 
@@ -180,6 +194,27 @@ def _check_options(args: CompareArgs) -> None:
             PhraseGraph.load(args.phrase_graph)
         except LangEnvError as exc:
             raise UsageError(f"--phrase-graph: {exc}") from None
+
+
+def _check_video() -> None:
+    """--video: PyAV and an off-screen OpenGL context must work, checked before any episode runs.
+
+    The GL check runs in a child process: a GL context made here would be inherited, broken, by
+    the forked workers.
+    """
+    import subprocess
+
+    try:
+        import av  # noqa: F401
+    except ImportError as exc:
+        raise UsageError(f"--video needs PyAV ({exc}): pip install av") from None
+    code = "from eval.video import SceneReplay; SceneReplay((16, 16)).close()"
+    proc = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False
+    )
+    if proc.returncode != 0:
+        lines = proc.stderr.strip().splitlines() or ["unknown error"]
+        raise UsageError(f"--video: {lines[-1]}")
 
 
 def _users(args: CompareArgs) -> list[tuple[str, int, str | None]]:
@@ -246,15 +281,16 @@ def run_episode(job: Job) -> dict[str, Any]:
         options = {"user": SyntheticUser(job.user_params)}
     obs, info = env.reset(seed=job.seed, options=options)
     policy.reset()
+    base: Any = env.unwrapped
     rec = EpisodeRecorder(policy=policy.name, user=job.user)
-    rec.append(info)
+    rec.append(_with_scene(info, base))
     ret, done = 0.0, False
     while not done:
         obs, reward, terminated, truncated, info = env.step(policy.act(obs))
         ret += float(reward)
-        rec.append(info)
+        rec.append(_with_scene(info, base))
         done = terminated or truncated
-    base: Any = env.unwrapped
+    graph_ref = _graph_ref(graph)
     graph = base.graph
     texts = {u: (ph.text or u) for u, ph in graph.phrases.items()}
     end_t = float(info["time"])
@@ -264,18 +300,39 @@ def run_episode(job: Job) -> dict[str, Any]:
         t_motion=info["t_motion"] if info["t_motion"] is not None else end_t,
         t_speech=info["t_speech"] if info["t_speech"] is not None else end_t,
         utterances=base.speech.utterances(),
+        phrase_graph=graph_ref,
+        path=base.motion.trajectory.sample(200),
     )
     stem = Path(job.out_dir) / f"{policy.name}_{job.user}"
     log.save_npz(stem.with_suffix(".npz"))
     if job.figures:
         session_figure(log, stem.with_suffix(".png"))
-    if job.audio:
+    if job.audio or job.video:
         clips = base.clips
         audio = render_history(graph, clips, base.speech.path, log.t, log.a)
-        sf.write(stem.with_suffix(".wav"), audio, clips.sr, subtype="PCM_16")
+        if job.audio:
+            sf.write(stem.with_suffix(".wav"), audio, clips.sr, subtype="PCM_16")
+        if job.video:
+            from eval.video import write_video
+
+            write_video(log, stem.with_suffix(".mp4"), audio, clips.sr)
     row = episode_metrics(log)
     row["truncated"] = float(bool(info.get("TimeLimit.truncated", False)) or not terminated)
     return row
+
+
+def _with_scene(info: dict[str, Any], base: Any) -> dict[str, Any]:
+    """``info`` with the state that replays the scene: joint positions and the person's force."""
+    info["qpos"] = base.motion.arm.data.qpos.copy()
+    info["f_user"] = np.array(base.motion.f_user, dtype=np.float64)
+    return info
+
+
+def _graph_ref(graph: str | Path) -> str:
+    """How an episode log names its phrase graph: a shipped key, or the YAML's absolute path."""
+    from langenv.speech.graph import SHIPPED_GRAPHS
+
+    return str(graph) if str(graph) in SHIPPED_GRAPHS else str(Path(graph).resolve())
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -285,6 +342,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         names = _check_policies(args.policies)
         _check_options(args)
+        if args.video:
+            _check_video()
         users = _users(args)
     except UsageError as exc:
         print(f"eval.compare: error: {exc}", file=sys.stderr)
@@ -307,6 +366,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 args.decision_hz,
                 str(args.phrase_graph) if args.phrase_graph else None,
                 labels[n],
+                args.video,
             )
             for n in names
             for (u, s, sess) in users
@@ -319,8 +379,29 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+    _print_verdict(out, list(labels.values()), args)
     print(f"wrote {out} ({len(rows)} episodes in {time.perf_counter() - t0:.1f} s)")
     return 0
+
+
+def _print_verdict(out: Path, labels: list[str], args: CompareArgs) -> None:
+    """The verdict on the terminal, read back from the ``sessions.csv`` just written."""
+    from eval.report import read_sessions_csv
+    from eval.verdict import print_verdict
+
+    rows = read_sessions_csv(out / "sessions.csv")
+    kinds = ["npz"]
+    kinds += ["png"] if args.figures else []
+    kinds += ["wav"] if args.audio else []
+    kinds += ["mp4"] if args.video else []
+    files = [
+        ("sessions.csv", "one row per episode"),
+        ("summary.md", "medians [IQR], intervals of the differences, the findings"),
+        ("summary.png", "distributions per policy (violins)"),
+        ("sessions/", "per episode <policy>_<user>: " + ", ".join(kinds)),
+    ]
+    present = {str(r["policy"]) for r in rows}
+    print_verdict(rows, [n for n in labels if n in present], out, files)
 
 
 def run_jobs(jobs: list[Job], workers: int) -> list[dict[str, Any]]:

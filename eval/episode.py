@@ -23,7 +23,14 @@ import numpy as np
 
 from langenv.errors import ConfigError, SessionDataError
 
-__all__ = ["FLAG_TRACES", "FLOAT_TRACES", "EpisodeLog", "EpisodeRecorder", "Utterance"]
+__all__ = [
+    "FLAG_TRACES",
+    "FLOAT_TRACES",
+    "SCENE_TRACES",
+    "EpisodeLog",
+    "EpisodeRecorder",
+    "Utterance",
+]
 
 FLOAT_TRACES: tuple[str, ...] = ("t", "cooperation", "hand_speed", "p", "a", "t_x", "t_a", "em")
 """Names of the per-step float traces of :class:`EpisodeLog`, in field order."""
@@ -31,7 +38,11 @@ FLOAT_TRACES: tuple[str, ...] = ("t", "cooperation", "hand_speed", "p", "a", "t_
 FLAG_TRACES: tuple[str, ...] = ("motion_done", "speech_done")
 """Names of the per-step boolean traces of :class:`EpisodeLog`."""
 
-_NPZ_FORMAT = 1
+SCENE_TRACES: tuple[str, ...] = ("qpos", "f_user")
+"""Names of the optional per-step arrays that replay the scene (:mod:`eval.video`)."""
+
+_NPZ_FORMAT = 2
+_NPZ_FORMATS = (1, 2)  # format 1: no scene traces, no phrase graph
 
 
 @dataclass(frozen=True)
@@ -101,6 +112,14 @@ class EpisodeLog:
         t_motion: Time at which the motion ended (s).
         t_speech: Time at which the speech ended (s).
         ret: Episode return (sum of rewards).
+        qpos: Joint positions of the arm model, shape ``(n, nq)`` (rad), float32; None when not
+            recorded. With ``f_user`` it replays the scene (:mod:`eval.video`).
+        f_user: The person's force on the handle (before the sensor), shape ``(n, 3)`` (N),
+            float32; None when not recorded.
+        path: The exercise path, shape ``(m, 3)`` (m), float32, drawn in the video; None when
+            not recorded.
+        phrase_graph: The phrase graph spoken: a shipped graph's key (``"lc"``...) or the YAML's
+            absolute path; empty when unknown. With the utterances it re-renders the speech.
 
     Raises:
         ConfigError: (a ``ValueError``) naming the field, if a trace has the wrong shape, differing
@@ -124,6 +143,10 @@ class EpisodeLog:
     t_motion: float
     t_speech: float
     ret: float
+    qpos: np.ndarray | None = None
+    f_user: np.ndarray | None = None
+    path: np.ndarray | None = None
+    phrase_graph: str = ""
 
     _scalars: ClassVar[tuple[str, ...]] = ("t_motion", "t_speech", "ret")
 
@@ -134,6 +157,11 @@ class EpisodeLog:
                 raise ConfigError(f"EpisodeLog.{name} must be a non-empty str, got {value!r}")
         n = self._check_float_traces()
         self._check_flag_traces(n)
+        self._check_scene_traces(n)
+        if not isinstance(self.phrase_graph, str):
+            raise ConfigError(
+                f"EpisodeLog.phrase_graph must be a str, got {type(self.phrase_graph).__name__}"
+            )
         for name in self._scalars:
             value = getattr(self, name)
             try:
@@ -213,6 +241,33 @@ class EpisodeLog:
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
 
+    def _check_scene_traces(self, n: int) -> None:
+        for name, rows, width in (("qpos", n, None), ("f_user", n, 3), ("path", None, 3)):
+            value = getattr(self, name)
+            if value is None:
+                continue
+            try:
+                arr = np.array(value, dtype=np.float32)
+            except (TypeError, ValueError):
+                raise ConfigError(f"EpisodeLog.{name} must be numeric") from None
+            if (
+                arr.ndim != 2
+                or (rows is not None and arr.shape[0] != rows)
+                or (rows is None and arr.shape[0] < 2)
+                or (width is not None and arr.shape[1] != width)
+            ):
+                want = f"({n if rows is not None else 'm >= 2'}, {width or 'k'})"
+                raise ConfigError(f"EpisodeLog.{name} must have shape {want}, got {arr.shape}")
+            if not np.all(np.isfinite(arr)):
+                raise ConfigError(f"EpisodeLog.{name} must be finite")
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+
+    @property
+    def has_scene(self) -> bool:
+        """Whether the log holds the joint positions and forces that replay the scene."""
+        return self.qpos is not None and self.f_user is not None
+
     @property
     def n(self) -> int:
         """Number of samples."""
@@ -247,6 +302,10 @@ class EpisodeLog:
         }
         for name in (*FLOAT_TRACES, *FLAG_TRACES):
             payload[name] = getattr(self, name)
+        payload["phrase_graph"] = np.array(self.phrase_graph)
+        for name in (*SCENE_TRACES, "path"):
+            if getattr(self, name) is not None:
+                payload[name] = getattr(self, name)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
         try:
             with os.fdopen(fd, "wb") as fh:
@@ -268,10 +327,9 @@ class EpisodeLog:
         path = Path(path)
         try:
             with np.load(path, allow_pickle=False) as data:
-                if int(data["format"]) != _NPZ_FORMAT:
-                    raise SessionDataError(
-                        f"{path}: unsupported episode log format {int(data['format'])}"
-                    )
+                fmt = int(data["format"])
+                if fmt not in _NPZ_FORMATS:
+                    raise SessionDataError(f"{path}: unsupported episode log format {fmt}")
                 spans = data["utt_span"]
                 utterances = tuple(
                     Utterance(str(ph), str(tx), float(s0), float(s1))
@@ -281,6 +339,8 @@ class EpisodeLog:
                 )
                 traces = {name: data[name] for name in (*FLOAT_TRACES, *FLAG_TRACES)}
                 t_motion, t_speech, ret = (float(v) for v in data["scalars"])
+                scene = {n: data[n] for n in (*SCENE_TRACES, "path") if n in data.files}
+                graph = str(data["phrase_graph"]) if "phrase_graph" in data.files else ""
                 return cls(
                     policy=str(data["policy"]),
                     user=str(data["user"]),
@@ -289,6 +349,8 @@ class EpisodeLog:
                     t_speech=t_speech,
                     ret=ret,
                     **traces,
+                    **scene,
+                    phrase_graph=graph,
                 )
         except SessionDataError:
             raise
@@ -307,7 +369,8 @@ class EpisodeRecorder:
     Feed it the env's ``info`` dict after ``reset`` and after every ``step`` (keys ``time`` or
     ``t``, ``cooperation``, ``hand_speed``, ``p``, ``a``, ``t_x``, ``t_a``, ``em``,
     ``motion_done``, ``speech_done``, optionally ``phrase``, ``in_pause``, ``t_motion``,
-    ``t_speech``). Unless :meth:`build` is given the exact utterances (preferred: the speech
+    ``t_speech``, and the scene keys ``qpos`` and ``f_user``, in every sample or in none).
+    Unless :meth:`build` is given the exact utterances (preferred: the speech
     timeline's ``utterances()``), they are read off the ``phrase`` key: each run of consecutive
     samples with the same non-empty phrase id, not ``in_pause``, is one utterance, from the time of
     its first sample to the time of the first sample after it (resolution: the sampling interval;
@@ -322,6 +385,7 @@ class EpisodeRecorder:
     user: str
     _values: dict[str, list[float]] = field(default_factory=dict, init=False, repr=False)
     _phrases: list[str | None] = field(default_factory=list, init=False, repr=False)
+    _scene: dict[str, list[np.ndarray]] = field(default_factory=dict, init=False, repr=False)
     _last: dict[str, Any] = field(default_factory=dict, init=False, repr=False)
 
     def append(self, info: Mapping[str, Any]) -> None:
@@ -338,6 +402,9 @@ class EpisodeRecorder:
             row[name] = float(info[key])
         for name, value in row.items():
             self._values.setdefault(name, []).append(value)
+        for name in SCENE_TRACES:
+            if name in info:
+                self._scene.setdefault(name, []).append(np.array(info[name], np.float32))
         phrase = None if info.get("in_pause") else info.get("phrase")
         self._phrases.append(str(phrase) if phrase else None)
         self._last = dict(info)
@@ -353,6 +420,8 @@ class EpisodeRecorder:
         t_motion: float | None = None,
         t_speech: float | None = None,
         utterances: Sequence[Any] | None = None,
+        phrase_graph: str = "",
+        path: np.ndarray | None = None,
     ) -> EpisodeLog:
         """The log of the recorded samples.
 
@@ -365,9 +434,12 @@ class EpisodeRecorder:
             utterances: The phrases said with exact times, as objects with ``phrase``,
                 ``t_start`` and ``t_end`` (e.g. ``SpeechTimeline.history``); default: read off
                 the recorded ``phrase`` key.
+            phrase_graph: The phrase graph spoken (see :attr:`EpisodeLog.phrase_graph`).
+            path: The exercise path drawn in videos, shape ``(m, 3)`` (m).
 
         Raises:
-            ConfigError: if fewer than two samples were recorded or a completion time is unknown.
+            ConfigError: if fewer than two samples were recorded, a completion time is unknown,
+                or a scene key was given in some samples only.
         """
         if len(self) < 2:
             raise ConfigError(f"EpisodeRecorder.build needs >= 2 samples, got {len(self)}")
@@ -395,6 +467,14 @@ class EpisodeRecorder:
 
         flags = {name: v[name].astype(bool) for name in FLAG_TRACES}
         floats = {name: v[name] for name in FLOAT_TRACES}
+        scene: dict[str, np.ndarray] = {}
+        for name, rows in self._scene.items():
+            if len(rows) != len(self):
+                raise ConfigError(
+                    f"EpisodeRecorder.build: info had key {name!r} in {len(rows)} of "
+                    f"{len(self)} samples (give it in every sample or in none)"
+                )
+            scene[name] = np.stack(rows)
         return EpisodeLog(
             policy=self.policy,
             user=self.user,
@@ -404,6 +484,9 @@ class EpisodeRecorder:
             ret=float(ret),
             **floats,
             **flags,
+            **scene,
+            path=path,
+            phrase_graph=phrase_graph,
         )
 
     def _phrase_runs(self, t: np.ndarray, texts: Mapping[str, str]) -> list[Utterance]:

@@ -33,3 +33,7 @@ class SessionDataError(LangEnvError, ValueError):
 
 class ActionError(LangEnvError, ValueError):
     """An action passed to the environment is NaN, infinite or out of range."""
+
+
+class DeviceError(LangEnvError, OSError):
+    """A device the live mode needs is missing: a display, a sound card or its library."""

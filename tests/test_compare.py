@@ -15,11 +15,17 @@ ROOT = Path(__file__).resolve().parents[1]
 SESSIONS = ROOT.parent / "shared" / "sessions"
 
 
-def test_smoke_run_writes_every_output(tmp_path: Path) -> None:
+def test_smoke_run_writes_every_output(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     out = tmp_path / "cmp"
     args = ["--policies", "ac,lc", "--users", "synthetic:1", "--seed", "3", "--out", str(out)]
     rc = main([*args, "--workers", "1", "--decision-hz", "50"])
     assert rc == 0
+    said = capsys.readouterr().out  # the verdict, plain (not a terminal)
+    assert "median |AM| (s)" in said and "\x1b[" not in said
+    assert "LC's |AM| <= 1 s in every session" in said and "n/a" in said  # no LC-noAP here
+    assert str(out / "summary.md") in said and said.rstrip().splitlines()[-1].startswith("wrote")
     rows = list(csv.DictReader((out / "sessions.csv").open()))
     assert [r["policy"] for r in rows] == ["ac", "lc"]
     for col in ("am", "abs_am", "em_mean_abs", "a_mean", "a_dev", "p_mean", "coop_mean"):
@@ -99,3 +105,33 @@ def test_policy_names_are_distinct_for_several_learned_models() -> None:
         "ppo:runs/y/m.zip": "ppo-m-2",
         "ppo:runs/z/k": "ppo-k",
     }
+
+
+def test_video_flag_writes_a_video_per_episode_with_the_wav_as_sound(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """--video hands each episode's log and its WAV's audio to eval.video (encoding is tested
+    in test_video.py; here a stand-in records the calls, so the test stays fast)."""
+    import numpy as np
+    import soundfile as sf
+
+    import eval.video
+
+    calls: list[tuple[object, Path, np.ndarray, int]] = []
+
+    def fake_write_video(log: object, out: Path, audio: np.ndarray, sr: int) -> Path:
+        calls.append((log, Path(out), np.asarray(audio), sr))
+        Path(out).write_bytes(b"mp4")
+        return Path(out)
+
+    monkeypatch.setattr(eval.video, "write_video", fake_write_video)
+    out = tmp_path / "cmp"
+    args = ["--policies", "lc", "--users", "synthetic:1", "--seed", "3", "--out", str(out)]
+    assert main([*args, "--workers", "1", "--decision-hz", "50", "--video", "--no-figures"]) == 0
+    assert len(calls) == 1
+    log, path, audio, sr = calls[0]
+    assert path.name == "lc_s3.mp4" and (out / "sessions" / "lc_s3.mp4").is_file()
+    assert getattr(log, "has_scene", False)
+    wav, wav_sr = sf.read(out / "sessions" / "lc_s3.wav", dtype="float32")
+    assert sr == wav_sr and audio.shape == wav.shape
+    assert np.abs(audio - wav).max() < 1e-4  # the WAV is the same audio, as 16-bit PCM

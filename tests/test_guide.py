@@ -1,4 +1,4 @@
-"""Guide: virtual force, leg switching (the lab's rule), feed-forward, and the nominal virtual run."""
+"""Guide: virtual force, leg switching (the lab's rule), feed-forward, the nominal virtual run."""
 
 from __future__ import annotations
 

@@ -115,7 +115,14 @@ def simulate_virtual(
         raise ConfigError(f"simulate_virtual: dt must be > 0, got {dt!r}")
     guide = Guide(trajectory, params)
     adm = VariableAdmittance(params)
-    pace: PaceFn = p if callable(p) else (lambda _t, c=float(p): c)
+    if callable(p):
+        pace: PaceFn = p
+    else:
+        p_const = float(p)
+
+        def pace(_t: float) -> float:
+            return p_const
+
     dv_max = params.max_acceleration * dt
     state = guide.initial_state()
     x = trajectory.position(0.0)

@@ -1,0 +1,65 @@
+"""eval.verdict: the comparison's verdict on the terminal, plain text when piped."""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from eval.verdict import STOP_COLUMNS, print_verdict, verdict_table
+
+
+def rows(stops: str | None = None) -> list[dict[str, float | str]]:
+    rng = np.random.default_rng(0)
+    out: list[dict[str, float | str]] = []
+    for policy, am in (("ac", 3.0), ("lc-noap", 1.0), ("lc", 0.2)):
+        for k in range(4):
+            row: dict[str, float | str] = {
+                "policy": policy,
+                "user": f"s{k}",
+                "abs_am": am + 0.1 * k,
+                "em_mean_abs": am / 2,
+                "a_dev": 0.0 if policy == "ac" else 0.1,
+                "a_within_0_1": 0.9 if policy == "lc" else 0.2,
+                "t_speech": 11.0 + rng.uniform(),
+                "truncated": 0.0,
+            }
+            if stops is not None:
+                row[stops] = 1.0 if (policy, k) == ("lc", 2) else 0.0
+            out.append(row)
+    return out
+
+
+def test_table_values_per_policy() -> None:
+    header, body = verdict_table(rows(), ["ac", "lc-noap", "lc"])
+    assert header == ["policy", "users", "median |AM| (s)", "mean |EM| (s)", "mean |a - 1|"]
+    assert body[0] == ["AC", "4", "3.15", "1.50", "0.000"]
+    assert body[2][0] == "LC" and body[2][2] == "0.35"
+
+
+@pytest.mark.parametrize("column", STOP_COLUMNS)
+def test_protective_stops_column_appears_when_the_table_has_one(column: str) -> None:
+    header, body = verdict_table(rows(column), ["ac", "lc-noap", "lc"])
+    assert header[-1] == "protective stops"
+    assert [line[-1] for line in body] == ["0", "0", "1"]
+
+
+def test_plain_when_not_a_terminal() -> None:
+    buf = io.StringIO()
+    files = [("sessions.csv", "one row per episode"), ("sessions/", "per episode: npz")]
+    print_verdict(rows(), ["ac", "lc-noap", "lc"], Path("out/x"), files, file=buf)
+    text = buf.getvalue()
+    assert "\x1b[" not in text  # no colour codes
+    assert not set("─│┃━┏") & set(text)  # no box drawing
+    assert text.count("PASS") == 3
+    assert "median |AM| orders AC > LC-noAP > LC" in text
+    assert str(Path("out/x") / "sessions.csv") in text and "sessions/" in text
+
+
+def test_rich_on_a_terminal() -> None:
+    buf = io.StringIO()
+    print_verdict(rows(), ["ac", "lc-noap", "lc"], Path("out"), [], file=buf, terminal=True)
+    text = buf.getvalue()
+    assert "\x1b[" in text and "PASS" in text
