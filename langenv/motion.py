@@ -8,8 +8,13 @@
 3. the guide finds the closest point ``x_d`` (locally), tracks the stops, and gives
    ``F_virtual = K (x_d - x) + F_prop b``;
 4. the variable admittance ``A(p)`` turns ``F~ + F_virtual`` into ``v_ref``;
-5. the velocity controller ``C`` drives the hand to ``v_ref`` and MuJoCo steps the arm;
-6. the motion ETC ``t_x`` is estimated from the new state.
+5. the safety layer limits ``v_ref`` (speed; no motion away from the path beyond
+   ``hold_deviation``), the velocity controller ``C`` drives the hand to it and MuJoCo steps the
+   arm;
+6. the motion ETC ``t_x`` is estimated from the new state;
+7. the safety monitor checks the hand's speed and distance from the path, the force on the handle
+   and the joints; a breach is a **protective stop** (:attr:`GuidedArm.safety_stop`): from then
+   on the arm holds still (see :mod:`langenv.safety`).
 
 The paces ``p`` (and its rate) come from outside: they are the aligner's business.
 """
@@ -27,6 +32,7 @@ from langenv.control.motion_etc import FastETC
 from langenv.control.trajectory import Trajectory
 from langenv.robot.arm import Arm
 from langenv.robot.force_sensor import ForceSensor
+from langenv.safety import SafetyLimits, SafetyMonitor, SafetyStop, limit_velocity
 
 __all__ = ["GuidedArm"]
 
@@ -40,6 +46,8 @@ class GuidedArm:
         params: Virtual dynamics and guide parameters.
         sensor: The handle's force sensor.
         cooperation: The cooperation filter.
+        safety: Safety limits (default :class:`~langenv.safety.SafetyLimits`); its ``max_speed``
+            becomes the arm's velocity command limit (``arm.max_hand_speed``).
     """
 
     def __init__(
@@ -49,6 +57,7 @@ class GuidedArm:
         params: AdmittanceParams,
         sensor: ForceSensor,
         cooperation: CooperationFilter,
+        safety: SafetyLimits | None = None,
     ) -> None:
         self.arm = arm
         self.trajectory = trajectory
@@ -58,6 +67,15 @@ class GuidedArm:
         self.guide = Guide(trajectory, params)
         self.admittance = VariableAdmittance(params)
         self.etc = FastETC(self.guide, self.admittance)
+        self.limits = safety if safety is not None else SafetyLimits()
+        arm.max_hand_speed = self.limits.max_speed  # one source for the speed limit
+        lo, hi = arm.joint_range
+        self.monitor = SafetyMonitor(self.limits, arm.dt, lo, hi, arm.joint_names)
+        self.safety_stop: SafetyStop | None = None
+        """The protective stop that halted the arm, or None."""
+        self.path_deviation: float = 0.0
+        self._path_point: list[float] = trajectory.position(0.0).tolist()  # T(s), m
+        """Hand's distance ``|x - T(s)|`` from its closest path point, after the last tick (m)."""
         self.dt: float = arm.dt
         self.state: GuideState = self.guide.initial_state()
         self.v_ref = np.zeros(3)
@@ -96,6 +114,11 @@ class GuidedArm:
         return bool(self.state.done)
 
     @property
+    def stopped(self) -> bool:
+        """Whether a protective stop has halted the arm (:attr:`safety_stop` says why)."""
+        return self.safety_stop is not None
+
+    @property
     def progress(self) -> float:
         """Arc-length progress ``d = s / L`` in [0, 1]."""
         return float(self.state.s / self.trajectory.length)
@@ -120,13 +143,23 @@ class GuidedArm:
         self.time = 0.0
         self.t_motion_end = None
         self.t_x = self.etc.etc(self.state, self.arm.hand_position(), self.v_ref)
+        self.safety_stop = None
+        self.monitor.reset()
+        self._path_point = self.trajectory.position(self.state.s).tolist()
         self._measure_hand()
 
     def _measure_hand(self) -> None:
         v = self.arm.hand_velocity()
         v.flags.writeable = False
         self._hand_velocity = v
-        self._hand_speed = math.sqrt(float(v @ v))
+        self._hand_speed = math.sqrt(float(v.dot(v)))
+        self.path_deviation = math.dist(self.arm.hand_position().tolist(), self._path_point)
+
+    def _offset(self, x: np.ndarray) -> tuple[float, float, float]:
+        """``x - T(s)``: the hand's offset from its closest path point (m)."""
+        x0, x1, x2 = x.tolist()
+        p = self._path_point
+        return (x0 - p[0], x1 - p[1], x2 - p[2])
 
     def tick(
         self,
@@ -143,13 +176,22 @@ class GuidedArm:
             p_dot: Its time derivative (1/s).
             rng: Generator for the sensor noise (the env's ``np_random``).
         """
+        if type(f_user) is not np.ndarray:
+            f_user = np.asarray(f_user, dtype=np.float64)
         self.f_user = f_user
+        if self.safety_stop is not None:  # protective stop: the arm holds still
+            self.v_ref = np.zeros(3)
+            self.arm.step(self.v_ref, f_user)
+            self._measure_hand()
+            self.time += self.dt
+            return
         f_meas = self.sensor.measure(f_user, rng)
         self.f_measured = f_meas
         self.coop.update(math.sqrt(float(f_meas @ f_meas)), self.dt)
         x = self.arm.hand_position()
         if not self.state.done:
             self.guide.update(self.state, x, self.v_ref)
+            self._path_point = self.trajectory.position(self.state.s).tolist()
         if self.state.done:
             if self.t_motion_end is None:
                 self.t_motion_end = self.time
@@ -159,8 +201,16 @@ class GuidedArm:
             self.t_x = 0.0
         else:
             force = f_meas + self.guide.virtual_force(self.state, x, self.v_ref, p)
-            self.v_ref = self.admittance.step(self.v_ref, force, p, p_dot, self.dt)
+            v_ref = self.admittance.step(self.v_ref, force, p, p_dot, self.dt)
+            self.v_ref = limit_velocity(v_ref, self._offset(x), self.limits)
             self.arm.step(self.v_ref, f_user)
             self.t_x = self.etc.etc(self.state, self.arm.hand_position(), self.v_ref)
         self._measure_hand()
         self.time += self.dt
+        self.safety_stop = self.monitor.check(
+            self.time,
+            self._hand_speed,
+            self.path_deviation,
+            math.hypot(*f_user.tolist()),
+            self.arm.joint_positions,
+        )
