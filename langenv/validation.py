@@ -82,8 +82,9 @@ def check_time_axis(
         )
     gaps = np.diff(t)
     i = int(np.argmin(gaps))
-    if gaps[i] < MIN_SAMPLE_SPACING:
+    gap = float(gaps[i])
+    if gap < MIN_SAMPLE_SPACING:
         raise error(
-            f"{where}: column 't' has samples {gaps[i]!r} s apart ({at(i)} and {at(i + 1)}), "
+            f"{where}: column 't' has samples {gap:.3g} s apart ({at(i)} and {at(i + 1)}), "
             f"closer than the {MIN_SAMPLE_SPACING:g} s minimum spacing (are the times in seconds?)"
         )

@@ -148,7 +148,7 @@ def read_trace(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     bad = np.flatnonzero((a < MIN_AUDIO_PACE) | (a > MAX_AUDIO_PACE))
     if bad.size:
         raise SessionDataError(
-            f"{path}: row {bad[0] + 2}, column 'audio_pace': {a[bad[0]]!r} is outside "
+            f"{path}: row {bad[0] + 2}, column 'audio_pace': {float(a[bad[0]])!r} is outside "
             f"[{MIN_AUDIO_PACE:g}, {MAX_AUDIO_PACE:g}]"
         )
     return t, a, values.get("t_x")

@@ -63,7 +63,7 @@ def _trace(t: Any, a: Any, t_x: Any = None) -> tuple[np.ndarray, np.ndarray, np.
         bad = int(np.flatnonzero(~ok)[0])
         raise ConfigError(
             f"a must be finite and > 0, within [{MIN_AUDIO_PACE:g}, {MAX_AUDIO_PACE:g}]; "
-            f"got a[{bad}] = {aa[bad]!r}"
+            f"got a[{bad}] = {float(aa[bad])!r}"
         )
     xx = None
     if t_x is not None:
