@@ -499,3 +499,25 @@ def test_fresh_run_refuses_a_non_empty_out(tmp_path: Path) -> None:
     res = _train("--out", str(tmp_path), "--total-timesteps", "100")
     assert res.returncode == 2 and "already holds files" in res.stderr
     assert [p.name for p in tmp_path.iterdir()] == ["notes.txt"]
+
+
+def test_export_and_ensemble_never_replace_files_without_overwrite(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from train.ensemble import main as ensemble_main
+    from train.export import main as export_main
+
+    (tmp_path / "checkpoints").mkdir()
+    (tmp_path / "run_config.yaml").write_text("train: {name: m}\n")
+    for f in checkpoint_files(tmp_path / "checkpoints", "m", 5):
+        f.write_bytes(b"checkpoint")
+    (tmp_path / "x_config.yaml").write_text("mine")
+    assert export_main([str(tmp_path), "--steps", "5", "--out", str(tmp_path / "x")]) == 2
+    assert "x_config.yaml exists; give --overwrite" in capsys.readouterr().err
+    assert (tmp_path / "x_config.yaml").read_text() == "mine"
+    assert not (tmp_path / "x.zip").exists()
+    manifest = tmp_path / "e.yaml"
+    manifest.write_text("mine")
+    assert ensemble_main([str(tmp_path / "a.zip"), "--out", str(manifest)]) == 2
+    assert "e.yaml exists; give --overwrite" in capsys.readouterr().err
+    assert manifest.read_text() == "mine"

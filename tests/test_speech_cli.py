@@ -250,3 +250,14 @@ def test_render_functions_bound_the_trace() -> None:
         render_history(g, ClipLibrary(), ["intro"], np.array([0.0, 1e7]), np.ones(2))
     with pytest.raises(ConfigError, match=r"a\[1\] = 1000000000.0"):
         plan_speech(g, np.array([0.0, 1.0]), np.array([1.0, 1e9]))
+
+
+def test_render_never_replaces_a_file_without_overwrite(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    trace = write_trace(tmp_path / "trace.csv", np.linspace(0, 5, 6), np.ones(6))
+    out = tmp_path / "out.wav"
+    out.write_bytes(b"a user's recording")
+    assert main(["render", "ac", str(trace), str(out)]) == 1
+    assert "--overwrite" in capsys.readouterr().err
+    assert out.read_bytes() == b"a user's recording"

@@ -76,7 +76,7 @@ def _parser() -> argparse.ArgumentParser:
         "audio_pace and optionally t_x (s, the motion's time to completion; with it, phrases "
         "follow the paper's choice rule, without it the shortest path). Extra columns are "
         "ignored, so the study's session CSVs work as traces. OUT (.wav or .flac) is written "
-        "only on success.",
+        "only on success, and replaces an existing file only with --overwrite.",
     )
     r.add_argument("graph", metavar="GRAPH", help="phrase graph YAML file or shipped graph name")
     r.add_argument(
@@ -84,6 +84,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     r.add_argument("out", metavar="OUT", type=Path, help="sound file to write (.wav or .flac)")
     r.add_argument("--no-t-x", action="store_true", help="ignore a t_x column: shortest path")
+    r.add_argument("--overwrite", action="store_true", help="replace an existing OUT")
     return p
 
 
@@ -195,6 +196,9 @@ def _render(args: argparse.Namespace) -> int:
         return 1
     if not out.parent.is_dir():
         print(f"error: {out}: directory {out.parent} does not exist", file=sys.stderr)
+        return 1
+    if out.exists() and not args.overwrite:
+        print(f"error: {out}: exists; give --overwrite to replace it", file=sys.stderr)
         return 1
     clips = _clips(args)
     graph = PhraseGraph.load(_graph_path(args.graph), clips)
