@@ -494,10 +494,14 @@ def test_restore_history_keeps_what_the_resume_point_saw(tmp_path: Path) -> None
     assert cb.best_mean_reward == pytest.approx(-0.15)
 
 
-def test_fresh_run_refuses_a_non_empty_out(tmp_path: Path) -> None:
+def test_fresh_run_refuses_a_non_empty_out(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from train.ppo import main as train_main
+
     (tmp_path / "notes.txt").write_text("keep")
-    res = _train("--out", str(tmp_path), "--total-timesteps", "100")
-    assert res.returncode == 2 and "already holds files" in res.stderr
+    assert train_main(["--config", str(CONFIG), "--out", str(tmp_path)]) == 2
+    assert "already holds files" in capsys.readouterr().err
     assert [p.name for p in tmp_path.iterdir()] == ["notes.txt"]
 
 
