@@ -92,8 +92,8 @@ def measure_nominal(max_time: float = 30.0) -> dict[str, float]:
 
 def measure_etc() -> dict[str, float]:
     """Fast motion ETC against the 500 Hz reference."""
+    from bench.etc_agreement import etc_agreement
     from langenv.control.admittance import AdmittanceParams
-    from langenv.control.motion_etc import etc_agreement
     from langenv.control.trajectory import default_exercise
 
     res = etc_agreement(default_exercise(), AdmittanceParams(), np.random.default_rng(0))

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from langenv.safety import STOP_LIMITS, SafetyLimits
+from langenv.users import CallableUser
 
 __all__ = ["ADVERSARIES", "FuzzResult", "adversary", "fuzz", "fuzz_episode"]
 
@@ -41,6 +42,8 @@ ADVERSARIES: tuple[str, ...] = (
     "resonant",
     "ramp",
 )
+
+_ENVS: dict[tuple[str, SafetyLimits, int], Any] = {}
 
 SPEED_SLACK = 0.05  # relative: a step's top speed may exceed the limit by 5 % (measurement)
 DEVIATION_SLACK = 0.01  # m
@@ -156,14 +159,16 @@ def fuzz_episode(
     policy = policy or str(rng.choice(["lc", "ac", "random"]))
     pol = load_policy("lc" if policy == "random" else policy)
     lim = limits if limits is not None else SafetyLimits()
-    env = gym.make(
-        langenv.ENV_ID,
-        users=adversary(kind, rng),
-        phrase_graph=pol.phrase_graph,
-        safety=lim,
-        max_episode_steps=round(seconds * 25),
-    )
-    obs, info = env.reset(seed=seed)
+    key = (str(pol.phrase_graph), lim, round(seconds * 25))
+    env = _ENVS.get(key)
+    if env is None:  # one env per graph and limits: building one costs up to seconds
+        env = _ENVS[key] = gym.make(
+            langenv.ENV_ID,
+            phrase_graph=pol.phrase_graph,
+            safety=lim,
+            max_episode_steps=key[2],
+        )
+    obs, info = env.reset(seed=seed, options={"user": CallableUser(adversary(kind, rng))})
     pol.reset()
     space = env.observation_space
     where = f"seed {seed} ({kind}, {policy})"
@@ -191,7 +196,6 @@ def fuzz_episode(
                 f"{where}: t={info['time']:.3f} s speed {speed:.3f} m/s, deviation {dev:.3f} m "
                 "without a protective stop"
             )
-    env.close()
     result.episodes += 1
 
 

@@ -40,7 +40,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["CompareArgs", "Job", "main", "parse_args", "run_episode"]
+__all__ = ["CompareArgs", "Job", "main", "parse_args", "run_episode", "run_jobs"]
 
 
 @dataclass(frozen=True)
@@ -101,6 +101,7 @@ class Job:
     decision_hz: int | None
     phrase_graph: str | None = None
     name: str | None = None  # the policy's name in outputs (default: its own name)
+    user_params: Any = None  # SyntheticUserParams for synthetic users (default: calibrated)
 
 
 class UsageError(Exception):
@@ -256,7 +257,7 @@ def run_episode(job: Job) -> dict[str, Any]:
     from eval.metrics import episode_metrics
     from eval.plots import session_figure
     from langenv.speech.render import render_history
-    from langenv.users import ReplayUser
+    from langenv.users import ReplayUser, SyntheticUser
     from policies import load_policy
 
     policy = load_policy(job.policy)
@@ -276,7 +277,11 @@ def run_episode(job: Job) -> dict[str, Any]:
             max_episode_steps=int(60 * hz),
             **policy.env_kwargs,
         )
-    options = {"user": ReplayUser.from_csv(job.session)} if job.session else None
+    options: dict[str, Any] | None = None
+    if job.session:
+        options = {"user": ReplayUser.from_csv(job.session)}
+    elif job.user_params is not None:
+        options = {"user": SyntheticUser(job.user_params)}
     obs, info = env.reset(seed=job.seed, options=options)
     policy.reset()
     rec = EpisodeRecorder(policy=policy.name, user=job.user)
@@ -346,7 +351,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             for n in names
             for (u, s, sess) in users
         ]
-        rows = _run_jobs(jobs, args.workers)
+        rows = run_jobs(jobs, args.workers)
         _write_outputs(rows, list(labels.values()), tmp, args)
         cfg = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(args).items()}
         (tmp / "config.json").write_text(json.dumps(cfg, indent=2) + "\n")
@@ -362,7 +367,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     return 0
 
 
-def _run_jobs(jobs: list[Job], workers: int) -> list[dict[str, Any]]:
+def run_jobs(jobs: list[Job], workers: int) -> list[dict[str, Any]]:
+    """Run ``jobs`` (in ``workers`` processes if > 1) with a progress bar; their rows, in order."""
     from tqdm import tqdm
 
     bar = tqdm(total=len(jobs), desc="episodes", unit="ep", file=sys.stderr)

@@ -22,19 +22,11 @@ from langenv.robot.arm import Arm
 from langenv.robot.force_sensor import ForceSensor
 from langenv.safety import SafetyLimits
 from langenv.speech.audio import ClipLibrary
-from langenv.speech.graph import PhraseGraph
+from langenv.speech.graph import PhraseGraph, graph_path
 from langenv.speech.timeline import SpeechTimeline
 from langenv.users import CallableUser, ReplayUser, SyntheticUser, User
 
-__all__ = ["DEFAULT_GRAPHS", "LangCtrlEnv", "make_env"]
-
-_ASSETS = Path(__file__).resolve().parent / "assets" / "graphs"
-#: The shipped phrase graphs of the default exercise, by controller.
-DEFAULT_GRAPHS: dict[str, Path] = {
-    "lc": _ASSETS / "lc.yaml",
-    "lc-noap": _ASSETS / "lc_noap.yaml",
-    "ac": _ASSETS / "ac.yaml",
-}
+__all__ = ["LangCtrlEnv", "make_env"]
 
 PHYSICS_HZ = 500
 T_SCALE = 40.0  # s, normalisation of times in the observation
@@ -214,9 +206,8 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             raise ConfigError(f"safety must be SafetyLimits or None, got {type(safety).__name__}")
 
         self.user: User = _make_user(users, session)
-        graph_path = DEFAULT_GRAPHS.get(str(phrase_graph), Path(phrase_graph))
         self.clips = clips if clips is not None else ClipLibrary()
-        self.graph = PhraseGraph.load(graph_path, clips=self.clips)
+        self.graph = PhraseGraph.load(graph_path(phrase_graph), clips=self.clips)
         self.max_children = max(1, self.graph.max_children)
 
         params = admittance if admittance is not None else AdmittanceParams()

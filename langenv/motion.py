@@ -8,13 +8,18 @@
 3. the guide finds the closest point ``x_d`` (locally), tracks the stops, and gives
    ``F_virtual = K (x_d - x) + F_prop b``;
 4. the variable admittance ``A(p)`` turns ``F~ + F_virtual`` into ``v_ref``;
-5. the safety layer limits ``v_ref`` (speed; no motion away from the path beyond
-   ``hold_deviation``), the velocity controller ``C`` drives the hand to it and MuJoCo steps the
-   arm;
-6. the motion ETC ``t_x`` is estimated from the new state;
-7. the safety monitor checks the hand's speed and distance from the path, the force on the handle
+5. the velocity command sent to the robot follows ``v_ref`` (capped by the guide's speed
+   governor while the person pushes the hand along) with at most ``max_acceleration`` (the ``a``
+   of a UR's ``speedL``); once the last leg is done it brakes to 0 at that rate;
+6. the safety layer limits ``v_ref`` and the command (speed; no motion away from the path beyond
+   ``hold_deviation``, overriding the acceleration limit), the velocity controller ``C`` drives
+   the hand to the command and MuJoCo steps the arm;
+7. the motion ETC ``t_x`` is estimated from the new state;
+8. the safety monitor checks the hand's speed and distance from the path, the force on the handle
    and the joints; a breach is a **protective stop** (:attr:`GuidedArm.safety_stop`): from then
    on the arm holds still (see :mod:`langenv.safety`).
+
+Motion is over when the command has come to rest after the last leg.
 
 The paces ``p`` (and its rate) come from outside: they are the aligner's business.
 """
@@ -26,6 +31,7 @@ import math
 import numpy as np
 
 from langenv.control.admittance import AdmittanceParams, VariableAdmittance
+from langenv.control.command import cap_speed, follow
 from langenv.control.cooperation import CooperationFilter
 from langenv.control.guide import Guide, GuideState
 from langenv.control.motion_etc import FastETC
@@ -79,9 +85,11 @@ class GuidedArm:
         self.dt: float = arm.dt
         self.state: GuideState = self.guide.initial_state()
         self.v_ref = np.zeros(3)
+        self.v_cmd = np.zeros(3)
         self.f_user = np.zeros(3)
         self.f_measured = np.zeros(3)
         self.t_x: float = 0.0
+        self._dv_max = params.max_acceleration * arm.dt
         self.t_motion_end: float | None = None
         self.time: float = 0.0
         self._hand_velocity = np.zeros(3)
@@ -110,8 +118,8 @@ class GuidedArm:
 
     @property
     def motion_done(self) -> bool:
-        """Whether the hand has come to rest at the trajectory's end."""
-        return bool(self.state.done)
+        """Whether the hand has come to rest after the last leg."""
+        return self.t_motion_end is not None
 
     @property
     def stopped(self) -> bool:
@@ -124,12 +132,8 @@ class GuidedArm:
         return float(self.state.s / self.trajectory.length)
 
     def tangent(self) -> np.ndarray:
-        """Unit direction of travel along the path at the closest point, shape (3,).
-
-        At a stop not yet reached this is the arriving segment's direction (the right derivative
-        there would already point along the next segment).
-        """
-        return self.guide.tangent(self.state)
+        """Unit direction of progress at the hand, shape (3,) (:meth:`Guide.tangent`)."""
+        return self.guide.tangent(self.state, self.arm.hand_position())
 
     # ------------------------------------------------------------------ loop
     def reset(self) -> None:
@@ -138,11 +142,12 @@ class GuidedArm:
         self.coop.reset()
         self.state = self.guide.initial_state()
         self.v_ref = np.zeros(3)
+        self.v_cmd = np.zeros(3)
         self.f_user = np.zeros(3)
         self.f_measured = np.zeros(3)
         self.time = 0.0
         self.t_motion_end = None
-        self.t_x = self.etc.etc(self.state, self.arm.hand_position(), self.v_ref)
+        self.t_x = self.etc.etc(self.state, self.arm.hand_position(), self.v_ref, self.v_cmd)
         self.safety_stop = None
         self.monitor.reset()
         self._path_point = self.trajectory.position(self.state.s).tolist()
@@ -181,7 +186,8 @@ class GuidedArm:
         self.f_user = f_user
         if self.safety_stop is not None:  # protective stop: the arm holds still
             self.v_ref = np.zeros(3)
-            self.arm.step(self.v_ref, f_user)
+            self.v_cmd = np.zeros(3)
+            self.arm.step(self.v_cmd, f_user)
             self._measure_hand()
             self.time += self.dt
             return
@@ -190,21 +196,30 @@ class GuidedArm:
         self.coop.update(math.sqrt(float(f_meas @ f_meas)), self.dt)
         x = self.arm.hand_position()
         if not self.state.done:
-            self.guide.update(self.state, x, self.v_ref)
+            self.guide.update(self.state, x)
             self._path_point = self.trajectory.position(self.state.s).tolist()
-        if self.state.done:
-            if self.t_motion_end is None:
-                self.t_motion_end = self.time
-            # motion over: the robot holds still
+        offset = self._offset(x)
+        braking = self.state.done
+        if braking:
             self.v_ref = np.zeros(3)
-            self.arm.step(self.v_ref, f_user)
-            self.t_x = 0.0
         else:
             force = f_meas + self.guide.virtual_force(self.state, x, self.v_ref, p)
             v_ref = self.admittance.step(self.v_ref, force, p, p_dot, self.dt)
-            self.v_ref = limit_velocity(v_ref, self._offset(x), self.limits)
-            self.arm.step(self.v_ref, f_user)
-            self.t_x = self.etc.etc(self.state, self.arm.hand_position(), self.v_ref)
+            self.v_ref = limit_velocity(v_ref, offset, self.limits)
+        was_moving = bool(self.v_cmd.any())
+        target = self.v_ref
+        if not braking and float(f_meas @ self.tangent()) > 0.0:  # pushed along: the governor
+            target = cap_speed(target, self.guide.speed_limit(self.state, self.v_cmd))
+        # the safety limits override the acceleration limit
+        self.v_cmd = limit_velocity(follow(self.v_cmd, target, self._dv_max), offset, self.limits)
+        self.arm.step(self.v_cmd, f_user)
+        if braking:
+            moving = bool(self.v_cmd.any())
+            if not moving and self.t_motion_end is None:
+                self.t_motion_end = self.time + (self.dt if was_moving else 0.0)
+            self.t_x = math.sqrt(float(self.v_cmd @ self.v_cmd)) / self.params.max_acceleration
+        else:
+            self.t_x = self.etc.etc(self.state, self.arm.hand_position(), self.v_ref, self.v_cmd)
         self._measure_hand()
         self.time += self.dt
         self.safety_stop = self.monitor.check(

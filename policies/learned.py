@@ -367,9 +367,9 @@ def file_sha256(path: str | Path) -> str:
 
 def graph_digest(phrase_graph: str | Path) -> str:
     """SHA-256 of a phrase graph's YAML (a shipped key such as ``"lc"`` or a path)."""
-    from langenv.env import DEFAULT_GRAPHS
+    from langenv.speech.graph import graph_path
 
-    return file_sha256(DEFAULT_GRAPHS.get(str(phrase_graph), Path(phrase_graph)))
+    return file_sha256(graph_path(phrase_graph))
 
 
 def model_files(path: str | Path) -> tuple[Path, Path, Path]:

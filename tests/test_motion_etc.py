@@ -1,4 +1,4 @@
-"""Motion ETC: the 500 Hz reference, the fast estimator, and the virtual-run simulator."""
+"""Motion ETC: the 500 Hz reference and the fast estimator, on the nominal run and off it."""
 
 from __future__ import annotations
 
@@ -7,18 +7,12 @@ import math
 import numpy as np
 import pytest
 
+from bench.etc_agreement import etc_agreement, random_pace, random_resistance
 from langenv.control.admittance import AdmittanceParams, VariableAdmittance
 from langenv.control.guide import Guide, GuideState
-from langenv.control.motion_etc import (
-    FastETC,
-    VirtualRun,
-    etc_agreement,
-    random_pace,
-    random_resistance,
-    reference_etc,
-    simulate_virtual,
-)
-from langenv.control.trajectory import default_exercise, line
+from langenv.control.motion_etc import FastETC, reference_etc
+from langenv.control.trajectory import LineSegment, Trajectory, default_exercise, line
+from langenv.control.virtual_loop import VirtualRun, simulate_virtual
 from langenv.errors import ConfigError
 
 EX = default_exercise()
@@ -55,14 +49,22 @@ def test_reference_is_consistent_with_the_run(
         nominal.done_time
     )
     assert st == guide.initial_state()  # the state is not modified
-    for i in np.linspace(0, len(nominal.t) - 2, 7).astype(int).tolist():
-        ref = reference_etc(guide, adm, nominal.guide_state(i), nominal.x[i], nominal.v[i])
+    for i in np.linspace(0, len(nominal.t) - 2, 9).astype(int).tolist():
+        st, x, v_ref, v = nominal.guide_state(i), nominal.x[i], nominal.v_ref[i], nominal.v[i]
+        ref = reference_etc(guide, adm, st, x, v_ref, v)
         assert ref == pytest.approx(nominal.done_time - nominal.t[i], abs=1e-9)
 
 
-def test_reference_done_and_horizon(guide: Guide, adm: VariableAdmittance) -> None:
-    done = GuideState(EX.length, len(EX.stop_s), True)
-    assert reference_etc(guide, adm, done, EX.position(EX.length), np.zeros(3)) == 0.0
+def test_reference_brake_done_and_horizon(guide: Guide, adm: VariableAdmittance) -> None:
+    n = guide.n_legs
+    done = GuideState(EX.length, n, True)
+    end = EX.position(EX.length)
+    assert reference_etc(guide, adm, done, end, np.zeros(3)) == 0.0
+    # after the last leg the hand brakes at max_acceleration
+    moving = np.array([0.1, 0.0, 0.0])
+    assert reference_etc(guide, adm, done, end, np.zeros(3), moving) == pytest.approx(
+        0.1 / P.max_acceleration, abs=0.0021
+    )
     short = reference_etc(
         guide, adm, guide.initial_state(), EX.position(0.0), np.zeros(3), t_max=1.0
     )
@@ -71,40 +73,52 @@ def test_reference_done_and_horizon(guide: Guide, adm: VariableAdmittance) -> No
 
 def test_fast_etc_nominal_and_done(fast: FastETC, nominal: VirtualRun) -> None:
     assert nominal.done_time is not None
-    assert fast.nominal() == pytest.approx(nominal.done_time, abs=0.01)
-    done = GuideState(EX.length, len(EX.stop_s), True)
-    assert fast.etc(done, EX.position(EX.length), np.zeros(3)) == 0.0
+    assert fast.nominal() == pytest.approx(nominal.done_time, rel=0.02)
+    done = GuideState(EX.length, fast.guide.n_legs, True)
+    end = EX.position(EX.length)
+    assert fast.etc(done, end, np.zeros(3)) == 0.0
+    braking = np.array([0.0, 0.07, 0.0])
+    assert fast.etc(done, end, np.zeros(3), braking) == pytest.approx(0.07 / P.max_acceleration)
 
 
 def test_fast_etc_along_the_nominal_run(fast: FastETC, nominal: VirtualRun) -> None:
     assert nominal.done_time is not None
     idx = np.arange(0, len(nominal.t) - 1, 25)
     est = np.array(
-        [fast.etc(nominal.guide_state(i), nominal.x[i], nominal.v[i]) for i in idx.tolist()]
+        [
+            fast.etc(nominal.guide_state(i), nominal.x[i], nominal.v_ref[i], nominal.v[i])
+            for i in idx.tolist()
+        ]
     )
     ref = nominal.done_time - nominal.t[idx]
     err = np.abs(est - ref)
     assert np.max(err / np.maximum(ref, 0.1)) <= 0.02
-    assert np.max(err) < 0.02
+    assert np.max(err) < 0.15
 
 
 def test_fast_etc_agrees_with_reference_off_nominal() -> None:
-    """Random paces and resisting users (states slowed, pushed back, faster than nominal)."""
+    """Random paces and resisting users (states slowed, pushed back, lagging the admittance)."""
     res = etc_agreement(EX, P, np.random.default_rng(7), n_runs=4, samples_per_run=8)
     assert res["n_states"] >= 30
     assert res["max_rel_err"] <= 0.02
-    assert res["mean_rel_err"] <= 0.005
-    assert res["etc_us_median"] < 50.0  # a few us on the dev machine; generous for CI
+    assert res["mean_rel_err"] <= 0.01
+
+
+def test_fast_etc_with_exact_tracking() -> None:
+    """Without the acceleration limit the law reduces to the admittance's exponential."""
+    params = AdmittanceParams(max_acceleration=math.inf)
+    res = etc_agreement(EX, params, np.random.default_rng(11), n_runs=3, samples_per_run=8)
+    assert res["max_abs_err"] <= 0.05
+    assert res["max_rel_err"] <= 0.02 + 0.002 / 0.1  # one tick in the last 0.1 s
+    assert res["mean_rel_err"] <= 0.01
 
 
 def test_fast_etc_on_another_geometry() -> None:
-    """A longer straight exercise with a stop in the middle: tables are not exercise-specific."""
-    from langenv.control.trajectory import LineSegment, Trajectory
-
+    """Two straight legs at a right angle: the tables are not exercise-specific."""
     tr = Trajectory(
         [
-            LineSegment(np.zeros(3), np.array([0.4, 0.0, 0.0]), stop=True),
-            LineSegment(np.array([0.4, 0.0, 0.0]), np.array([0.4, 0.3, 0.0]), stop=True),
+            LineSegment(np.zeros(3), np.array([0.4, 0.0, 0.0]), waypoint=True),
+            LineSegment(np.array([0.4, 0.0, 0.0]), np.array([0.4, 0.3, 0.0]), waypoint=True),
         ]
     )
     g = Guide(tr, P)
@@ -118,29 +132,9 @@ def test_fast_etc_on_another_geometry() -> None:
     )
     assert run.done_time is not None
     for i in np.linspace(0, len(run.t) - 2, 12).astype(int).tolist():
-        st, x, v = run.guide_state(i), run.x[i], run.v[i]
-        ref = reference_etc(g, a, st, x, v)
-        assert abs(f.etc(st, x, v) - ref) <= 0.02 * max(ref, 0.1)
-
-
-def test_fast_etc_knife_edge_of_the_stop_rule(
-    guide: Guide, adm: VariableAdmittance, fast: FastETC
-) -> None:
-    """Near the stop, a slightly faster hand misses the tolerance box and swings back: the
-    reference jumps by ~0.8 s there and the estimator must follow it on both sides (bilinear
-    interpolation alone fails here: FastETC(jump=inf) misses one of these states per row)."""
-    s_stop = float(EX.stop_s[-1])
-    k = len(EX.stop_s) - 1
-    for q in (0.12, 0.08):
-        values = []
-        for u in np.linspace(0.0325, 0.2025, 35):
-            s = s_stop - q
-            st = GuideState(s, k, False)
-            x, v = EX.position(s), u * EX.tangent(s)
-            ref = reference_etc(guide, adm, st, x, v)
-            values.append(ref)
-            assert fast.etc(st, x, v) == pytest.approx(ref, abs=0.05)
-        assert np.max(np.diff(values)) > 0.5  # the jump is there
+        st, x, v_ref, v = run.guide_state(i), run.x[i], run.v_ref[i], run.v[i]
+        ref = reference_etc(g, a, st, x, v_ref, v)
+        assert abs(f.etc(st, x, v_ref, v) - ref) <= 0.03 * max(ref, 0.1)
 
 
 def test_simulate_virtual_records_inputs() -> None:
@@ -148,10 +142,14 @@ def test_simulate_virtual_records_inputs() -> None:
     assert run.done_time is None
     n = len(run.t)
     assert run.x.shape == (n, 3) and run.v.shape == (n, 3) and run.f_ext.shape == (n, 3)
+    assert run.v_ref.shape == (n, 3)
     assert np.all(run.p == 0.8)
-    np.testing.assert_allclose(np.linalg.norm(run.f_ext, axis=1), 3.0)
+    np.testing.assert_allclose(np.linalg.norm(run.f_ext[1:], axis=1), 3.0)
     # slower pace and resistance: slower than the nominal plateau
     assert run.max_speed < 0.8 * (10.0 - 3.0) / 80.0 + 1e-3
+    # the command never changes faster than max_acceleration
+    dv = np.linalg.norm(np.diff(run.v, axis=0), axis=1)
+    assert dv.max() <= P.max_acceleration * 0.002 + 1e-12
 
 
 def test_fast_etc_validation(guide: Guide, adm: VariableAdmittance) -> None:

@@ -29,6 +29,7 @@ from langenv.safety import (
     SafetyStop,
     limit_velocity,
 )
+from langenv.users import CallableUser
 from policies import load_policy
 
 LIMITS = SafetyLimits()
@@ -128,20 +129,21 @@ def test_monitor_catches_a_joint_reaching_its_range_end() -> None:
     assert stop is not None and stop.limit == "joint_limit" and "wrist" in stop.message
 
 
-def _guided_arm(limits: SafetyLimits | None = None) -> GuidedArm:
+@pytest.fixture(scope="module")
+def motion() -> GuidedArm:
+    """A guided arm with a lower speed limit (building one takes a while: shared)."""
+    limits = SafetyLimits(max_speed=0.3, hold_deviation=0.05)
     return GuidedArm(
         Arm(), default_exercise(), AdmittanceParams(), ForceSensor(), CooperationFilter(), limits
     )
 
 
-def test_speed_limit_has_one_source() -> None:
-    motion = _guided_arm(SafetyLimits(max_speed=0.3, hold_deviation=0.05))
+def test_speed_limit_has_one_source(motion: GuidedArm) -> None:
     assert motion.arm.max_hand_speed == 0.3
     assert Arm().max_hand_speed == SafetyLimits().max_speed
 
 
-def test_protective_stop_halts_and_holds_the_arm() -> None:
-    motion = _guided_arm()
+def test_protective_stop_halts_and_holds_the_arm(motion: GuidedArm) -> None:
     motion.reset()
     push = np.array([0.0, 0.0, 160.0])
     motion.tick(push, 1.0, 0.0)
@@ -154,20 +156,28 @@ def test_protective_stop_halts_and_holds_the_arm() -> None:
     assert motion.hand_speed < 0.01
     assert motion.v_ref.tolist() == [0.0, 0.0, 0.0]
     assert motion.safety_stop.limit == "force"  # the first breach stays the reason
+    motion.reset()
+    assert not motion.stopped
 
 
-def _episode(user: Any, policy: str = "lc", **kwargs: Any) -> list[dict[str, Any]]:
+_ENVS: dict[str, Any] = {}
+
+
+def _episode(user: Any, policy: str = "lc", steps: int | None = None) -> list[dict[str, Any]]:
+    """An episode of ``policy`` with ``user``, whole (60 s at most) or its first ``steps``
+    steps; the infos of every step."""
     pol = load_policy(policy)
-    env = gym.make(langenv.ENV_ID, users=user, phrase_graph=pol.phrase_graph, **kwargs)
-    obs, info = env.reset(seed=0)
+    env = _ENVS.get(policy)
+    if env is None:  # one env per policy: building one takes a while
+        env = _ENVS[policy] = gym.make(langenv.ENV_ID, phrase_graph=pol.phrase_graph)
+    obs, info = env.reset(seed=0, options={"user": CallableUser(user)})
     pol.reset()
     infos = [info]
-    done = False
+    done = steps == 0
     while not done:
         obs, _r, terminated, truncated, info = env.step(pol.act(obs))
         infos.append(dict(info, terminated=terminated))
-        done = terminated or truncated
-    env.close()
+        done = terminated or truncated or len(infos) - 1 == steps
     return infos
 
 
@@ -185,9 +195,10 @@ def test_the_issue_repro_ends_in_a_protective_stop() -> None:
 
 
 def test_info_reports_deviation_and_top_speed_every_step() -> None:
-    env = gym.make(langenv.ENV_ID, users=lambda t, v, b: np.zeros(3), max_episode_steps=50)
-    _obs, info = env.reset(seed=0)
-    assert info["path_deviation"] == 0.0 or info["path_deviation"] < 1e-6
+    _episode(lambda t, v, b: np.zeros(3), "lc", steps=0)  # builds the env
+    env = _ENVS["lc"]
+    _obs, info = env.reset(seed=0, options={"user": CallableUser(lambda t, v, b: np.zeros(3))})
+    assert info["path_deviation"] < 1e-6
     base: Any = env.unwrapped
     top = 0.0
     for _ in range(50):

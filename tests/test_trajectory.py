@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from langenv.control.trajectory import (
+    EXERCISE_ANGLE_DEG,
     ArcSegment,
     LineSegment,
     Trajectory,
@@ -19,7 +20,8 @@ from langenv.control.trajectory import (
 from langenv.errors import ConfigError, TrajectoryError
 
 EX = default_exercise()
-L0, L1, L2 = (float(v) for v in np.diff(np.concatenate([[0.0], EX.stop_s])))
+L0, L1, L2 = (float(v) for v in np.diff(np.concatenate([[0.0], EX.waypoint_s])))
+ANGLE = math.radians(EXERCISE_ANGLE_DEG)
 
 
 def _interior_s(traj: Trajectory, n: int, margin: float = 1e-4) -> np.ndarray:
@@ -38,12 +40,12 @@ def test_default_exercise_geometry() -> None:
     # arc, line back to the start, the same arc again
     radius = math.hypot(*(start - pivot)[:2])
     assert radius == pytest.approx(0.368, abs=1e-3)
-    assert L0 == pytest.approx(radius * math.radians(40.0), rel=1e-12)
+    assert L0 == pytest.approx(radius * ANGLE, rel=1e-12)
     assert L2 == pytest.approx(L0, rel=1e-12)
-    assert L1 == pytest.approx(2 * radius * math.sin(math.radians(20.0)), rel=1e-9)
+    assert L1 == pytest.approx(2 * radius * math.sin(ANGLE / 2), rel=1e-9)
     np.testing.assert_allclose(EX.position(L0 + L1), start, atol=1e-12)
-    # a stop at the end of each segment, the last one at L
-    np.testing.assert_allclose(EX.stop_s, [L0, L0 + L1, EX.length])
+    # each segment is a leg, the last one ends at L
+    np.testing.assert_allclose(EX.waypoint_s, [L0, L0 + L1, EX.length])
     # every point of the arcs is at the radius from the vertical axis, at the start's height
     for s in np.linspace(0.0, L0, 9):
         p = EX.position(float(s))
@@ -53,10 +55,31 @@ def test_default_exercise_geometry() -> None:
     end = EX.position(L0)
     assert end[0] > start[0] + 0.2
     assert np.cross(start - pivot, end - pivot)[2] > 0.0
-    # the arc segment rotates by +40 deg
+    # the arc segment rotates by the fitted angle
     seg = EX.segments[0]
     assert isinstance(seg, ArcSegment)
-    assert seg.angle == pytest.approx(math.radians(40.0))
+    assert seg.angle == pytest.approx(ANGLE)
+    # the tool turns with the arcs and back along the line
+    assert [s.turn for s in EX.segments] == pytest.approx([ANGLE] * 3)
+    assert EX.tool_angle(0.0) == 0.0
+    assert EX.tool_angle(L0) == pytest.approx(ANGLE)
+    assert EX.tool_angle(EX.length) == pytest.approx(3 * ANGLE)
+    assert EX.turn_rate(L0, arriving=True) == pytest.approx(ANGLE / L0)
+    assert EX.turn_rate(L0) == pytest.approx(ANGLE / L1)
+
+
+def test_default_exercise_angle_argument() -> None:
+    tr = default_exercise(50.0)
+    assert tr.segments[0].length == pytest.approx(0.3683 * math.radians(50.0), rel=1e-3)
+    for bad in (0.0, -5.0, 91.0, math.nan):
+        with pytest.raises(TrajectoryError, match="angle_deg"):
+            default_exercise(bad)
+
+
+@given(st.floats(0.0, 1.0), st.floats(0.0, 1.0))
+def test_tool_angle_is_monotone(a: float, b: float) -> None:
+    lo, hi = sorted((a * EX.length, b * EX.length))
+    assert EX.tool_angle(lo) <= EX.tool_angle(hi) + 1e-12
 
 
 def test_arc_length_parametrisation_unit_speed() -> None:
@@ -153,7 +176,7 @@ def test_line_helper() -> None:
     assert tr.length == pytest.approx(1.0)
     np.testing.assert_allclose(tr.position(0.25), [0.25, 0, 0])
     np.testing.assert_allclose(tr.tangent(0.5), [1, 0, 0])
-    np.testing.assert_allclose(tr.stop_s, [1.0])
+    np.testing.assert_allclose(tr.waypoint_s, [1.0])
     assert tr.closest(np.array([0.3, 0.2, -0.1]), 0.9) == pytest.approx(0.3)
 
 
@@ -209,6 +232,11 @@ def test_full_circle_and_negative_angle() -> None:
             "segments\\[1\\]",
         ),
         (lambda: Trajectory(["not a segment"]), "segments\\[0\\]"),  # type: ignore[list-item]
+        (lambda: LineSegment(np.zeros(3), np.ones(3), turn=-1.0), "LineSegment.turn"),
+        (
+            lambda: ArcSegment(np.zeros(3), np.array([0, 0, 1.0]), np.ones(3), 1.0, turn=math.inf),
+            "ArcSegment.turn",
+        ),
     ],
 )
 def test_validation_names_the_field(make: object, field: str) -> None:

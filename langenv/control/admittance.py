@@ -38,10 +38,14 @@ class AdmittanceParams:
         stiffness: Guide stiffness ``K`` (N/m), > 0.
         propel_force: Propelling force ``|F_prop|`` (N), >= 0; the guided hand settles at
             ``propel_force / damping`` (0.125 m/s).
-        brake_distance: Distance before a stop over which the propelling force tapers linearly
-            to 0 (m), >= 0.
-        stop_tol_pos: A stop is reached within this distance of it (m), > 0 ...
-        stop_tol_vel: ... with the hand slower than this (m/s), > 0.
+        switch_tol: The guide moves on to the next leg when the hand's pose is this close to the
+            leg's end pose, in the lab code's 6-D norm ``sqrt(|dx|^2 + dphi^2)`` (m and rad of
+            tool rotation), > 0. The lab's 0.1 is about 3.5 cm before the end on the default
+            exercise.
+        max_acceleration: Acceleration limit of the velocity command sent to the robot (m/s^2,
+            the ``a`` of a UR's ``speedL``), > 0: the hand follows ``v_ref`` changing its
+            velocity at most this fast, and brakes to rest at this rate when motion ends.
+            ``math.inf``: the hand tracks ``v_ref`` exactly.
         curvature_feedforward: Add the centripetal term ``M0 kappa (v_par / p)^2`` on curved
             segments (an addition to the paper; it keeps the hand on arcs).
         p_min: Lowest physical pace accepted (SPEC §1: 0.6), > 0.
@@ -55,9 +59,8 @@ class AdmittanceParams:
     damping: float = 80.0
     stiffness: float = 120.0
     propel_force: float = 10.0
-    brake_distance: float = 0.15
-    stop_tol_pos: float = 0.005
-    stop_tol_vel: float = 0.01
+    switch_tol: float = 0.1
+    max_acceleration: float = 0.14
     curvature_feedforward: bool = True
     p_min: float = 0.6
     p_max: float = 1.4
@@ -71,18 +74,17 @@ class AdmittanceParams:
                 raise ConfigError(
                     f"AdmittanceParams.{f.name} must be a number, got {type(value).__name__}"
                 )
-            if not math.isfinite(value):
+            if not math.isfinite(value) and not (f.name == "max_acceleration" and value > 0):
                 raise ConfigError(f"AdmittanceParams.{f.name} must be finite, got {value!r}")
             object.__setattr__(self, f.name, float(value))
-        positive = ("mass", "damping", "stiffness", "stop_tol_pos", "stop_tol_vel", "p_min")
+        positive = ("mass", "damping", "stiffness", "switch_tol", "max_acceleration", "p_min")
         for name in positive:
             if getattr(self, name) <= 0.0:
                 raise ConfigError(f"AdmittanceParams.{name} must be > 0, got {getattr(self, name)}")
-        for name in ("propel_force", "brake_distance"):
-            if getattr(self, name) < 0.0:
-                raise ConfigError(
-                    f"AdmittanceParams.{name} must be >= 0, got {getattr(self, name)}"
-                )
+        if self.propel_force < 0.0:
+            raise ConfigError(
+                f"AdmittanceParams.propel_force must be >= 0, got {self.propel_force}"
+            )
         if self.p_max < self.p_min:
             raise ConfigError(
                 f"AdmittanceParams.p_max must be >= p_min={self.p_min}, got {self.p_max}"

@@ -1,14 +1,28 @@
-"""The guide: progress along the trajectory, stops, and the virtual force (SPEC §1).
+"""The guide: progress along the trajectory, leg switching, and the virtual force (SPEC §1, §2).
 
 ``F_virtual = K (x_d - x) + F_prop b (+ centripetal feed-forward on arcs)``, where ``x_d = T(s)``
-is the closest point, found locally around the previous one and only inside the current stop's
-window ``[previous stop, next stop]``, and ``b`` the unit tangent there.
+is the closest point, found locally around the previous one and only inside the current leg
+``[previous waypoint, next waypoint]``, and ``b`` the unit tangent there.
 
-Stops. Over the last ``brake_distance`` before a stop the propelling force tapers linearly to 0.
-Past the stop the closest point is clamped to it, so the guide term ``K (T(stop) - x)`` pulls the
-hand back to the end point. The stop is *reached* when ``|x - T(stop)| < stop_tol_pos`` and
-``|v| < stop_tol_vel``; the window then moves on to the next segment. Motion is over when the last
-stop is reached; from then on only the guide term (towards the end point) remains.
+Legs, as in the study's lab code (SPEC §2, "segment ends"). The full propelling force acts along
+the path until the leg's end is passed; past it the closest point is clamped to the end, so only
+the guide term ``K (T(end) - x)`` acts, pulling the hand back. The guide moves on to the next leg
+as soon as the hand's pose is within ``switch_tol`` of the leg's end pose, in the lab's 6-D norm
+``sqrt(|x - T(end)|^2 + dphi^2)`` with ``dphi`` the tool rotation still to go (the tool turns with
+the path, :meth:`~langenv.control.trajectory.Trajectory.tool_angle`), without waiting for the hand
+to slow down: about 3.5 cm before the end point on the default exercise. The hand then turns
+towards the next leg in a short V-shaped dip of its speed. Motion is over when the last leg's end
+pose is reached the same way; the robot then holds still.
+
+Speed governor (an addition to the study, :meth:`Guide.speed_limit`). The hand follows ``v_ref``
+changing its velocity at most at ``max_acceleration``, so a hand that a person pushes along
+faster than the guided plateau speed ``F_prop / D0`` would overshoot the corners (by 20 cm at
+0.25 m/s) and leave the arcs. While a person pushes the hand along, the command is therefore
+capped at the speed from which the hand can still brake to the plateau speed by the switch
+point, at the plateau speed while it turns into a new leg, and on arcs at the speed whose
+centripetal acceleration is half the limit (0.16 m/s on the default arcs), planning with half the
+limit so that the other half stays for the guide's corrections. Without a helping push (the
+study's sessions, and the motion ETC's assumption) the governor does nothing.
 
 Curvature feed-forward (an addition to the paper, switch ``curvature_feedforward``). On an arc of
 radius R the hand needs a centripetal force ``M0 v^2 / R``; without it the guide spring supplies it
@@ -16,7 +30,7 @@ from a lateral offset ``M0 v^2 / (R K)``, about 1.2 cm at the default parameters
 arc. We add ``M0 kappa (v_par / p)^2`` (``kappa`` the curvature vector, ``v_par = v . b``); the
 admittance multiplies forces by ``p^2``, so it yields exactly ``kappa v_par^2`` of acceleration at
 any pace, and, scaling with ``(v / p)^2``, it keeps the time-warp property. It is not applied
-while the closest point sits clamped at a stop.
+while the closest point sits clamped at the leg's end.
 
 ``update`` and ``virtual_force`` run at 500 Hz; they work on plain floats (about 2-3 us each).
 """
@@ -32,7 +46,12 @@ from langenv.control.admittance import AdmittanceParams
 from langenv.control.trajectory import Trajectory
 from langenv.errors import ConfigError
 
-__all__ = ["Guide", "GuideState"]
+__all__ = ["GOVERNOR_SHARE", "Guide", "GuideState"]
+
+GOVERNOR_SHARE = 0.5
+"""Share of ``max_acceleration`` the speed governor plans its braking and turning with (the rest
+is left for the guide's corrections)."""
+_TURNED_COS2 = math.cos(math.radians(25.0)) ** 2
 
 
 @dataclass
@@ -41,26 +60,26 @@ class GuideState:
 
     Attributes:
         s: Arc length of the closest point (m).
-        stop_index: Index into ``trajectory.stop_s`` of the next stop to reach (equal to the
-            number of stops once ``done``).
-        done: Whether the last stop has been reached (motion over).
+        leg: Index of the leg being guided, into ``trajectory.waypoint_s`` (its end); equal to
+            the number of legs once ``done``.
+        done: Whether the last leg's end has been reached (motion over).
     """
 
     s: float
-    stop_index: int
+    leg: int
     done: bool
 
     def copy(self) -> GuideState:
         """An independent copy."""
-        return GuideState(self.s, self.stop_index, self.done)
+        return GuideState(self.s, self.leg, self.done)
 
 
 class Guide:
-    """Progress tracking and the virtual force along a trajectory.
+    """Progress tracking, leg switching and the virtual force along a trajectory.
 
     Args:
         trajectory: The exercise path.
-        params: Stiffness, propelling force, braking and stop tolerances, mass (feed-forward).
+        params: Stiffness, propelling force, switching tolerance, mass (feed-forward).
 
     Raises:
         ConfigError: an argument of the wrong type.
@@ -77,79 +96,144 @@ class Guide:
             )
         self.trajectory = trajectory
         self.params = params
-        stops = [float(s) for s in trajectory.stop_s]
-        self._stops = stops
-        self._win_lo = [0.0, *stops[:-1]]
-        self._stop_pts = [tuple(trajectory.position(s).tolist()) for s in stops]
-        self._n_stops = len(stops)
+        ends = [float(s) for s in trajectory.waypoint_s]
+        self._ends = ends
+        self._starts = [0.0, *ends[:-1]]
+        self._end_pts = [tuple(trajectory.position(s).tolist()) for s in ends]
+        self._end_angle = [trajectory.tool_angle(s) for s in ends]
+        self._n_legs = len(ends)
         self._k = params.stiffness
         self._f_prop = params.propel_force
-        self._inv_brake = 1.0 / params.brake_distance if params.brake_distance > 0 else math.inf
-        self._tol_x2 = params.stop_tol_pos**2
-        self._tol_v2 = params.stop_tol_vel**2
+        self._tol2 = params.switch_tol**2
         self._ff_mass = params.mass if params.curvature_feedforward else 0.0
+        self._acc = params.max_acceleration
+        self._v_turn2 = params.plateau_speed**2
+        self._q_sw = [self.switch_distance(k) for k in range(self._n_legs)]
 
     @property
-    def n_stops(self) -> int:
-        """Number of stops (the last one is the end of the trajectory)."""
-        return self._n_stops
+    def n_legs(self) -> int:
+        """Number of legs (the last one ends at the end of the trajectory)."""
+        return self._n_legs
 
     def initial_state(self) -> GuideState:
-        """State at the start of the trajectory, before its first stop."""
-        return GuideState(s=0.0, stop_index=0, done=False)
+        """State at the start of the trajectory, on its first leg."""
+        return GuideState(s=0.0, leg=0, done=False)
 
     def window(self, state: GuideState) -> tuple[float, float]:
-        """Search window ``(s_lo, s_hi)`` of the current stop (m)."""
-        k = min(state.stop_index, self._n_stops - 1)
-        return self._win_lo[k], self._stops[k]
+        """Arc-length span ``(start, end)`` of the current leg (m): the closest point's window."""
+        k = min(state.leg, self._n_legs - 1)
+        return self._starts[k], self._ends[k]
 
-    def tangent(self, state: GuideState) -> np.ndarray:
-        """Direction of travel ``b`` at the closest point, shape (3,).
+    def switch_distance(self, leg: int) -> float:
+        """How far before the end of ``leg`` (m, along the path) the guide moves on.
 
-        Unlike :meth:`Trajectory.tangent` (the right derivative), when the closest point sits
-        clamped at the upcoming stop this is the tangent of the segment *arriving* there: the
-        direction the hand is being guided in (a user resisting the motion pushes along ``-b``).
-        Once motion is over it is the tangent at the end of the trajectory.
+        On the path the 6-D distance to the end pose at ``q`` metres before it is
+        ``q sqrt(1 + w^2)``, ``w`` the tool's turn per metre there, so the switch happens at
+        ``q = switch_tol / sqrt(1 + w^2)`` (3.45 cm on the default exercise's arcs).
+        """
+        w = self.trajectory.turn_rate(self._ends[leg], arriving=True)
+        return self.params.switch_tol / math.sqrt(1.0 + w * w)
+
+    def speed_limit(self, state: GuideState, v_cmd: np.ndarray) -> float:
+        """Top speed of the velocity command at the closest point (m/s): the speed governor.
+
+        ``sqrt(v_turn^2 + 2 a' (q - q_sw))`` with ``q`` the distance left to the leg's end,
+        ``q_sw`` its switch distance, ``v_turn = F_prop / D0`` (the guided plateau speed) and
+        ``a' = GOVERNOR_SHARE * max_acceleration``, and on an arc at most ``sqrt(a' R)``; while
+        the hand is still turning into the leg (its command less than 25 deg off the leg's
+        direction) ``v_turn``; ``inf`` without an acceleration limit.
 
         Args:
             state: Guide state.
+            v_cmd: The velocity command now, shape (3,), m/s.
+        """
+        acc = self._acc
+        if acc == math.inf or state.done:
+            return math.inf
+        k = state.leg
+        seg, t = self.trajectory.locate(state.s, state.s >= self._ends[k])
+        b = seg.unit_tangent(t)
+        c0, c1, c2 = v_cmd.tolist()
+        along = c0 * b[0] + c1 * b[1] + c2 * b[2]
+        if along * along < _TURNED_COS2 * (c0 * c0 + c1 * c1 + c2 * c2) or along < 0.0:
+            return math.sqrt(self._v_turn2)
+        room = self._ends[k] - state.s - self._q_sw[k]
+        acc *= GOVERNOR_SHARE
+        cap = math.sqrt(self._v_turn2 + 2.0 * acc * (room if room > 0.0 else 0.0))
+        radius = getattr(seg, "radius", None)
+        if radius is not None:
+            bend = math.sqrt(acc * radius)
+            cap = bend if bend < cap else cap
+        return cap
+
+    def tangent(self, state: GuideState, x: np.ndarray | None = None) -> np.ndarray:
+        """Direction of progress at the closest point, shape (3,): where the hand is guided.
+
+        On the leg it is the unit tangent ``b`` there; unlike :meth:`Trajectory.tangent` (the
+        right derivative), at the current leg's end it is the tangent of the segment *arriving*
+        there. A hand that has gone past the leg's end without coming close enough to switch is
+        guided back to the end point: given ``x``, the direction is then towards it. Users push
+        along it to help and against it to resist. Once motion is over it is the tangent at the
+        end of the trajectory.
+
+        Args:
+            state: Guide state.
+            x: Hand position, shape (3,), m; ``None``: the path's direction only.
 
         Returns:
             Unit vector, shape (3,).
         """
         if state.done:
-            seg, t = self.trajectory._local(self._stops[-1], True)
-        else:
-            seg, t = self.trajectory._local(state.s, state.s >= self._stops[state.stop_index])
-        return np.array(seg._tangent(t))
+            seg, t = self.trajectory.locate(self._ends[-1], True)
+            return np.array(seg.unit_tangent(t))
+        end = self._ends[state.leg]
+        seg, t = self.trajectory.locate(state.s, state.s >= end)
+        b = seg.unit_tangent(t)
+        if x is not None and state.s >= end:
+            p = self._end_pts[state.leg]
+            x0, x1, x2 = x.tolist()
+            d0, d1, d2 = p[0] - x0, p[1] - x1, p[2] - x2
+            past = -(d0 * b[0] + d1 * b[1] + d2 * b[2])
+            if past > 1e-6:  # beyond the end point: guided back to it
+                n = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+                return np.array((d0 / n, d1 / n, d2 / n))
+        return np.array(b)
 
-    def update(self, state: GuideState, x: np.ndarray, v: np.ndarray) -> None:
-        """Move the closest point to the hand and check whether the next stop is reached.
+    def pose_distance(self, state: GuideState, x: np.ndarray) -> float:
+        """The lab's 6-D distance (m, rad) from the hand's pose to the current leg's end pose."""
+        k = min(state.leg, self._n_legs - 1)
+        p = self._end_pts[k]
+        x0, x1, x2 = x.tolist()
+        d0, d1, d2 = x0 - p[0], x1 - p[1], x2 - p[2]
+        dphi = self._end_angle[k] - self.trajectory.tool_angle(state.s)
+        return math.sqrt(d0 * d0 + d1 * d1 + d2 * d2 + dphi * dphi)
 
-        Mutates ``state``: ``s`` (local closest point inside the current window), and on reaching
-        the stop ``stop_index`` (and ``done`` at the last stop), with ``s`` set to the stop.
+    def update(self, state: GuideState, x: np.ndarray) -> None:
+        """Move the closest point to the hand and move on to the next leg when its end is near.
+
+        Mutates ``state``: ``s`` (local closest point inside the current leg); when the pose is
+        within ``switch_tol`` of the leg's end pose, ``leg`` advances and ``s`` is set to the
+        next leg's start (``done`` at the last leg, with ``s`` at the end).
 
         Args:
             state: Guide state, updated in place.
             x: Hand position, shape (3,), m.
-            v: Hand (reference) velocity, shape (3,), m/s.
         """
         if state.done:
             return
-        k = state.stop_index
+        k = state.leg
         x0, x1, x2 = x.tolist()
-        s_hi = self._stops[k]
-        s = self.trajectory._closest(x0, x1, x2, state.s, self._win_lo[k], s_hi)
+        s_end = self._ends[k]
+        s = self.trajectory.closest_xyz(x0, x1, x2, state.s, self._starts[k], s_end)
         state.s = s
-        p = self._stop_pts[k]
+        p = self._end_pts[k]
         d0, d1, d2 = x0 - p[0], x1 - p[1], x2 - p[2]
-        if d0 * d0 + d1 * d1 + d2 * d2 < self._tol_x2:
-            v0, v1, v2 = v.tolist()
-            if v0 * v0 + v1 * v1 + v2 * v2 < self._tol_v2:
-                state.s = s_hi
-                state.stop_index = k + 1
-                if k + 1 >= self._n_stops:
-                    state.done = True
+        dphi = self._end_angle[k] - self.trajectory.tool_angle(s)
+        if d0 * d0 + d1 * d1 + d2 * d2 + dphi * dphi < self._tol2:
+            state.leg = k + 1
+            if k + 1 >= self._n_legs:
+                state.done = True
+                state.s = s_end
 
     def virtual_force(
         self, state: GuideState, x: np.ndarray, v: np.ndarray, p: float
@@ -168,19 +252,16 @@ class Guide:
         x0, x1, x2 = x.tolist()
         k_s = self._k
         if state.done:
-            e = self._stop_pts[-1]
+            e = self._end_pts[-1]
             return np.array((k_s * (e[0] - x0), k_s * (e[1] - x1), k_s * (e[2] - x2)))
-        traj = self.trajectory
         s = state.s
-        s_stop = self._stops[state.stop_index]
-        rem = s_stop - s
-        clamped = rem <= 0.0
-        seg, t = traj._local(s, clamped)
-        xd, b, kv = seg._frame(t)
+        clamped = s >= self._ends[state.leg]
+        seg, t = self.trajectory.locate(s, clamped)
+        xd, b, kv = seg.frame(t)
         f0, f1, f2 = k_s * (xd[0] - x0), k_s * (xd[1] - x1), k_s * (xd[2] - x2)
         if clamped:
             return np.array((f0, f1, f2))
-        fp = self._f_prop * (1.0 if rem * self._inv_brake >= 1.0 else rem * self._inv_brake)
+        fp = self._f_prop
         f0 += fp * b[0]
         f1 += fp * b[1]
         f2 += fp * b[2]

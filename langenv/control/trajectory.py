@@ -1,15 +1,21 @@
-"""Exercise trajectories: lines and arcs, arc-length parametrised, with stops.
+"""Exercise trajectories: lines and arcs, arc-length parametrised, in legs between waypoints.
 
 A :class:`Trajectory` is the directed curve ``T`` of SPEC §1 (hand position in the robot base
 frame, metres), built from :class:`LineSegment` and :class:`ArcSegment` pieces joined end to start.
-It is parametrised by arc length ``s`` in ``[0, L]`` (the paper's ``d`` is ``s / L``). Segments
-flagged ``stop=True`` make the hand come to rest at their end; the end of the trajectory is always
-a stop. :meth:`Trajectory.closest` finds the closest point *locally*, by descent from the previous
+It is parametrised by arc length ``s`` in ``[0, L]`` (the paper's ``d`` is ``s / L``). The end of a
+segment flagged ``waypoint=True`` ends a *leg* of the exercise (the lab code's "segment"): the
+guide drives the hand along one leg at a time and moves on to the next when the hand comes close
+to the leg's end pose (:mod:`langenv.control.guide`); the end of the trajectory always ends the
+last leg. Each segment also carries the tool's ``turn`` (rad): how far the handle would turn over
+it if it followed the exercise (it does on an arc, and back along the line in the study), used in
+the lab's 6-D closeness test; :meth:`Trajectory.tool_angle` is its running total along the path.
+:meth:`Trajectory.closest` finds the closest point *locally*, by descent from the previous
 closest point and inside a window ``[s_lo, s_hi]``: the default exercise returns over its own path,
 so a global argmin would jump between its outbound and return legs.
 
-The hot-path helpers (names starting with an underscore) work on plain Python floats: the guide
-calls them 500 times a second and a small NumPy call costs about a microsecond.
+The hot-path methods (:meth:`Trajectory.locate`, :meth:`Trajectory.closest_xyz`, the segments'
+``point``, ``unit_tangent``, ``frame`` and ``project``) work on plain Python floats and check
+nothing: the guide calls them 500 times a second and a small NumPy call costs about a microsecond.
 """
 
 from __future__ import annotations
@@ -53,6 +59,17 @@ def _vec3(arr: np.ndarray) -> Vec3:
     return (float(arr[0]), float(arr[1]), float(arr[2]))
 
 
+def _check_turn(value: object, name: str) -> float:
+    """``value`` as a finite float >= 0 (a tool rotation in rad), or raise naming ``name``."""
+    try:
+        turn = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError) as exc:
+        raise TrajectoryError(f"{name} must be a number of radians, got {value!r}") from exc
+    if isinstance(value, bool) or not (math.isfinite(turn) and turn >= 0.0):
+        raise TrajectoryError(f"{name} must be finite and >= 0 rad, got {value!r}")
+    return turn
+
+
 @dataclass(frozen=True, eq=False)
 class LineSegment:
     """A straight segment from ``start`` to ``end``.
@@ -60,15 +77,18 @@ class LineSegment:
     Args:
         start: Start point, shape (3,), m.
         end: End point, shape (3,), m.
-        stop: Whether the hand comes to rest at ``end``.
+        waypoint: Whether ``end`` ends a leg of the exercise (see the module docstring).
+        turn: Tool rotation over the segment (rad, >= 0), linear in arc length.
 
     Raises:
-        TrajectoryError: a non-finite or badly shaped point, or ``start == end`` (zero length).
+        TrajectoryError: a non-finite or badly shaped point, ``start == end`` (zero length), or
+            a negative or non-finite ``turn``.
     """
 
     start: np.ndarray
     end: np.ndarray
-    stop: bool = False
+    waypoint: bool = False
+    turn: float = 0.0
     length: float = field(init=False)
     _p0: Vec3 = field(init=False, repr=False)
     _u: Vec3 = field(init=False, repr=False)
@@ -84,28 +104,33 @@ class LineSegment:
             )
         object.__setattr__(self, "start", start)
         object.__setattr__(self, "end", end)
-        object.__setattr__(self, "stop", bool(self.stop))
+        object.__setattr__(self, "waypoint", bool(self.waypoint))
+        object.__setattr__(self, "turn", _check_turn(self.turn, "LineSegment.turn"))
         object.__setattr__(self, "length", length)
         object.__setattr__(self, "_p0", _vec3(start))
         object.__setattr__(self, "_u", _vec3((end - start) / length))
 
-    # --- plain-float kernels (local parameter t in [0, length]) -----------------------------
-    def _point(self, t: float) -> Vec3:
+    # --- plain-float kernels (local parameter t in [0, length], unchecked) ------------------
+    def point(self, t: float) -> Vec3:
+        """Point at local arc length ``t`` (m)."""
         p, u = self._p0, self._u
         return (p[0] + t * u[0], p[1] + t * u[1], p[2] + t * u[2])
 
-    def _tangent(self, t: float) -> Vec3:
+    def unit_tangent(self, t: float) -> Vec3:
+        """Unit tangent (direction of travel) at ``t``."""
         return self._u
 
-    def _curvature(self, t: float) -> Vec3:
+    def curvature_at(self, t: float) -> Vec3:
+        """Curvature vector at ``t`` (1/m): zero on a line."""
         return (0.0, 0.0, 0.0)
 
-    def _frame(self, t: float) -> tuple[Vec3, Vec3, Vec3 | None]:
+    def frame(self, t: float) -> tuple[Vec3, Vec3, Vec3 | None]:
         """Point, unit tangent and curvature vector (``None`` on a line) at ``t``."""
         p, u = self._p0, self._u
         return (p[0] + t * u[0], p[1] + t * u[1], p[2] + t * u[2]), u, None
 
-    def _project(self, x0: float, x1: float, x2: float) -> float:
+    def project(self, x0: float, x1: float, x2: float) -> float:
+        """Local arc length of the point of the segment closest to ``(x0, x1, x2)`` (m)."""
         p, u = self._p0, self._u
         t = (x0 - p[0]) * u[0] + (x1 - p[1]) * u[1] + (x2 - p[2]) * u[2]
         return 0.0 if t < 0.0 else (self.length if t > self.length else t)
@@ -125,18 +150,21 @@ class ArcSegment:
         axis: Rotation axis direction, shape (3,) (normalised here).
         start: Start point, shape (3,), m; must not lie on the axis.
         angle: Signed rotation angle (rad), ``0 < |angle| <= 2 pi``.
-        stop: Whether the hand comes to rest at the end of the arc.
+        waypoint: Whether the end of the arc ends a leg of the exercise (module docstring).
+        turn: Tool rotation over the arc (rad, >= 0); ``None``: ``|angle|`` (the tool turns
+            with the arc).
 
     Raises:
         TrajectoryError: a non-finite or badly shaped vector, a zero axis, ``start`` on the axis,
-            or a zero / non-finite / more than one-turn angle.
+            a zero / non-finite / more than one-turn angle, or a negative or non-finite ``turn``.
     """
 
     center: np.ndarray
     axis: np.ndarray
     start: np.ndarray
     angle: float
-    stop: bool = False
+    waypoint: bool = False
+    turn: float | None = None
     radius: float = field(init=False)
     length: float = field(init=False)
     end: np.ndarray = field(init=False)
@@ -182,7 +210,9 @@ class ArcSegment:
         object.__setattr__(self, "axis", a)
         object.__setattr__(self, "start", start)
         object.__setattr__(self, "angle", angle)
-        object.__setattr__(self, "stop", bool(self.stop))
+        object.__setattr__(self, "waypoint", bool(self.waypoint))
+        turn = abs(angle) if self.turn is None else _check_turn(self.turn, "ArcSegment.turn")
+        object.__setattr__(self, "turn", turn)
         object.__setattr__(self, "radius", radius)
         object.__setattr__(self, "length", radius * abs(angle))
         object.__setattr__(self, "end", end)
@@ -192,8 +222,9 @@ class ArcSegment:
         object.__setattr__(self, "_e2", _vec3(e2))
         object.__setattr__(self, "_sign", sign)
 
-    # --- plain-float kernels (local parameter t in [0, length]) -----------------------------
-    def _point(self, t: float) -> Vec3:
+    # --- plain-float kernels (local parameter t in [0, length], unchecked) ------------------
+    def point(self, t: float) -> Vec3:
+        """Point at local arc length ``t`` (m)."""
         th = self._sign * t / self.radius
         cr, sr = self.radius * math.cos(th), self.radius * math.sin(th)
         c, e1, e2 = self._c, self._e1, self._e2
@@ -203,20 +234,22 @@ class ArcSegment:
             c[2] + cr * e1[2] + sr * e2[2],
         )
 
-    def _tangent(self, t: float) -> Vec3:
+    def unit_tangent(self, t: float) -> Vec3:
+        """Unit tangent (direction of travel) at ``t``."""
         th = self._sign * t / self.radius
         cs, sn = self._sign * math.cos(th), self._sign * math.sin(th)
         e1, e2 = self._e1, self._e2
         return (-sn * e1[0] + cs * e2[0], -sn * e1[1] + cs * e2[1], -sn * e1[2] + cs * e2[2])
 
-    def _curvature(self, t: float) -> Vec3:
+    def curvature_at(self, t: float) -> Vec3:
+        """Curvature vector at ``t`` (1/m): towards the centre, norm ``1 / radius``."""
         th = self._sign * t / self.radius
         k = 1.0 / self.radius
         cs, sn = -k * math.cos(th), -k * math.sin(th)
         e1, e2 = self._e1, self._e2
         return (cs * e1[0] + sn * e2[0], cs * e1[1] + sn * e2[1], cs * e1[2] + sn * e2[2])
 
-    def _frame(self, t: float) -> tuple[Vec3, Vec3, Vec3 | None]:
+    def frame(self, t: float) -> tuple[Vec3, Vec3, Vec3 | None]:
         """Point, unit tangent and curvature vector at ``t`` (one cos/sin)."""
         th = self._sign * t / self.radius
         cs, sn = math.cos(th), math.sin(th)
@@ -235,7 +268,8 @@ class ArcSegment:
             (-k * r0, -k * r1, -k * r2),
         )
 
-    def _project(self, x0: float, x1: float, x2: float) -> float:
+    def project(self, x0: float, x1: float, x2: float) -> float:
+        """Local arc length of the point of the arc closest to ``(x0, x1, x2)`` (m)."""
         c, e1, e2 = self._c, self._e1, self._e2
         d0, d1, d2 = x0 - c[0], x1 - c[1], x2 - c[2]
         u1 = d0 * e1[0] + d1 * e1[1] + d2 * e1[2]
@@ -254,23 +288,19 @@ class ArcSegment:
 Segment = LineSegment | ArcSegment
 
 
-def _segment_end(seg: Segment) -> np.ndarray:
-    return seg.end
-
-
 class Trajectory:
-    """A directed curve made of segments, parametrised by arc length.
+    """A directed curve made of segments, parametrised by arc length, in legs between waypoints.
 
     Args:
         segments: The pieces, in order; each must start where the previous one ends (within
-            ``CONTINUITY_TOL``). The end of the last segment is always a stop.
+            ``CONTINUITY_TOL``). The end of the last segment always ends the last leg.
 
     Attributes:
         segments: The segments, as a tuple.
         length: Total arc length ``L`` (m).
         seg_start: Arc length at the start of each segment, shape (n,), m.
         seg_end: Arc length at the end of each segment, shape (n,), m.
-        stop_s: Arc lengths of the stops, ascending, shape (k,), last ``== length``, m.
+        waypoint_s: Arc lengths of the legs' ends, ascending, shape (k,), last ``== length``, m.
 
     Raises:
         TrajectoryError: no segments, a segment of the wrong type, or a gap between segments.
@@ -287,7 +317,7 @@ class Trajectory:
                     f"got {type(seg).__name__}"
                 )
             if i > 0:
-                gap = float(np.linalg.norm(seg.start - _segment_end(segs[i - 1])))
+                gap = float(np.linalg.norm(seg.start - segs[i - 1].end))
                 if gap > CONTINUITY_TOL:
                     raise TrajectoryError(
                         f"Trajectory.segments[{i}].start is {gap:.3g} m away from the end of "
@@ -299,12 +329,15 @@ class Trajectory:
         self.seg_end: np.ndarray = ends
         self.seg_start: np.ndarray = ends - lengths
         self.length: float = float(ends[-1])
-        stops = [float(e) for seg, e in zip(segs, ends, strict=True) if seg.stop]
-        if not stops or stops[-1] < self.length:
-            stops.append(self.length)
-        stops[-1] = self.length
-        self.stop_s: np.ndarray = np.array(stops)
-        for arr in (self.seg_end, self.seg_start, self.stop_s):
+        waypoints = [float(e) for seg, e in zip(segs, ends, strict=True) if seg.waypoint]
+        if not waypoints or waypoints[-1] < self.length:
+            waypoints.append(self.length)
+        waypoints[-1] = self.length
+        self.waypoint_s: np.ndarray = np.array(waypoints)
+        turns = np.array([float(seg.turn or 0.0) for seg in segs])  # arcs: resolved in init
+        self._turn_start = np.concatenate([[0.0], np.cumsum(turns)[:-1]]).tolist()
+        self._turn_rate = (turns / lengths).tolist()
+        for arr in (self.seg_end, self.seg_start, self.waypoint_s):
             arr.setflags(write=False)
         # plain-float copies for the hot path
         self._starts: list[float] = [float(v) for v in self.seg_start]
@@ -313,7 +346,10 @@ class Trajectory:
 
     def __repr__(self) -> str:
         kinds = ", ".join(type(s).__name__ for s in self.segments)
-        return f"Trajectory([{kinds}], length={self.length:.4f} m, stops={self.stop_s.tolist()})"
+        return (
+            f"Trajectory([{kinds}], length={self.length:.4f} m, "
+            f"waypoints={self.waypoint_s.tolist()})"
+        )
 
     # ------------------------------------------------------------------ lookup
     def segment_index(self, s: float, side: str = "right") -> int:
@@ -335,8 +371,17 @@ class Trajectory:
             raise TrajectoryError(f"segment_index: side must be 'left' or 'right', got {side!r}")
         return 0 if i < 0 else (self._n - 1 if i >= self._n else i)
 
-    def _local(self, s: float, side_left: bool = False) -> tuple[Segment, float]:
-        if side_left:
+    def locate(self, s: float, arriving: bool = False) -> tuple[Segment, float]:
+        """The segment containing arc length ``s`` and the local arc length on it (hot path).
+
+        Args:
+            s: Arc length (m), clamped to the trajectory; not checked.
+            arriving: At a joint, the segment that ends there (default: the one that starts).
+
+        Returns:
+            ``(segment, t)`` with ``t`` in ``[0, segment.length]`` (m).
+        """
+        if arriving:
             i = bisect_left(self._ends, s)
         else:
             i = bisect_right(self._starts, s) - 1
@@ -344,6 +389,27 @@ class Trajectory:
         seg = self.segments[i]
         t = s - self._starts[i]
         return seg, (0.0 if t < 0.0 else (seg.length if t > seg.length else t))
+
+    def tool_angle(self, s: float) -> float:
+        """How far the tool has turned at arc length ``s`` (rad): the segments' ``turn`` summed.
+
+        Args:
+            s: Arc length (m), clamped to ``[0, L]``; not checked (hot path).
+
+        Returns:
+            The running total of the turn, non-decreasing in ``s`` (rad).
+        """
+        i = bisect_right(self._starts, s) - 1
+        i = 0 if i < 0 else (self._n - 1 if i >= self._n else i)
+        t = s - self._starts[i]
+        seg_len = self._ends[i] - self._starts[i]
+        t = 0.0 if t < 0.0 else (seg_len if t > seg_len else t)
+        return self._turn_start[i] + self._turn_rate[i] * t
+
+    def turn_rate(self, s: float, arriving: bool = False) -> float:
+        """The tool's turn per metre of path at ``s`` (rad/m), on the side given by ``arriving``."""
+        i = bisect_left(self._ends, s) if arriving else bisect_right(self._starts, s) - 1
+        return self._turn_rate[0 if i < 0 else (self._n - 1 if i >= self._n else i)]
 
     @staticmethod
     def _check_s(s: float) -> float:
@@ -362,8 +428,8 @@ class Trajectory:
         Returns:
             Position, shape (3,), m.
         """
-        seg, t = self._local(self._check_s(s))
-        return np.array(seg._point(t))
+        seg, t = self.locate(self._check_s(s))
+        return np.array(seg.point(t))
 
     def tangent(self, s: float) -> np.ndarray:
         """Unit tangent at ``s``: the right derivative ``dT/ds`` (at a joint: the next segment).
@@ -374,8 +440,8 @@ class Trajectory:
         Returns:
             Unit vector, shape (3,).
         """
-        seg, t = self._local(self._check_s(s))
-        return np.array(seg._tangent(t))
+        seg, t = self.locate(self._check_s(s))
+        return np.array(seg.unit_tangent(t))
 
     def curvature(self, s: float) -> np.ndarray:
         """Curvature vector ``d^2T/ds^2 = kappa n`` at ``s`` (right-sided), 0 on lines.
@@ -386,8 +452,8 @@ class Trajectory:
         Returns:
             Vector pointing to the centre of curvature, norm ``1 / radius``, shape (3,), 1/m.
         """
-        seg, t = self._local(self._check_s(s))
-        return np.array(seg._curvature(t))
+        seg, t = self.locate(self._check_s(s))
+        return np.array(seg.curvature_at(t))
 
     def sample(self, n: int = 200) -> np.ndarray:
         """Points at ``n`` equally spaced arc lengths from 0 to ``L`` (for plots).
@@ -402,8 +468,8 @@ class Trajectory:
             raise TrajectoryError(f"sample: n must be >= 2, got {n!r}")
         out = np.empty((int(n), 3))
         for k, s in enumerate(np.linspace(0.0, self.length, int(n))):
-            seg, t = self._local(float(s))
-            out[k] = seg._point(t)
+            seg, t = self.locate(float(s))
+            out[k] = seg.point(t)
         return out
 
     # ------------------------------------------------------------------ closest point
@@ -438,7 +504,7 @@ class Trajectory:
         if lo > hi:
             raise TrajectoryError(f"closest: window is empty (s_lo={lo} > s_hi={hi})")
         x0, x1, x2 = xa.tolist()
-        return self._closest(x0, x1, x2, self._check_s(s_prev), lo, hi)
+        return self.closest_xyz(x0, x1, x2, self._check_s(s_prev), lo, hi)
 
     def _dist2_on(
         self, i: int, x0: float, x1: float, x2: float, lo: float, hi: float
@@ -446,15 +512,16 @@ class Trajectory:
         """Projection of x on segment ``i`` restricted to ``[lo, hi]``: (s, squared distance)."""
         seg = self.segments[i]
         s0 = self._starts[i]
-        s = s0 + seg._project(x0, x1, x2)
+        s = s0 + seg.project(x0, x1, x2)
         s = lo if s < lo else (hi if s > hi else s)
-        p = seg._point(s - s0)
+        p = seg.point(s - s0)
         d0, d1, d2 = x0 - p[0], x1 - p[1], x2 - p[2]
         return s, d0 * d0 + d1 * d1 + d2 * d2
 
-    def _closest(
+    def closest_xyz(
         self, x0: float, x1: float, x2: float, s_prev: float, lo: float, hi: float
     ) -> float:
+        """:meth:`closest` on plain floats, without checks (the guide's hot path)."""
         s_prev = lo if s_prev < lo else (hi if s_prev > hi else s_prev)
         i = bisect_right(self._starts, s_prev) - 1
         n = self._n
@@ -489,54 +556,62 @@ class Trajectory:
         return best_s
 
 
-def line(
-    start: Sequence[float] | np.ndarray, end: Sequence[float] | np.ndarray, stop: bool = True
-) -> Trajectory:
-    """A one-segment straight trajectory (for tests and simple exercises).
+def line(start: Sequence[float] | np.ndarray, end: Sequence[float] | np.ndarray) -> Trajectory:
+    """A one-segment straight trajectory, one leg (for tests and simple exercises).
 
     Args:
         start: Start point, shape (3,), m.
         end: End point, shape (3,), m.
-        stop: Kept for symmetry; the end of a trajectory is always a stop.
 
     Returns:
         The trajectory.
     """
-    return Trajectory([LineSegment(np.asarray(start, float), np.asarray(end, float), stop=stop)])
+    return Trajectory([LineSegment(np.asarray(start, float), np.asarray(end, float), True)])
 
 
 #: SPEC §2 "shoulder external rotation": start point (m, robot base frame).
 EXERCISE_START = (-0.350, -0.6206, 0.04)
 #: A point on the vertical axis the forearm rotates about (m).
 EXERCISE_PIVOT = (-0.400, -0.256, 0.0)
-#: Rotation of the outbound arc (rad): +40 deg, counter-clockwise seen from above.
-EXERCISE_ANGLE = math.radians(40.0)
+#: Rotation of the outbound arc (deg), counter-clockwise seen from above: fitted to the recordings
+#: (SPEC §2 "path length in the recordings"; the lab code's default was 40 deg).
+EXERCISE_ANGLE_DEG = 43.0
 
 
-def default_exercise() -> Trajectory:
-    """The study's exercise, "shoulder external rotation" (SPEC §2).
+def default_exercise(angle_deg: float = EXERCISE_ANGLE_DEG) -> Trajectory:
+    """The study's exercise, "shoulder external rotation" (SPEC §2), in three legs.
 
-    The hand starts at ``(-0.350, -0.6206, 0.04)`` m, turns 40 deg about the vertical axis through
-    ``(-0.400, -0.256, 0)`` (radius 0.368 m, arc 0.257 m), goes straight back to the start
-    (chord 0.252 m) and turns out again along the same arc; it comes to rest at the end of each of
-    the three segments. Total length 0.766 m.
+    The hand starts at ``(-0.350, -0.6206, 0.04)`` m, turns ``angle_deg`` about the vertical axis
+    through ``(-0.400, -0.256, 0)`` (radius 0.368 m), goes straight back to the start and turns out
+    again along the same arc. Each of the three segments is a leg: the guide moves on to the next
+    one near its end (:mod:`langenv.control.guide`). The tool turns with the arcs (``angle_deg``)
+    and back along the line, as the study's handle did.
 
-    Rotation sense: +40 deg, right-handed about +z (counter-clockwise seen from above), so the hand
-    moves towards +x, to about ``(-0.128, -0.503, 0.04)``. The SPEC fixes the pivot and the start
-    but not the sense; we read "away from the body" as follows. The forearm points from the elbow
-    (on the pivot axis) along -y, so the person faces -y and the torso lies beside the elbow along
-    x. It cannot lie on the +x side: the robot's base (the origin) is there, 0.4 m from the elbow.
-    So the torso is on the -x side and external rotation swings the hand to +x. The same sense
-    keeps the hand inside the UR5's reach (0.52 m from the base at the arc's end, against 0.82 m
-    for the opposite sense, at the edge of its 0.85 m reach).
+    Rotation sense: positive, right-handed about +z (counter-clockwise seen from above), so the
+    hand moves towards +x. The SPEC fixes the pivot and the start but not the sense; we read "away
+    from the body" as follows. The forearm points from the elbow (on the pivot axis) along -y, so
+    the person faces -y and the torso lies beside the elbow along x. It cannot lie on the +x side:
+    the robot's base (the origin) is there, 0.4 m from the elbow. So the torso is on the -x side
+    and external rotation swings the hand to +x. The same sense keeps the hand well inside the
+    UR5's reach (the opposite sense would take it to the edge of its 0.85 m reach).
+
+    Args:
+        angle_deg: Angle of the arcs (deg), in (0, 90].
 
     Returns:
-        The trajectory (arc, line, arc), with stops at 0.257, 0.509 and 0.766 m.
+        The trajectory (arc, line, arc).
+
+    Raises:
+        TrajectoryError: an angle outside (0, 90] deg.
     """
+    angle = float(angle_deg)
+    if not (math.isfinite(angle) and 0.0 < angle <= 90.0):
+        raise TrajectoryError(f"default_exercise: angle_deg must lie in (0, 90], got {angle_deg!r}")
     start = np.array(EXERCISE_START)
     pivot = np.array(EXERCISE_PIVOT)
     up = np.array([0.0, 0.0, 1.0])
-    out = ArcSegment(center=pivot, axis=up, start=start, angle=EXERCISE_ANGLE, stop=True)
-    back = LineSegment(start=out.end, end=start, stop=True)
-    again = ArcSegment(center=pivot, axis=up, start=start, angle=EXERCISE_ANGLE, stop=True)
+    rad = math.radians(angle)
+    out = ArcSegment(center=pivot, axis=up, start=start, angle=rad, waypoint=True)
+    back = LineSegment(start=out.end, end=start, waypoint=True, turn=rad)
+    again = ArcSegment(center=pivot, axis=up, start=start, angle=rad, waypoint=True)
     return Trajectory([out, back, again])

@@ -21,7 +21,7 @@ import numpy as np
 
 from langenv.errors import LangEnvError, SessionDataError
 from langenv.speech.audio import DEFAULT_RATE, DEFAULT_SR, DEFAULT_VOICE, ClipLibrary
-from langenv.speech.graph import GRAPHS_DIR, PhraseGraph
+from langenv.speech.graph import SHIPPED_GRAPHS, PhraseGraph, graph_path
 from langenv.speech.render import MAX_AUDIO_PACE, MIN_AUDIO_PACE
 from langenv.validation import check_time_axis
 
@@ -34,7 +34,7 @@ def _parser() -> argparse.ArgumentParser:
         prog="python -m langenv.speech",
         description="Check LangCtrl phrase graphs and render speech at a varying audio pace.",
         epilog="GRAPH is a phrase-graph YAML file (see docs/speech.md) or the name of a shipped "
-        f"graph ({', '.join(sorted(p.stem for p in GRAPHS_DIR.glob('*.yaml')))}).",
+        f"graph ({', '.join(sorted(SHIPPED_GRAPHS))}).",
     )
     tts = argparse.ArgumentParser(add_help=False)
     g = tts.add_argument_group("phrase audio (text-to-speech with eSpeak NG)")
@@ -90,9 +90,7 @@ def _parser() -> argparse.ArgumentParser:
 
 def _graph_path(arg: str) -> Path:
     path = Path(arg)
-    if not path.exists() and path.suffix == "" and (GRAPHS_DIR / f"{arg}.yaml").is_file():
-        return GRAPHS_DIR / f"{arg}.yaml"
-    return path
+    return path if path.exists() else graph_path(arg)
 
 
 def read_trace(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:

@@ -35,13 +35,32 @@ from langenv.errors import AudioError, ConfigError, PhraseGraphError
 if TYPE_CHECKING:
     from langenv.speech.audio import ClipLibrary
 
-__all__ = ["DEFAULT_PAUSE", "GRAPHS_DIR", "Phrase", "PhraseGraph", "default_graph_path"]
+__all__ = [
+    "DEFAULT_PAUSE",
+    "GRAPHS_DIR",
+    "SHIPPED_GRAPHS",
+    "Phrase",
+    "PhraseGraph",
+    "default_graph_path",
+    "graph_path",
+]
 
 DEFAULT_PAUSE = 1.0
 """Silence between two phrases at a = 1 (s) when a graph file gives no ``pause`` (SPEC §2)."""
 
 GRAPHS_DIR = Path(__file__).resolve().parents[1] / "assets" / "graphs"
-"""Directory of the phrase graphs shipped with the package (``lc``, ``lc_noap``, ``ac``)."""
+"""Directory of the phrase graphs shipped with the package."""
+
+SHIPPED_GRAPHS: Mapping[str, Path] = MappingProxyType(
+    {
+        "lc": GRAPHS_DIR / "lc.yaml",
+        "lc-noap": GRAPHS_DIR / "lc_noap.yaml",
+        # AC says the same single wording as LC-noAP, at a = 1 (the study's AC and LC-noAP
+        # speech both lasted about 13.4 s): one prerecorded utterance with its pauses.
+        "ac": GRAPHS_DIR / "lc_noap.yaml",
+    }
+)
+"""The shipped phrase graphs of the default exercise, by name (the one place names resolve)."""
 
 _TOP_KEYS = frozenset({"start", "pause", "phrases"})
 _PHRASE_KEYS = frozenset({"text", "audio", "next"})
@@ -52,16 +71,22 @@ def default_graph_path(name: str) -> Path:
     """Path of a shipped phrase graph.
 
     Args:
-        name: ``"lc"``, ``"lc_noap"`` (or ``"lc-noap"``) or ``"ac"``.
+        name: ``"lc"``, ``"lc-noap"`` (or ``"lc_noap"``) or ``"ac"``.
 
     Raises:
         ConfigError: naming ``name`` when no such graph ships with the package.
     """
-    path = GRAPHS_DIR / f"{name.replace('-', '_')}.yaml"
-    if not path.is_file():
-        known = sorted(p.stem for p in GRAPHS_DIR.glob("*.yaml"))
+    path = SHIPPED_GRAPHS.get(name.replace("_", "-"))
+    if path is None:
+        known = sorted(SHIPPED_GRAPHS)
         raise ConfigError(f"no shipped phrase graph named {name!r}; known: {known}")
     return path
+
+
+def graph_path(spec: str | Path) -> Path:
+    """A phrase graph given as a shipped graph's name (:data:`SHIPPED_GRAPHS`) or a YAML path."""
+    name = str(spec)
+    return SHIPPED_GRAPHS[name] if name in SHIPPED_GRAPHS else Path(spec)
 
 
 @dataclass(frozen=True)
