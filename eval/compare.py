@@ -6,9 +6,13 @@ Run, for instance::
     python -m eval.compare --policies lc,ppo:models/ppo_phrase_choice.zip \
         --sessions ../shared/sessions --pattern '*_lc.csv' --out out/replay
 
-Writes (only when every episode ran; nothing partial is left on error):
+Writes (only when every episode ran; nothing partial is left on error). The outputs are made in
+a temporary directory beside ``OUT`` and moved into place whole; an existing non-empty ``OUT`` is
+refused unless ``--overwrite`` is given, which replaces only the outputs named here and leaves any
+other file in ``OUT`` alone:
 
-* ``OUT/sessions.csv``: one row per episode (policy, user and the paper's metrics);
+* ``OUT/sessions.csv``: one row per episode (policy, user, the paper's metrics, and whether it
+  ended in a protective stop: ``protective_stop`` 1/0 and ``stop_limit``, the limit's name);
 * ``OUT/summary.md``: per policy median and IQR of each metric, bootstrap 95 % intervals of the
   differences against LC, and the study's findings checked on the data;
 * ``OUT/summary.png``: the paper's violin figure;
@@ -28,6 +32,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import shutil
 import sys
 import tempfile
@@ -66,6 +71,7 @@ class CompareArgs:
         stat: Statistic of the differences against LC in ``summary.md``: ``median`` (of the
             per-user differences) or ``mean``.
         video: Render each session's video (MP4 with the speech as its sound track).
+        overwrite: Replace the outputs of an earlier run in a non-empty ``out``.
     """
 
     policies: str = "ac,lc-noap,lc"
@@ -81,6 +87,11 @@ class CompareArgs:
     phrase_graph: Path | None = None
     stat: str = "median"
     video: bool = False
+    overwrite: bool = False
+
+
+#: Most synthetic users one run accepts (``--users synthetic:N``).
+MAX_USERS = 10_000
 
 
 @dataclass(frozen=True)
@@ -116,7 +127,12 @@ def parse_args(argv: Sequence[str] | None = None) -> CompareArgs:
     p.add_argument("--sessions", type=Path, default=None, help="directory of session CSVs")
     p.add_argument("--pattern", default="*.csv", help="glob of session CSVs (with --sessions)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--out", type=Path, required=True, help="output directory")
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace the outputs of an earlier run in a non-empty --out (other files stay)",
+    )
     p.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
     p.add_argument("--no-audio", action="store_true", help="skip WAV rendering")
     p.add_argument("--no-figures", action="store_true", help="skip per-session figures")
@@ -146,6 +162,8 @@ def parse_args(argv: Sequence[str] | None = None) -> CompareArgs:
         users = "synthetic:12"
     if ns.workers < 1:
         p.error(f"--workers must be >= 1, got {ns.workers}")
+    if ns.seed < 0:
+        p.error(f"--seed must be >= 0, got {ns.seed}")
     return CompareArgs(
         policies=ns.policies,
         users=users,
@@ -160,6 +178,7 @@ def parse_args(argv: Sequence[str] | None = None) -> CompareArgs:
         phrase_graph=ns.phrase_graph,
         stat=ns.stat,
         video=ns.video,
+        overwrite=ns.overwrite,
     )
 
 
@@ -236,9 +255,28 @@ def _users(args: CompareArgs) -> list[tuple[str, int, str | None]]:
         return [(p.stem, args.seed + i, str(p)) for i, p in enumerate(paths)]
     assert args.users is not None
     kind, _, count = args.users.partition(":")
-    if kind != "synthetic" or not count.isdigit() or int(count) < 1:
+    if kind != "synthetic" or not re.fullmatch(r"[0-9]+", count) or int(count) < 1:
         raise UsageError(f"--users must be synthetic:N with N >= 1, got {args.users!r}")
+    if int(count) > MAX_USERS:
+        raise UsageError(f"--users: at most {MAX_USERS} synthetic users per run, got {count}")
     return [(f"s{args.seed + i}", args.seed + i, None) for i in range(int(count))]
+
+
+def _check_out(out: Path, overwrite: bool) -> None:
+    """Refuse an ``--out`` that is a file, lies under a file, or holds files (without
+    ``--overwrite``), before any episode runs."""
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"--out {out}: exists and is not a directory")
+    if out.is_dir() and any(out.iterdir()) and not overwrite:
+        raise UsageError(
+            f"--out {out}: directory is not empty; choose another, or give --overwrite to replace "
+            "the outputs of an earlier run in it (other files stay)"
+        )
+    parent = out.parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir():
+        raise UsageError(f"--out {out}: {parent} is a file, not a directory")
 
 
 _ENVS: dict[tuple[str, int, str], Any] = {}
@@ -318,6 +356,8 @@ def run_episode(job: Job) -> dict[str, Any]:
             write_video(log, stem.with_suffix(".mp4"), audio, clips.sr)
     row = episode_metrics(log)
     row["truncated"] = float(bool(info.get("TimeLimit.truncated", False)) or not terminated)
+    row["protective_stop"] = float(info.get("safety_stop") is not None)
+    row["stop_limit"] = info.get("safety_stop") or ""
     return row
 
 
@@ -340,17 +380,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
     t0 = time.perf_counter()
     try:
+        out = args.out.resolve()
+        _check_out(out, args.overwrite)
         names = _check_policies(args.policies)
         _check_options(args)
         if args.video:
             _check_video()
         users = _users(args)
+        tmp = _make_tmp(out)
     except UsageError as exc:
         print(f"eval.compare: error: {exc}", file=sys.stderr)
         return 2
-    out = args.out.resolve()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
     try:
         (tmp / "sessions").mkdir()
         labels = policy_names(names)
@@ -375,10 +415,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         _write_outputs(rows, list(labels.values()), tmp, args)
         cfg = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(args).items()}
         (tmp / "config.json").write_text(json.dumps(cfg, indent=2) + "\n")
-        _replace_dir(tmp, out)
+        _move_into_place(tmp, out, args.overwrite)
+    except _OutTaken as exc:
+        print(f"eval.compare: error: {exc}; the outputs are in {tmp}", file=sys.stderr)
+        return 1
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+    shutil.rmtree(tmp, ignore_errors=True)  # emptied by a move entry by entry
     _print_verdict(out, list(labels.values()), args)
     print(f"wrote {out} ({len(rows)} episodes in {time.perf_counter() - t0:.1f} s)")
     return 0
@@ -477,15 +521,50 @@ def policy_names(specs: Sequence[str]) -> dict[str, str]:
     return names
 
 
-def _replace_dir(tmp: Path, out: Path) -> None:
-    """Move the finished ``tmp`` to ``out``, replacing a previous result only at the very end."""
-    if out.exists():
-        old = out.with_name(f".{out.name}.old-{os.getpid()}")
-        out.rename(old)
+def _make_tmp(out: Path) -> Path:
+    """The temporary directory the outputs are made in: beside ``out`` (same file system)."""
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        return Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
+    except OSError as exc:
+        raise UsageError(f"--out {out}: cannot write there ({exc.strerror or exc})") from None
+
+
+def _move_into_place(tmp: Path, out: Path, overwrite: bool) -> None:
+    """Move the finished outputs from ``tmp`` to ``out``.
+
+    A missing or empty ``out`` is replaced by ``tmp`` whole (one rename). Otherwise, with
+    ``overwrite``, each output replaces the entry of the same name, which is moved aside first and
+    deleted only once the new one is in place; every other entry stays.
+
+    Raises:
+        _OutTaken: ``out`` was filled by someone else during the run (without ``overwrite``).
+    """
+    if not out.exists():
         tmp.rename(out)
-        shutil.rmtree(old, ignore_errors=True)
-    else:
+        return
+    if not any(out.iterdir()):
+        out.rmdir()
         tmp.rename(out)
+        return
+    if not overwrite:
+        raise _OutTaken(f"--out {out}: files appeared in it during the run")
+    for entry in sorted(tmp.iterdir()):
+        target = out / entry.name
+        old = None
+        if target.exists() or target.is_symlink():
+            old = out / f".{entry.name}.old-{os.getpid()}"
+            target.rename(old)
+        entry.rename(target)
+        if old is not None:
+            if old.is_dir() and not old.is_symlink():
+                shutil.rmtree(old)
+            else:
+                old.unlink()
+
+
+class _OutTaken(Exception):
+    """``--out`` is no longer ours to write: the outputs stay in the temporary directory."""
 
 
 if __name__ == "__main__":

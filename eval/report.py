@@ -298,6 +298,27 @@ def _cell(text: str) -> str:
     return text.replace("|", "\\|")
 
 
+def _stops_line(rows: Sequence[Row], policies: Sequence[str]) -> str:
+    """``Protective stops: ...`` per policy, with the limits; "" when the table has no column."""
+    if not any("protective_stop" in r for r in rows):
+        return ""
+    parts = []
+    for p in policies:
+        mine = [r for r in rows if str(r["policy"]) == p]
+        stopped = [r for r in mine if float(r.get("protective_stop") or 0.0) > 0.0]  # type: ignore[arg-type]
+        limits = sorted(
+            {str(r.get("stop_limit")) for r in stopped if isinstance(r.get("stop_limit"), str)}
+            - {""}
+        )
+        counts = [f"{lim} {sum(r.get('stop_limit') == lim for r in stopped)}" for lim in limits]
+        detail = f" ({', '.join(counts)})" if counts else ""
+        parts.append(f"{display_name(p)} {len(stopped)} of {len(mine)}{detail}")
+    return (
+        "Protective stops (the arm halted at a safety limit; the session's metrics cover it up "
+        f"to the stop): {'; '.join(parts)}."
+    )
+
+
 def _table(header: Sequence[str], body: Sequence[Sequence[str]]) -> list[str]:
     lines = [
         "| " + " | ".join(_cell(h) for h in header) + " |",
@@ -343,6 +364,9 @@ def render_summary_md(
         + against,
         "",
     ]
+    stops = _stops_line(rows, table.policies)
+    if stops:
+        lines += [stops, ""]
     if figure:
         lines += [f"![Distributions per controller]({figure})", ""]
 

@@ -21,6 +21,6 @@ ENV_ID = "LangCtrl-v0"
 if ENV_ID not in registry:
     register(
         id=ENV_ID,
-        entry_point="langenv.env:LangCtrlEnv",
+        entry_point="langenv.env:make_env",
         max_episode_steps=1500,  # 60 s at the default decision_hz=25
     )

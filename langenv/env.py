@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal
@@ -19,12 +20,13 @@ from langenv.motion import GuidedArm
 from langenv.pacing import PaceActuator, PaceLimits, command_from_action
 from langenv.robot.arm import Arm
 from langenv.robot.force_sensor import ForceSensor
+from langenv.safety import SafetyLimits
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.graph import PhraseGraph, graph_path
 from langenv.speech.timeline import SpeechTimeline
 from langenv.users import CallableUser, ReplayUser, SyntheticUser, User
 
-__all__ = ["LangCtrlEnv"]
+__all__ = ["LangCtrlEnv", "make_env"]
 
 PHYSICS_HZ = 500
 T_SCALE = 40.0  # s, normalisation of times in the observation
@@ -59,7 +61,8 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     speech duration ``t_x 2^{2u}`` s and the child whose mid-length ``(t_min + t_max)/2`` is
     closest to it is said next (``u = 0`` is the paper's rule). ``choice_mode="scores"``
     (``n_choice = max_children`` of the graph): the valid child with the highest score is said
-    next. An invalid child can never be chosen. NaN/inf or out-of-range actions raise
+    next. An invalid child can never be chosen. An action that is not an array of shape
+    ``(2 + n_choice,)`` of numbers in ``[-1, 1]`` (NaN, inf, ``None``, a string, ...) raises
     :class:`~langenv.errors.ActionError`.
 
     ## Observation space
@@ -100,9 +103,30 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
 
     ## Episode end
 
-    Terminates when both speech and motion are over. Truncation through ``max_episode_steps`` at
-    registration (1500 steps = 60 s at the default 25 Hz; pass ``max_episode_steps=60 *
-    decision_hz`` to ``gymnasium.make`` for other rates).
+    Terminates when both speech and motion are over, or at a **protective stop** (below). Truncation
+    through ``max_episode_steps`` at registration (1500 steps = 60 s at the default 25 Hz; pass
+    ``max_episode_steps=60 * decision_hz`` to ``gymnasium.make`` for other rates).
+
+    ## Safety
+
+    Modelled on a UR5's safety functions (:mod:`langenv.safety`; limits in ``safety``, a
+    :class:`~langenv.safety.SafetyLimits`). The arm never *commands* a hand speed above
+    ``max_speed`` (0.5 m/s) nor motion away from the path beyond ``hold_deviation`` (0.08 m). At
+    every tick a monitor checks what happens anyway (a person's force acts on the arm itself); a
+    breach is a protective stop: the arm halts and holds still, and the episode terminates with
+    ``info["safety_stop"]`` naming the limit and ``info["safety_message"]`` saying why:
+
+    | limit | default | breach |
+    |---|---|---|
+    | ``"speed"`` | 0.5 m/s | measured hand speed above ``max_speed + speed_tolerance`` (0.525 m/s) |
+    | ``"path_deviation"`` | 0.10 m | hand farther than ``max_deviation`` from its closest path point |
+    | ``"force"`` | 150 N | force on the handle above ``max_force`` (a UR5's default force limit) |
+    | ``"joint_limit"`` | 0.01 rad | a joint within ``joint_margin`` of the end of its range (the UR5's ±360° ranges are out of reach of the exercise) |
+
+    After a stop ``info["am"]`` is ``None`` and no ``reward_am`` is paid. Every step's ``info``
+    reports ``path_deviation`` (m, the hand's distance from its closest path point at the end of
+    the step), ``max_hand_speed`` (m/s, the highest over the step's ticks), ``safety_stop`` (the
+    limit's name, or ``None``) and ``safety_message`` (``""`` without a stop).
 
     ## Arguments
 
@@ -118,15 +142,16 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     | ``deadband`` | 5 | force sensor deadband (N) |
     | ``admittance`` | SPEC §2 | :class:`~langenv.control.admittance.AdmittanceParams` |
     | ``paces`` | SPEC §2 | :class:`~langenv.pacing.PaceLimits` (bounds, ``k_p``, ``k_a``) |
+    | ``safety`` | see Safety | :class:`~langenv.safety.SafetyLimits` |
     | ``model_path``, ``handle_site`` | our UR5, ``"handle"`` | another arm MJCF and its handle site |
-    | ``render_mode`` | ``None`` | ``"rgb_array"`` (off-screen; needs ``MUJOCO_GL=egl`` or ``osmesa``) |
+    | ``render_mode`` | ``None`` | ``"rgb_array"`` (off-screen; needs ``MUJOCO_GL=egl`` or ``osmesa``); for a window wrap the env in ``gymnasium.wrappers.HumanRendering`` (needs pygame) |
     | ``width``, ``height`` | 640, 480 | render size (pixels) |
 
     ``reset(options=...)`` accepts ``{"user": User}`` to swap the user for that episode.
 
     ## Version history
 
-    * v0: initial release.
+    * v0: initial release (with the safety layer and protective stops).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 25}  # noqa: RUF012
@@ -146,6 +171,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         deadband: float = 5.0,
         admittance: AdmittanceParams | None = None,
         paces: PaceLimits | None = None,
+        safety: SafetyLimits | None = None,
         trajectory: Trajectory | None = None,
         model_path: str | Path | None = None,
         handle_site: str = "handle",
@@ -155,21 +181,29 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         clips: ClipLibrary | None = None,
     ) -> None:
         super().__init__()
-        if not isinstance(decision_hz, int) or decision_hz <= 0 or PHYSICS_HZ % decision_hz:
-            raise ConfigError(f"decision_hz must be a positive divisor of 500, got {decision_hz!r}")
+        if (
+            isinstance(decision_hz, bool)
+            or not isinstance(decision_hz, int | np.integer)
+            or decision_hz <= 0
+            or PHYSICS_HZ % int(decision_hz)
+        ):
+            raise ConfigError(
+                f"decision_hz must be a positive integer dividing 500, got {decision_hz!r}"
+            )
         if choice_mode not in ("target", "scores"):
             raise ConfigError(f"choice_mode must be 'target' or 'scores', got {choice_mode!r}")
-        for name, w in (("w_em", w_em), ("w_pace", w_pace), ("w_am", w_am)):
-            if not (math.isfinite(w) and w >= 0.0):
-                raise ConfigError(f"{name} must be finite and >= 0, got {w!r}")
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ConfigError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        weights = [
+            _non_negative(n, w) for n, w in (("w_em", w_em), ("w_pace", w_pace), ("w_am", w_am))
+        ]
+        _check_render_mode(render_mode)
         self.render_mode = render_mode
-        self.width, self.height = int(width), int(height)
-        self.decision_hz = decision_hz
-        self.ticks_per_step = PHYSICS_HZ // decision_hz
+        self.width, self.height = _pixels("width", width), _pixels("height", height)
+        self.decision_hz = int(decision_hz)
+        self.ticks_per_step = PHYSICS_HZ // self.decision_hz
         self.choice_mode = choice_mode
-        self.w_em, self.w_pace, self.w_am = float(w_em), float(w_pace), float(w_am)
+        self.w_em, self.w_pace, self.w_am = weights
+        if safety is not None and not isinstance(safety, SafetyLimits):
+            raise ConfigError(f"safety must be SafetyLimits or None, got {type(safety).__name__}")
 
         self.user: User = _make_user(users, session)
         self.clips = clips if clips is not None else ClipLibrary()
@@ -183,6 +217,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             params,
             ForceSensor(noise_std=sensor_noise, deadband=deadband),
             CooperationFilter(),
+            safety,
         )
         self.paces = PaceActuator(paces if paces is not None else PaceLimits())
         self.speech = SpeechTimeline(self.graph)
@@ -220,9 +255,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         return self._observation(), self._info()
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        act = np.asarray(action, dtype=np.float64).reshape(-1)
-        if act.shape != self.action_space.shape:
-            raise ActionError(f"action must have shape {self.action_space.shape}, got {act.shape}")
+        act = self._parse_action(action)
         values = act.tolist()
         for v in values:
             if not -1.000001 <= v <= 1.000001:  # also rejects NaN
@@ -233,18 +266,21 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self._choice_u = act[2:]
 
         em_int = pace_int = 0.0
+        self._max_speed = 0.0
         for _ in range(self.ticks_per_step):
             if self._terminated:
                 break
             em, pace = self._tick(p_cmd, a_cmd)
             em_int += em * self.dt
             pace_int += pace * self.dt
+            self._max_speed = max(self._max_speed, self.motion.hand_speed)
 
         r_em = -self.w_em * em_int / T_SCALE
         r_pace = -self.w_pace * pace_int
         r_am = 0.0
         if self._terminated and not self._am_paid:
-            r_am = -self.w_am * abs(self.am)
+            if not self.motion.stopped:
+                r_am = -self.w_am * abs(self.am)
             self._am_paid = True
         reward = r_em + r_pace + r_am
         info = self._info()
@@ -266,6 +302,30 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         super().close()
 
     # ------------------------------------------------------------------ internals
+    def _parse_action(self, action: Any) -> np.ndarray:
+        """``action`` as a float64 array of the action space's shape, or :class:`ActionError`."""
+        shape = self.action_space.shape
+        if action is None:
+            raise ActionError(
+                f"action is None; pass an array of shape {shape} with values in [-1, 1] "
+                "(env.action_space.sample() gives one)"
+            )
+        if isinstance(action, str | bytes | dict):
+            raise ActionError(
+                f"action must be an array of shape {shape} with values in [-1, 1], "
+                f"got a {type(action).__name__}: {action!r:.80}"
+            )
+        try:
+            act = np.asarray(action, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise ActionError(
+                f"action must be an array of shape {shape} of numbers in [-1, 1], "
+                f"got {action!r:.80} ({exc})"
+            ) from None
+        if act.shape != shape:
+            raise ActionError(f"action must have shape {shape}, got shape {act.shape}")
+        return act
+
     def _reset_episode_state(self) -> None:
         self.time = 0.0
         self.t_a = 0.0
@@ -275,6 +335,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self._am_paid = False
         self._coop_hist = np.ones(max(1, round(TREND_WINDOW / self.dt)))
         self._coop_i = 0
+        self._max_speed = self.motion.hand_speed
 
     def _tick(self, p_cmd: float, a_cmd: float) -> tuple[float, float]:
         """One 2 ms tick; returns the instantaneous misalignment and pace penalty."""
@@ -283,6 +344,10 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         p, a = self.paces.p, self.paces.a
         f_user = self.user.force(self.time, motion.hand_velocity, motion.tangent())
         motion.tick(f_user, p, self.paces.p_dot, self.np_random)
+        if motion.stopped:  # protective stop: the episode ends here
+            self.time += self.dt
+            self._terminated = True
+            return 0.0, 0.0
         if not speech.done:
             speech.step(self.dt, a, self._choose, motion.t_x)
         self.time += self.dt
@@ -354,6 +419,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
 
     def _info(self) -> dict[str, Any]:
         m = self.motion
+        stop = m.safety_stop
         return {
             "time": self.time,
             "t_x": m.t_x,
@@ -370,8 +436,50 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             "speech_done": self.speech.done,
             "t_motion": m.t_motion_end,
             "t_speech": self.t_speech_end,
-            "am": self.am if self._terminated else None,
+            "am": self.am if self._terminated and stop is None else None,
+            "path_deviation": m.path_deviation,
+            "max_hand_speed": self._max_speed,
+            "safety_stop": stop.limit if stop is not None else None,
+            "safety_message": stop.message if stop is not None else "",
         }
+
+
+def make_env(**kwargs: Any) -> LangCtrlEnv:
+    """Entry point of ``LangCtrl-v0``: ``LangCtrlEnv(**kwargs)``.
+
+    A function rather than the class, so that ``gymnasium.make`` hands ``render_mode`` to the env,
+    which names a mode it does not support, instead of wrapping it for ``"human"`` on its own.
+    """
+    return LangCtrlEnv(**kwargs)
+
+
+def _non_negative(name: str, value: Any) -> float:
+    """A finite number >= 0, or :class:`ConfigError` naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ConfigError(f"{name} must be a number, got {type(value).__name__} {value!r}")
+    v = float(value)
+    if not (math.isfinite(v) and v >= 0.0):
+        raise ConfigError(f"{name} must be finite and >= 0, got {value!r}")
+    return v
+
+
+def _pixels(name: str, value: Any) -> int:
+    """A positive integer (a render size), or :class:`ConfigError` naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
+        raise ConfigError(f"{name} must be a positive integer (pixels), got {value!r}")
+    return int(value)
+
+
+def _check_render_mode(render_mode: Any) -> None:
+    if render_mode is None or render_mode == "rgb_array":
+        return
+    hint = ""
+    if render_mode == "human":
+        hint = (
+            "; LangCtrl-v0 renders off-screen: for a window, wrap an env made with "
+            "render_mode='rgb_array' in gymnasium.wrappers.HumanRendering (needs pygame)"
+        )
+    raise ConfigError(f"render_mode must be None or 'rgb_array', got {render_mode!r}{hint}")
 
 
 def _make_user(users: Any, session: str | Path | None) -> User:

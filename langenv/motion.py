@@ -11,8 +11,13 @@
 5. the velocity command sent to the robot follows ``v_ref`` (capped by the guide's speed
    governor while the person pushes the hand along) with at most ``max_acceleration`` (the ``a``
    of a UR's ``speedL``); once the last leg is done it brakes to 0 at that rate;
-6. the velocity controller ``C`` drives the hand to the command and MuJoCo steps the arm;
-7. the motion ETC ``t_x`` is estimated from the new state.
+6. the safety layer limits ``v_ref`` and the command (speed; no motion away from the path beyond
+   ``hold_deviation``, overriding the acceleration limit), the velocity controller ``C`` drives
+   the hand to the command and MuJoCo steps the arm;
+7. the motion ETC ``t_x`` is estimated from the new state;
+8. the safety monitor checks the hand's speed and distance from the path, the force on the handle
+   and the joints; a breach is a **protective stop** (:attr:`GuidedArm.safety_stop`): from then
+   on the arm holds still (see :mod:`langenv.safety`).
 
 Motion is over when the command has come to rest after the last leg.
 
@@ -33,6 +38,7 @@ from langenv.control.motion_etc import FastETC
 from langenv.control.trajectory import Trajectory
 from langenv.robot.arm import Arm
 from langenv.robot.force_sensor import ForceSensor
+from langenv.safety import SafetyLimits, SafetyMonitor, SafetyStop, limit_velocity
 
 __all__ = ["GuidedArm"]
 
@@ -46,6 +52,8 @@ class GuidedArm:
         params: Virtual dynamics and guide parameters.
         sensor: The handle's force sensor.
         cooperation: The cooperation filter.
+        safety: Safety limits (default :class:`~langenv.safety.SafetyLimits`); its ``max_speed``
+            becomes the arm's velocity command limit (``arm.max_hand_speed``).
     """
 
     def __init__(
@@ -55,6 +63,7 @@ class GuidedArm:
         params: AdmittanceParams,
         sensor: ForceSensor,
         cooperation: CooperationFilter,
+        safety: SafetyLimits | None = None,
     ) -> None:
         self.arm = arm
         self.trajectory = trajectory
@@ -64,6 +73,15 @@ class GuidedArm:
         self.guide = Guide(trajectory, params)
         self.admittance = VariableAdmittance(params)
         self.etc = FastETC(self.guide, self.admittance)
+        self.limits = safety if safety is not None else SafetyLimits()
+        arm.max_hand_speed = self.limits.max_speed  # one source for the speed limit
+        lo, hi = arm.joint_range
+        self.monitor = SafetyMonitor(self.limits, arm.dt, lo, hi, arm.joint_names)
+        self.safety_stop: SafetyStop | None = None
+        """The protective stop that halted the arm, or None."""
+        self.path_deviation: float = 0.0
+        self._path_point: list[float] = trajectory.position(0.0).tolist()  # T(s), m
+        """Hand's distance ``|x - T(s)|`` from its closest path point, after the last tick (m)."""
         self.dt: float = arm.dt
         self.state: GuideState = self.guide.initial_state()
         self.v_ref = np.zeros(3)
@@ -104,6 +122,11 @@ class GuidedArm:
         return self.t_motion_end is not None
 
     @property
+    def stopped(self) -> bool:
+        """Whether a protective stop has halted the arm (:attr:`safety_stop` says why)."""
+        return self.safety_stop is not None
+
+    @property
     def progress(self) -> float:
         """Arc-length progress ``d = s / L`` in [0, 1]."""
         return float(self.state.s / self.trajectory.length)
@@ -125,13 +148,23 @@ class GuidedArm:
         self.time = 0.0
         self.t_motion_end = None
         self.t_x = self.etc.etc(self.state, self.arm.hand_position(), self.v_ref, self.v_cmd)
+        self.safety_stop = None
+        self.monitor.reset()
+        self._path_point = self.trajectory.position(self.state.s).tolist()
         self._measure_hand()
 
     def _measure_hand(self) -> None:
         v = self.arm.hand_velocity()
         v.flags.writeable = False
         self._hand_velocity = v
-        self._hand_speed = math.sqrt(float(v @ v))
+        self._hand_speed = math.sqrt(float(v.dot(v)))
+        self.path_deviation = math.dist(self.arm.hand_position().tolist(), self._path_point)
+
+    def _offset(self, x: np.ndarray) -> tuple[float, float, float]:
+        """``x - T(s)``: the hand's offset from its closest path point (m)."""
+        x0, x1, x2 = x.tolist()
+        p = self._path_point
+        return (x0 - p[0], x1 - p[1], x2 - p[2])
 
     def tick(
         self,
@@ -148,24 +181,37 @@ class GuidedArm:
             p_dot: Its time derivative (1/s).
             rng: Generator for the sensor noise (the env's ``np_random``).
         """
+        if type(f_user) is not np.ndarray:
+            f_user = np.asarray(f_user, dtype=np.float64)
         self.f_user = f_user
+        if self.safety_stop is not None:  # protective stop: the arm holds still
+            self.v_ref = np.zeros(3)
+            self.v_cmd = np.zeros(3)
+            self.arm.step(self.v_cmd, f_user)
+            self._measure_hand()
+            self.time += self.dt
+            return
         f_meas = self.sensor.measure(f_user, rng)
         self.f_measured = f_meas
         self.coop.update(math.sqrt(float(f_meas @ f_meas)), self.dt)
         x = self.arm.hand_position()
         if not self.state.done:
             self.guide.update(self.state, x)
+            self._path_point = self.trajectory.position(self.state.s).tolist()
+        offset = self._offset(x)
         braking = self.state.done
         if braking:
             self.v_ref = np.zeros(3)
         else:
             force = f_meas + self.guide.virtual_force(self.state, x, self.v_ref, p)
-            self.v_ref = self.admittance.step(self.v_ref, force, p, p_dot, self.dt)
+            v_ref = self.admittance.step(self.v_ref, force, p, p_dot, self.dt)
+            self.v_ref = limit_velocity(v_ref, offset, self.limits)
         was_moving = bool(self.v_cmd.any())
         target = self.v_ref
         if not braking and float(f_meas @ self.tangent()) > 0.0:  # pushed along: the governor
             target = cap_speed(target, self.guide.speed_limit(self.state, self.v_cmd))
-        self.v_cmd = follow(self.v_cmd, target, self._dv_max)
+        # the safety limits override the acceleration limit
+        self.v_cmd = limit_velocity(follow(self.v_cmd, target, self._dv_max), offset, self.limits)
         self.arm.step(self.v_cmd, f_user)
         if braking:
             moving = bool(self.v_cmd.any())
@@ -176,3 +222,10 @@ class GuidedArm:
             self.t_x = self.etc.etc(self.state, self.arm.hand_position(), self.v_ref, self.v_cmd)
         self._measure_hand()
         self.time += self.dt
+        self.safety_stop = self.monitor.check(
+            self.time,
+            self._hand_speed,
+            self.path_deviation,
+            math.hypot(*f_user.tolist()),
+            self.arm.joint_positions,
+        )

@@ -2,10 +2,22 @@
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["as_vec3"]
+__all__ = ["MAX_SESSION_S", "MIN_SAMPLE_SPACING", "as_vec3", "check_time_axis"]
+
+MAX_SESSION_S = 600.0
+"""Longest time span (s) of a session CSV or speech trace: 10 minutes, ten times the env's
+60 s episodes. It bounds what a replay or a rendering allocates (a 2 ms force table, an audio
+buffer) before any of it is made."""
+
+MIN_SAMPLE_SPACING = 1e-4
+"""Smallest spacing (s) between two samples of a session CSV or speech trace (10 kHz). Sparse
+samples are fine (values are interpolated in between)."""
 
 
 def as_vec3(value: ArrayLike, name: str, error: type[Exception]) -> NDArray[np.float64]:
@@ -31,3 +43,48 @@ def as_vec3(value: ArrayLike, name: str, error: type[Exception]) -> NDArray[np.f
     if not np.all(np.isfinite(arr)):
         raise error(f"{name} must be finite, got {arr.tolist()}")
     return np.ascontiguousarray(arr)
+
+
+def check_time_axis(
+    t: NDArray[np.float64],
+    where: str,
+    error: type[Exception],
+    at: Callable[[int], str] = lambda i: f"sample {i}",
+    *,
+    from_zero: bool = True,
+) -> None:
+    """Check a finite, strictly increasing time axis for a sane range and sampling.
+
+    Args:
+        t: Sample times (n,), s, finite and strictly increasing (checked by the caller).
+        where: What holds it (a file name, an argument), named in the message.
+        error: Exception type to raise (the package's own).
+        at: Names sample ``i`` in messages (e.g. ``"line 5"``).
+        from_zero: Times are since the session started: ``t[0] >= 0`` and ``t[-1] <=``
+            :data:`MAX_SESSION_S`; otherwise only the span ``t[-1] - t[0]`` is bounded.
+
+    Raises:
+        error: a negative start (``from_zero``), a span beyond :data:`MAX_SESSION_S`, or two
+            samples closer than :data:`MIN_SAMPLE_SPACING`.
+    """
+    first, last = float(t[0]), float(t[-1])
+    if from_zero and first < 0.0:
+        raise error(
+            f"{where}: column 't' must start at or after 0 s (time since the session started), "
+            f"but {at(0)} has t={first!r}"
+        )
+    span = last if from_zero else last - first
+    if not span <= MAX_SESSION_S or not math.isfinite(span):
+        what = f"ends at t={last!r} s" if from_zero else f"spans {span!r} s"
+        raise error(
+            f"{where}: column 't' {what}, beyond the {MAX_SESSION_S:g} s maximum session length "
+            "(are the times in seconds?)"
+        )
+    gaps = np.diff(t)
+    i = int(np.argmin(gaps))
+    gap = float(gaps[i])
+    if gap < MIN_SAMPLE_SPACING:
+        raise error(
+            f"{where}: column 't' has samples {gap:.3g} s apart ({at(i)} and {at(i + 1)}), "
+            f"closer than the {MIN_SAMPLE_SPACING:g} s minimum spacing (are the times in seconds?)"
+        )

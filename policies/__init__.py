@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from langenv.errors import ConfigError
 from policies.analytic import AdmittanceController, LanguageController, make_analytic
 from policies.base import Policy
 
@@ -21,10 +22,16 @@ def load_policy(spec: str) -> Any:
     Raises:
         KeyError: unknown policy name.
         FileNotFoundError: ``ppo:PATH`` whose model file (or a member's) does not exist.
-        ValueError: a corrupt or inconsistent model or ensemble manifest (naming the file).
+        ValueError: a corrupt or inconsistent model or ensemble manifest (naming the file);
+            :class:`~langenv.errors.ConfigError` (a ValueError) for ``ppo:`` without a path.
     """
     if spec.startswith("ppo:"):
         path = spec.removeprefix("ppo:")
+        if not path.strip():
+            raise ConfigError(
+                "ppo:PATH needs the path of a model (.zip) or an ensemble manifest (.yaml), "
+                "e.g. ppo:models/ppo_phrase_choice.zip"
+            )
         if path.endswith((".yaml", ".yml")):
             from policies.ensemble import PPOEnsemble
 

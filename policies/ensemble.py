@@ -17,6 +17,8 @@ arguments, since one env serves them all.
 
 from __future__ import annotations
 
+import os
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -156,12 +158,14 @@ def write_manifest(out: Path, models: list[Path]) -> Path:
         "# (policies/ensemble.py). Written by python -m train.ensemble.\n"
         + yaml.safe_dump({"kind": MANIFEST_KIND, "members": entries}, sort_keys=False)
     )
-    tmp = out.with_name(out.name + ".tmp")
-    tmp.write_text(text)
+    fd, name = tempfile.mkstemp(prefix=f".{out.name}.", suffix=out.suffix, dir=out.parent)
+    tmp = Path(name)
     try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
         PPOEnsemble.load(tmp)
-    except (FileNotFoundError, ValueError):
-        tmp.unlink()
+        tmp.replace(out)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
         raise
-    tmp.replace(out)
     return out

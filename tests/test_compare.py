@@ -135,3 +135,71 @@ def test_video_flag_writes_a_video_per_episode_with_the_wav_as_sound(
     wav, wav_sr = sf.read(out / "sessions" / "lc_s3.wav", dtype="float32")
     assert sr == wav_sr and audio.shape == wav.shape
     assert np.abs(audio - wav).max() < 1e-4  # the WAV is the same audio, as 16-bit PCM
+
+
+def test_existing_out_is_refused_and_its_files_kept(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The issue's repro: eval.compare --out DIR on a directory with a user's file in it."""
+    out = tmp_path / "v"
+    out.mkdir()
+    (out / "a.txt").write_text("keep")
+    args = ["--policies", "ac", "--users", "synthetic:1", "--out", str(out), "--workers", "1"]
+    fast = ["--no-audio", "--no-figures", "--decision-hz", "50"]
+    assert main([*args, *fast]) == 2
+    err = capsys.readouterr().err
+    assert "not empty" in err and "--overwrite" in err
+    assert sorted(p.name for p in out.iterdir()) == ["a.txt"]
+    # --overwrite writes the outputs beside it and leaves it alone; again, it replaces them
+    assert main([*args, *fast, "--overwrite"]) == 0
+    assert (out / "a.txt").read_text() == "keep"
+    first = (out / "sessions.csv").read_text()
+    assert main([*args, *fast, "--overwrite", "--seed", "1"]) == 0
+    assert (out / "a.txt").read_text() == "keep"
+    assert (out / "sessions.csv").read_text() != first
+    assert sorted(p.name for p in (out / "sessions").iterdir()) == ["ac_s1.npz"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["v"]  # no temporary left
+    rows = list(csv.DictReader((out / "sessions.csv").open()))
+    assert rows[0]["protective_stop"] == "0.0" and rows[0]["stop_limit"] == ""
+    assert "Protective stops" in (out / "summary.md").read_text()
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--users", "synthetic:²"], "synthetic:N"),
+        (["--users", "synthetic:10000000000"], "at most 10000"),
+        (["--policies", "ppo:"], "ppo:PATH needs the path"),
+    ],
+)
+def test_more_bad_arguments_are_named(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], message: str
+) -> None:
+    out = tmp_path / "out"
+    assert main([*args, "--out", str(out)]) == 2
+    assert message in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_negative_seed_is_a_usage_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as info:
+        main(["--seed", "-5", "--out", str(tmp_path / "out")])
+    assert info.value.code == 2
+    assert "--seed must be >= 0, got -5" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_out_under_a_file_is_named(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    assert main(["--out", str(blocker / "out")]) == 2
+    assert "is a file, not a directory" in capsys.readouterr().err
+    assert main(["--out", str(blocker)]) == 2
+    assert "not a directory" in capsys.readouterr().err
+    assert blocker.read_text() == "x"
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="uses /sys, read-only even for root")
+def test_unwritable_out_is_named(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["--users", "synthetic:1", "--out", "/sys/langctrl-test/out"]) == 2
+    assert "cannot write there" in capsys.readouterr().err

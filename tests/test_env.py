@@ -213,3 +213,45 @@ def test_render_rgb_array() -> None:
     assert frame.shape == (120, 160, 3) and frame.dtype == np.uint8
     assert frame.std() > 1.0  # not a blank image
     env.close()
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "name"),
+    [
+        ({"decision_hz": True}, "decision_hz"),
+        ({"decision_hz": 25.0}, "decision_hz"),
+        ({"w_am": "1"}, "w_am"),
+        ({"w_pace": None}, "w_pace"),
+        ({"width": "wide"}, "width"),
+        ({"render_mode": "human"}, "render_mode"),
+        ({"safety": {"max_speed": 0.3}}, "safety"),
+    ],
+)
+def test_bad_argument_types_are_named(kwargs: dict[str, object], name: str) -> None:
+    with pytest.raises(ConfigError, match=name):
+        gym.make(langenv.ENV_ID, **kwargs)
+
+
+def test_human_render_mode_says_how_to_get_a_window() -> None:
+    with pytest.raises(ConfigError, match="HumanRendering"):
+        gym.make(langenv.ENV_ID, render_mode="human")
+
+
+@pytest.mark.parametrize(
+    ("action", "fragment"),
+    [
+        ("0.5", "got a str"),
+        ({"p": 0.0}, "got a dict"),
+        (None, "action is None"),
+        (np.zeros((1, 3), np.float32), "got shape (1, 3)"),
+        ([[0.0, 0.0, 0.0]], "got shape (1, 3)"),
+        ([0.0, "fast", 0.0], "numbers"),
+        (object(), "numbers"),
+    ],
+)
+def test_malformed_actions_are_named(action: object, fragment: str) -> None:
+    env = LangCtrlEnv()
+    env.reset(seed=0)
+    with pytest.raises(ActionError) as info:
+        env.step(action)  # type: ignore[arg-type]
+    assert fragment in str(info.value)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -356,3 +357,171 @@ def test_finetune_config_starts_from_the_first_stage_checkpoint() -> None:
         return [(k, {n: v for n, v in kw.items() if n not in paces}) for k, kw in chain]
 
     assert without_paces(first.wrapper.chain) == without_paces(second.wrapper.chain)
+
+
+def _weights(path: Path) -> dict[str, np.ndarray]:
+    from stable_baselines3 import PPO
+
+    model = PPO.load(path, device="cpu")
+    return {k: v.numpy().copy() for k, v in model.policy.state_dict().items()}
+
+
+def _same(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> bool:
+    return all(np.array_equal(a[k], b[k]) for k in a)
+
+
+@pytest.mark.slow
+def test_resume_loses_nothing(tmp_path: Path) -> None:
+    """Interrupted after its first update and resumed: the next update is learned on top of it,
+    the evaluation history and the best model carry over, and the budget and settings are the
+    interrupted run's."""
+    out = tmp_path / "run"
+    ckpt = out / "checkpoints"
+    first = _train(
+        *("--out", str(out), "--n-envs", "2", "--eval-freq", "2048", "--checkpoint-freq", "2048"),
+        *("--total-timesteps", "2048", "--n-eval-episodes", "1", "--seed", "1000123"),
+    )
+    assert first.returncode == 0, first.stderr[-3000:]
+    for f in model_files(out / "ppo_langctrl.zip"):  # as if killed before the end
+        f.unlink()
+    point = tmp_path / "point.zip"
+    shutil.copyfile(ckpt / "resume" / "ppo_langctrl.zip", point)
+
+    again = _train("--out", str(out), "--resume", "--total-timesteps", "4096")
+    assert again.returncode == 0, again.stderr[-3000:]
+    assert "the state after the update at 2048 steps" in again.stderr
+    snap2 = _weights(ckpt / "ppo_langctrl_2048_steps.zip")  # taken before that update
+    snap4 = _weights(ckpt / "ppo_langctrl_4096_steps.zip")
+    assert not _same(snap4, snap2)  # the first batch was learned from ...
+    assert _same(snap4, _weights(point))  # ... and kept
+    assert not _same(_weights(out / "ppo_langctrl.zip"), snap4)  # the next update happened
+    run_cfg = yaml.safe_load((out / "run_config.yaml").read_text())
+    assert run_cfg["train"]["seed"] == 1000123 and run_cfg["train"]["n_eval_episodes"] == 1
+    with np.load(out / "eval" / "evaluations.npz") as ev:
+        assert ev["timesteps"].tolist() == [2048, 4096]
+        means = ev["results"].mean(axis=1)
+    best = yaml.safe_load((out / "best" / "ppo_langctrl_config.yaml").read_text())
+    assert best["num_timesteps"] == [2048, 4096][int(np.argmax(means))]
+    assert best["eval_mean_reward"] == pytest.approx(float(means.max()))
+
+    # --resume alone keeps the run's budget (4096 steps), not the config's (3e5)
+    final = (out / "ppo_langctrl.zip").read_bytes()
+    done = _train("--out", str(out), "--resume")
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "nothing to do" in done.stderr
+    assert (out / "ppo_langctrl.zip").read_bytes() == final
+    # another setting is refused, naming it
+    other = _train("--out", str(out), "--resume", "--seed", "1000999")
+    assert other.returncode == 2 and "--seed 1000999" in other.stderr
+
+
+@pytest.mark.slow
+def test_ctrl_c_exits_130_with_one_line(tmp_path: Path) -> None:
+    """Ctrl-C (SIGINT to the whole process group, as a terminal sends it) in a run with worker
+    processes: one line, exit status 130, and the run resumes from the last update."""
+    import signal
+    import time
+
+    out = tmp_path / "run"
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    cmd = [sys.executable, "-m", "train.ppo", "--config", str(CONFIG), "--no-progress-bar"]
+    cmd += ["--out", str(out), "--n-envs", "2", "--vec-env", "subproc", "--n-eval-episodes", "0"]
+    proc = subprocess.Popen(
+        [*cmd, "--total-timesteps", "100000"],
+        cwd=REPO,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    point = out / "checkpoints" / "resume" / "ppo_langctrl.zip"
+    t0 = time.monotonic()
+    while not point.is_file() and time.monotonic() - t0 < 120 and proc.poll() is None:
+        time.sleep(0.2)
+    time.sleep(2.0)  # well inside the first rollout
+    os.killpg(proc.pid, signal.SIGINT)
+    _stdout, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 130, stderr[-3000:]
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("train.ppo: interrupted at"), stderr[-3000:]
+    assert "continue with --resume" in lines[0]
+    assert point.is_file()
+
+
+def test_resume_point_swap_and_sources(tmp_path: Path) -> None:
+    """The resume point is replaced whole; a crash between the renames leaves the old one."""
+    from train.ppo import _resume_source, _save_resume_point, resume_files
+
+    ckpt = tmp_path / "checkpoints"
+    with pytest.raises(FileNotFoundError, match="no checkpoint"):
+        _resume_source(ckpt, "m")
+    model, _env = _fresh_model(1)
+    _save_resume_point(model, ckpt, "m")
+    zip_path, pkl = resume_files(ckpt, "m")
+    assert zip_path.is_file() and pkl.is_file()
+    assert _resume_source(ckpt, "m") == (zip_path, pkl, True)
+    _save_resume_point(model, ckpt, "m")  # again: replaced, nothing left over
+    assert sorted(p.name for p in ckpt.iterdir()) == ["resume"]
+    (ckpt / "resume").rename(ckpt / ".resume.old")  # killed between the two renames
+    assert _resume_source(ckpt, "m")[0] == ckpt / ".resume.old" / "m.zip"
+    shutil.rmtree(ckpt / ".resume.old")
+    model.save(checkpoint_files(ckpt, "m", 4096)[0])
+    _env.save(str(checkpoint_files(ckpt, "m", 4096)[1]))
+    assert _resume_source(ckpt, "m") == (*checkpoint_files(ckpt, "m", 4096), False)
+
+
+def test_restore_history_keeps_what_the_resume_point_saw(tmp_path: Path) -> None:
+    from stable_baselines3.common.callbacks import EvalCallback
+
+    from train.ppo import _restore_history
+
+    (tmp_path / "eval").mkdir()
+    np.savez(
+        tmp_path / "eval" / "evaluations.npz",
+        timesteps=[2048, 4096, 6144],
+        results=[[-1.0, -2.0], [-0.5, -0.7], [-0.1, -0.2]],
+        ep_lengths=[[10, 10], [10, 10], [10, 10]],
+    )
+    _model, env = _fresh_model(1)
+    cb = EvalCallback(env, n_eval_episodes=2)
+    best_cfg = tmp_path / "best.yaml"
+    assert _restore_history(cb, tmp_path / "eval", best_cfg, 4096) == 2
+    assert cb.evaluations_timesteps == [2048, 4096]
+    assert cb.best_mean_reward == pytest.approx(-0.6)
+    best_cfg.write_text(yaml.safe_dump({"eval_mean_reward": -0.15}))  # best/ came from 6144
+    _restore_history(cb, tmp_path / "eval", best_cfg, 4096)
+    assert cb.best_mean_reward == pytest.approx(-0.15)
+
+
+def test_fresh_run_refuses_a_non_empty_out(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from train.ppo import main as train_main
+
+    (tmp_path / "notes.txt").write_text("keep")
+    assert train_main(["--config", str(CONFIG), "--out", str(tmp_path)]) == 2
+    assert "already holds files" in capsys.readouterr().err
+    assert [p.name for p in tmp_path.iterdir()] == ["notes.txt"]
+
+
+def test_export_and_ensemble_never_replace_files_without_overwrite(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from train.ensemble import main as ensemble_main
+    from train.export import main as export_main
+
+    (tmp_path / "checkpoints").mkdir()
+    (tmp_path / "run_config.yaml").write_text("train: {name: m}\n")
+    for f in checkpoint_files(tmp_path / "checkpoints", "m", 5):
+        f.write_bytes(b"checkpoint")
+    (tmp_path / "x_config.yaml").write_text("mine")
+    assert export_main([str(tmp_path), "--steps", "5", "--out", str(tmp_path / "x")]) == 2
+    assert "x_config.yaml exists; give --overwrite" in capsys.readouterr().err
+    assert (tmp_path / "x_config.yaml").read_text() == "mine"
+    assert not (tmp_path / "x.zip").exists()
+    manifest = tmp_path / "e.yaml"
+    manifest.write_text("mine")
+    assert ensemble_main([str(tmp_path / "a.zip"), "--out", str(manifest)]) == 2
+    assert "e.yaml exists; give --overwrite" in capsys.readouterr().err
+    assert manifest.read_text() == "mine"

@@ -116,3 +116,33 @@ def test_study_sessions_load() -> None:
         assert s.columns == ("t", "cooperation", *OPTIONAL_COLUMNS)
         assert np.all(np.diff(s.t) > 0)
         assert 5.0 < s.duration < 60.0
+
+
+def _scaled(tmp_path: Path, scale: float, shift: float = 0.0, name: str = "scaled.csv") -> Path:
+    t = np.arange(686) * 0.02 * scale + shift
+    rows = "\n".join(f"{float(v)!r},1.0" for v in t)
+    return _write(tmp_path, f"t,cooperation\n{rows}\n", name)
+
+
+@pytest.mark.parametrize(
+    ("scale", "shift", "fragment"),
+    [
+        (1e4, 0.0, "600 s maximum session length"),
+        (1e6, 0.0, "600 s maximum session length"),
+        (1e-9, 0.0, "minimum spacing"),
+        (1.0, -0.5, "must start at or after 0 s"),
+    ],
+)
+def test_time_axis_is_bounded_before_any_allocation(
+    tmp_path: Path, scale: float, shift: float, fragment: str
+) -> None:
+    """Times in ms, in the wrong unit or starting before 0: a named error, not gigabytes."""
+    with pytest.raises(SessionDataError) as info:
+        load_session(_scaled(tmp_path, scale, shift))
+    assert "scaled.csv" in str(info.value) and fragment in str(info.value)
+
+
+def test_absurd_last_time_is_named(tmp_path: Path) -> None:
+    path = _write(tmp_path, "t,cooperation\n0,1\n1e300,1\n", "far.csv")
+    with pytest.raises(SessionDataError, match=r"far\.csv.*t=1e\+300"):
+        load_session(path)

@@ -220,3 +220,44 @@ def test_render_a_recorded_session(tmp_path: Path) -> None:
     )
     expected = max(float(data["t"][-1] - data["t"][0]), plan[-1].t_end - float(data["t"][0]))
     assert abs(y.size / sr - expected) < 0.02
+
+
+@pytest.mark.parametrize(
+    ("content", "fragment"),
+    [
+        ("t,audio_pace\n0,1\n1e7,1\n", "600 s maximum session length"),
+        ("t,audio_pace\n0,1\n0.00001,1\n", "minimum spacing"),
+        ("t,audio_pace\n0,1\n1,1e9\n", "column 'audio_pace': 1000000000.0 is outside"),
+        ("t,audio_pace\n0,1\n1,0.001\n", "column 'audio_pace': 0.001 is outside"),
+    ],
+)
+def test_trace_is_bounded_before_rendering(
+    content: str, fragment: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A trace ending at t = 1e7 s or with an absurd pace: a named error, not 821 GiB."""
+    trace = tmp_path / "trace.csv"
+    trace.write_text(content)
+    out = tmp_path / "out.wav"
+    assert main(["render", "ac", str(trace), str(out)]) == 1
+    err = capsys.readouterr().err
+    assert str(trace) in err and fragment in err
+    assert not out.exists()
+
+
+def test_render_functions_bound_the_trace() -> None:
+    g = PhraseGraph.load(default_graph_path("ac"))
+    with pytest.raises(ConfigError, match="maximum session length"):
+        render_history(g, ClipLibrary(), ["intro"], np.array([0.0, 1e7]), np.ones(2))
+    with pytest.raises(ConfigError, match=r"a\[1\] = 1000000000.0"):
+        plan_speech(g, np.array([0.0, 1.0]), np.array([1.0, 1e9]))
+
+
+def test_render_never_replaces_a_file_without_overwrite(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    trace = write_trace(tmp_path / "trace.csv", np.linspace(0, 5, 6), np.ones(6))
+    out = tmp_path / "out.wav"
+    out.write_bytes(b"a user's recording")
+    assert main(["render", "ac", str(trace), str(out)]) == 1
+    assert "--overwrite" in capsys.readouterr().err
+    assert out.read_bytes() == b"a user's recording"

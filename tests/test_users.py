@@ -433,3 +433,13 @@ def test_synthetic_onsets_spread_like_the_recorded_ones() -> None:
     assert abs(np.median(syn_last) - np.median(rec_last)) < 3.0
     assert abs(np.quantile(syn_last, 0.9) - np.quantile(rec_last, 0.9)) < 6.0
     assert abs(np.median(syn_total) / np.median(rec_total) - 1.0) < 0.35
+
+
+def test_replay_grid_is_bounded() -> None:
+    """invert_cooperation refuses a grid it cannot afford before allocating it."""
+    from langenv.users.replay import invert_cooperation
+
+    with pytest.raises(ConfigError, match="grid points"):
+        invert_cooperation(np.array([0.0, 1e7]), np.array([1.0, 0.5]))
+    with pytest.raises(ConfigError, match="grid points"):
+        invert_cooperation(np.array([0.0, 10.0]), np.array([1.0, 0.5]), dt=1e-9)

@@ -7,7 +7,8 @@ Run::
 
 The members (made with ``python -m train.export``) must lie in the manifest's folder and share
 their residual design, decision rate, phrase graph and env arguments. The manifest records each
-member's SHA-256 and is loaded once before it is written, so a broken ensemble fails here.
+member's SHA-256 and is loaded once before it is written, so a broken ensemble fails here. An
+existing manifest is replaced only with ``--overwrite``.
 """
 
 from __future__ import annotations
@@ -28,10 +29,12 @@ class EnsembleArgs:
     Attributes:
         models: The member model zips.
         out: The manifest to write (``.yaml``).
+        overwrite: Replace an existing manifest.
     """
 
     models: tuple[Path, ...]
     out: Path
+    overwrite: bool = False
 
 
 def parse_args(argv: Sequence[str] | None = None) -> EnsembleArgs:
@@ -39,10 +42,11 @@ def parse_args(argv: Sequence[str] | None = None) -> EnsembleArgs:
     p = argparse.ArgumentParser(prog="python -m train.ensemble", description=__doc__.split("\n")[0])
     p.add_argument("models", type=Path, nargs="+", help="member model zips (train.export)")
     p.add_argument("--out", type=Path, required=True, help="the manifest to write (.yaml)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing manifest")
     ns = p.parse_args(argv)
     if ns.out.suffix not in (".yaml", ".yml"):
         p.error(f"--out must end in .yaml, got {ns.out}")
-    return EnsembleArgs(models=tuple(ns.models), out=ns.out)
+    return EnsembleArgs(models=tuple(ns.models), out=ns.out, overwrite=ns.overwrite)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -50,6 +54,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     from policies.ensemble import write_manifest
 
     args = parse_args(argv)
+    if args.out.exists() and not args.overwrite:
+        print(
+            f"train.ensemble: error: {args.out} exists; give --overwrite to replace it",
+            file=sys.stderr,
+        )
+        return 2
     try:
         path = write_manifest(args.out, list(args.models))
     except (FileNotFoundError, ValueError) as exc:

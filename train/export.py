@@ -8,7 +8,8 @@ copies ``RUN/checkpoints/NAME_<steps>_steps.zip`` and its ``NAME_vecnormalize_<s
 to ``OUT.zip`` and ``OUT_vecnormalize.pkl``, writes the run's config (``RUN/run_config.yaml``) as
 ``OUT_config.yaml`` with the checkpoint's step count and origin, and loads the result once with
 :meth:`policies.learned.PPOPolicy.load` so that a broken export fails here, not in an evaluation.
-Nothing is written when an input is missing.
+Nothing is written when an input is missing, nor over an existing ``OUT.*`` without
+``--overwrite``.
 
 ``--choice-only`` exports only the phrase-choice part of the learned correction: the exported
 config's residual gets ``pace_scale = audio_scale = 0``, so the paces are the base controller's
@@ -41,6 +42,7 @@ class ExportArgs:
             ``OUT_config.yaml``).
         name: The run's model name; None: ``train.name`` of ``RUN/run_config.yaml``.
         choice_only: Keep only the phrase-choice correction (pace corrections off).
+        overwrite: Replace existing ``OUT.*`` files.
     """
 
     run: Path
@@ -48,6 +50,7 @@ class ExportArgs:
     out: Path
     name: str | None = None
     choice_only: bool = False
+    overwrite: bool = False
 
 
 def parse_args(argv: Sequence[str] | None = None) -> ExportArgs:
@@ -64,9 +67,15 @@ def parse_args(argv: Sequence[str] | None = None) -> ExportArgs:
         action="store_true",
         help="keep only the phrase-choice correction (the paces stay the base controller's)",
     )
+    p.add_argument("--overwrite", action="store_true", help="replace existing OUT.* files")
     ns = p.parse_args(argv)
     return ExportArgs(
-        run=ns.run, steps=ns.steps, out=ns.out, name=ns.name, choice_only=ns.choice_only
+        run=ns.run,
+        steps=ns.steps,
+        out=ns.out,
+        name=ns.name,
+        choice_only=ns.choice_only,
+        overwrite=ns.overwrite,
     )
 
 
@@ -75,6 +84,7 @@ def export(args: ExportArgs) -> Path:
 
     Raises:
         FileNotFoundError: naming the missing checkpoint, normalisation or run config.
+        FileExistsError: naming an existing output file (without ``overwrite``).
         ValueError: if the exported model does not load.
     """
     from policies.learned import PPOPolicy, model_files
@@ -106,6 +116,9 @@ def export(args: ExportArgs) -> Path:
         config["choice_only"] = True
     config["exported_from"] = str(sources[0])
     targets = model_files(args.out)
+    taken = [t for t in targets if t.exists()]
+    if taken and not args.overwrite:
+        raise FileExistsError(f"train.export: {taken[0]} exists; give --overwrite to replace it")
     targets[0].parent.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(sources[0], targets[0])
     shutil.copyfile(sources[1], targets[1])
@@ -119,7 +132,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
     try:
         path = export(args)
-    except (FileNotFoundError, ValueError) as exc:
+    except (FileNotFoundError, FileExistsError, ValueError) as exc:
         print(f"train.export: error: {exc}", file=sys.stderr)
         return 2
     print(path)

@@ -18,10 +18,24 @@ What a run writes into ``--out``:
 
 * ``NAME.zip``, ``NAME_vecnormalize.pkl``, ``NAME_config.yaml``: the final model, its
   observation/reward normalisation and the run's full config (what ``PPOPolicy.load`` reads);
-* ``best/NAME.*``: the same three files for the best periodic evaluation;
-* ``checkpoints/NAME_<steps>_steps.zip`` and ``NAME_vecnormalize_<steps>_steps.pkl``: what
-  ``--resume`` continues from (also written when the run is interrupted with Ctrl-C);
-* ``eval/evaluations.npz``: periodic evaluation results; ``tb/``: TensorBoard logs.
+* ``best/NAME.*``: the same three files for the best periodic evaluation (its config records
+  the evaluation's mean return, ``eval_mean_reward``);
+* ``checkpoints/NAME_<steps>_steps.zip`` and ``NAME_vecnormalize_<steps>_steps.pkl``: snapshots
+  every ``checkpoint_freq`` steps (what ``train.export`` reads), taken at that step, i.e. with the
+  weights of the last update before it;
+* ``checkpoints/resume/NAME.zip`` and ``NAME_vecnormalize.pkl``: the *resume point*, the state
+  right after the latest update (saved, atomically, at the start of every rollout and at the end);
+* ``run_config.yaml``: the run's full settings; ``eval/evaluations.npz``: periodic evaluation
+  results; ``tb/``: TensorBoard logs.
+
+A fresh run refuses an ``--out`` that already holds files. ``--resume`` continues the run in
+``--out`` from its resume point with the settings and budget of its ``run_config.yaml`` (only
+``--total-timesteps`` and settings that do not change what is learned, such as
+``--checkpoint-freq`` or ``--no-progress-bar``, may be given anew; ``--n-eval-episodes 0`` turns
+evaluation off): no update is lost, the step counters of the checkpoints and evaluations go on
+where they were, the evaluation history and the best model carry over, and the random generators
+are reseeded from ``seed`` and the step count, so a resumed run is reproducible. Ctrl-C stops a
+run with one line (the resume point is already on disk) and exit status 130.
 
 Seeds: training envs are seeded ``seed + i`` (``seed >= 1_000_000`` by default, far from the
 evaluation users of ``python -m eval.compare --seed 0``, which are 0..N-1); periodic evaluation
@@ -37,7 +51,9 @@ import importlib
 import math
 import re
 import shutil
+import signal
 import sys
+import tempfile
 import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, fields, replace
@@ -53,7 +69,7 @@ from stable_baselines3.common.callbacks import (
     CheckpointCallback,
     EvalCallback,
 )
-from stable_baselines3.common.vec_env import VecNormalize
+from stable_baselines3.common.vec_env import SubprocVecEnv, VecNormalize
 
 from langenv.errors import ConfigError
 
@@ -64,6 +80,7 @@ __all__ = [
     "load_config",
     "main",
     "parse_args",
+    "resume_files",
     "train",
 ]
 
@@ -92,7 +109,7 @@ class TrainArgs:
         checkpoint_freq: Env steps between checkpoints.
         n_envs: Parallel training envs; ``None``: the YAML's ``n_envs``.
         vec_env: ``"subproc"`` (one process per env) or ``"dummy"`` (in this process).
-        resume: Continue from the latest checkpoint in ``out/checkpoints``.
+        resume: Continue the run in ``out`` from its resume point, with its saved settings.
         init_from: Fine-tune: start from this saved model's network weights and normalisation
             statistics instead of random weights (a model zip written by this script or by
             ``train.export``, with its ``_vecnormalize.pkl``; or a checkpoint
@@ -344,13 +361,13 @@ def _make_envs(run: _Run) -> tuple[Any, Any]:
     import gymnasium as gym
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.monitor import Monitor
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+    from stable_baselines3.common.vec_env import DummyVecEnv
 
     import langenv  # noqa: F401  (registers the env)
     from train.wrappers import SeedCycle
 
     a = run.args
-    cls = SubprocVecEnv if (a.vec_env == "subproc" and run.n_envs > 1) else DummyVecEnv
+    cls = _SubprocVecEnv if (a.vec_env == "subproc" and run.n_envs > 1) else DummyVecEnv
     env = make_vec_env(
         a.env_id,
         n_envs=run.n_envs,
@@ -533,6 +550,35 @@ def _init_from(model: Any, env: Any, path: Path) -> str:
     return file_sha256(zip_path)
 
 
+def resume_files(ckpt_dir: Path, name: str) -> tuple[Path, Path]:
+    """The resume point's model zip and VecNormalize pickle (``checkpoints/resume/NAME.zip``,
+    ``NAME_vecnormalize.pkl``)."""
+    return ckpt_dir / "resume" / f"{name}.zip", ckpt_dir / "resume" / f"{name}_vecnormalize.pkl"
+
+
+def _save_resume_point(model: Any, ckpt_dir: Path, name: str) -> None:
+    """Write the resume point: into a fresh directory, then swapped in by renames, so that an
+    interruption leaves either the previous resume point or the new one, never a mix."""
+    ckpt_dir.mkdir(parents=True, exist_ok=True)
+    final = ckpt_dir / "resume"
+    old = ckpt_dir / ".resume.old"
+    tmp = Path(tempfile.mkdtemp(prefix=".resume.tmp-", dir=ckpt_dir))
+    try:
+        model.save(tmp / f"{name}.zip")
+        vn = model.get_vec_normalize_env()
+        if vn is not None:
+            vn.save(str(tmp / f"{name}_vecnormalize.pkl"))
+        if old.exists():
+            shutil.rmtree(old)
+        if final.exists():
+            final.rename(old)
+        tmp.rename(final)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    shutil.rmtree(old, ignore_errors=True)
+
+
 def _latest_checkpoint(ckpt_dir: Path, name: str) -> tuple[Path, Path, int] | None:
     best: tuple[Path, Path, int] | None = None
     for zip_path in ckpt_dir.glob(f"{name}_*_steps.zip"):
@@ -546,37 +592,253 @@ def _latest_checkpoint(ckpt_dir: Path, name: str) -> tuple[Path, Path, int] | No
     return best
 
 
+def _resume_source(ckpt_dir: Path, name: str) -> tuple[Path, Path, bool]:
+    """``(model zip, VecNormalize pickle, is a resume point)`` to continue from.
+
+    The resume point (after the latest update) when there is one, also the one a crash left
+    renamed aside; else, for runs made before resume points existed, the latest snapshot.
+
+    Raises:
+        FileNotFoundError: if there is neither.
+    """
+    for directory in (ckpt_dir / "resume", ckpt_dir / ".resume.old"):
+        zip_path = directory / f"{name}.zip"
+        if zip_path.is_file():
+            return zip_path, directory / f"{name}_vecnormalize.pkl", True
+    found = _latest_checkpoint(ckpt_dir, name)
+    if found is None:
+        raise FileNotFoundError(
+            f"--resume: no checkpoint (resume/{name}.zip or {name}_*_steps.zip) in {ckpt_dir}"
+        )
+    return found[0], found[1], False
+
+
+#: Arguments ``--resume`` takes anew: they change neither what is learned nor how it is evaluated.
+_RESUME_OVERRIDES = frozenset(
+    {
+        "total_timesteps",
+        "checkpoint_freq",
+        "eval_freq",
+        "vec_env",
+        "progress_bar",
+        "tensorboard",
+        "device",
+        "torch_threads",
+        "verbose",
+        "config",
+        "out",
+        "resume",
+        "init_from",
+    }
+)
+
+
+def _resolve_resume(args: TrainArgs, given: set[str]) -> tuple[_Run, dict[str, Any]]:
+    """The interrupted run's settings (from its ``run_config.yaml``), with the overrides allowed.
+
+    Returns:
+        The run and its saved config.
+
+    Raises:
+        FileNotFoundError: no checkpoint, or no ``run_config.yaml`` in the run's directory.
+        ConfigError: an explicit argument that differs from the run's saved setting (naming it).
+    """
+    out = args.out if "out" in given else _resolve(args, given).args.out
+    ckpt_dir = out / "checkpoints"
+    _resume_source(ckpt_dir, args.name if "name" in given else _saved_name(out, args))
+    path = out / "run_config.yaml"
+    if not path.is_file():
+        raise FileNotFoundError(f"--resume: {path} not found, so the run's settings are unknown")
+    try:
+        config = yaml.safe_load(path.read_text())
+        saved = dict(config["train"])
+        env_id = saved["env_id"]
+        hyper = dict(config[env_id])
+        n_envs, total = int(config["n_envs"]), int(config["total_timesteps"])
+    except (yaml.YAMLError, KeyError, TypeError, ValueError) as exc:
+        raise ConfigError(f"{path}: not a run config written by train.ppo ({exc!r})") from None
+    known = {f.name for f in fields(TrainArgs)}
+    kwargs = {k: v for k, v in saved.items() if k in known}
+    for key in ("config", "out", "init_from"):
+        if kwargs.get(key) is not None:
+            kwargs[key] = Path(kwargs[key])
+    for key in sorted(given - _RESUME_OVERRIDES):
+        mine = getattr(args, key)
+        if key == "n_eval_episodes" and mine == 0:
+            continue
+        if mine != kwargs.get(key):
+            raise ConfigError(
+                f"--resume continues the run in {out} with its saved settings, but --"
+                f"{key.replace('_', '-')} {mine} differs from its {kwargs.get(key)!r} (start a "
+                "new run in another --out to change it)"
+            )
+    kwargs.update({k: getattr(args, k) for k in given if k in known and k != "config"})
+    kwargs.update(out=out, resume=True)
+    merged = TrainArgs(**kwargs)
+    if merged.total_timesteps is not None and "total_timesteps" in given:
+        total = merged.total_timesteps
+    merged = replace(merged, total_timesteps=total)
+    run = _Run(
+        merged,
+        hyper,
+        dict(hyper.get("env_kwargs") or {}),
+        _wrapper_class(hyper.get("env_wrapper"), path),
+        _normalize_kwargs(hyper.get("normalize"), path),
+        n_envs,
+        total,
+    )
+    return run, config
+
+
+def _saved_name(out: Path, args: TrainArgs) -> str:
+    """The run's model name from its ``run_config.yaml`` (``args.name`` when unreadable)."""
+    try:
+        name = yaml.safe_load((out / "run_config.yaml").read_text())["train"]["name"]
+    except (OSError, yaml.YAMLError, KeyError, TypeError):
+        return args.name
+    return str(name)
+
+
+def _restore_history(eval_cb: EvalCallback, eval_dir: Path, best_cfg: Path, steps: int) -> int:
+    """Give a resumed run's evaluation callback the evaluations made up to ``steps`` and the best
+    mean return so far; returns how many evaluations carried over."""
+    path = eval_dir / "evaluations.npz"
+    if path.is_file():
+        with np.load(path) as data:
+            keep = np.asarray(data["timesteps"]) <= steps
+            eval_cb.evaluations_timesteps = [int(t) for t in np.asarray(data["timesteps"])[keep]]
+            eval_cb.evaluations_results = [list(r) for r in np.asarray(data["results"])[keep]]
+            eval_cb.evaluations_length = [list(r) for r in np.asarray(data["ep_lengths"])[keep]]
+    means = [float(np.mean(r)) for r in eval_cb.evaluations_results]
+    best = max(means, default=-np.inf)
+    if best_cfg.is_file():
+        recorded = (yaml.safe_load(best_cfg.read_text()) or {}).get("eval_mean_reward")
+        if isinstance(recorded, int | float):
+            best = max(best, float(recorded))
+    eval_cb.best_mean_reward = best
+    if means:
+        eval_cb.last_mean_reward = means[-1]
+    return len(means)
+
+
+class _ResumePoint(BaseCallback):
+    """Saves the resume point at the start of every rollout, i.e. right after PPO has learned
+    from the previous one, and once more at the end of training."""
+
+    def __init__(self, ckpt_dir: Path, name: str) -> None:
+        super().__init__()
+        self.ckpt_dir, self.name = ckpt_dir, name
+        self.saved_at: int | None = None
+
+    def _save(self) -> None:
+        _save_resume_point(self.model, self.ckpt_dir, self.name)
+        self.saved_at = int(self.model.num_timesteps)
+
+    def _on_rollout_start(self) -> None:
+        self._save()
+
+    def _on_training_end(self) -> None:
+        self._save()
+
+    def _on_step(self) -> bool:
+        return True
+
+
+class _IgnoreSigint:
+    """Env factory for a worker process that leaves Ctrl-C to the learner process, which then
+    closes the workers cleanly (instead of each worker dying with its own traceback)."""
+
+    def __init__(self, make: Any) -> None:
+        self.make = make
+
+    def __call__(self) -> Any:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        return self.make()
+
+
+class _SubprocVecEnv(SubprocVecEnv):
+    """SubprocVecEnv whose workers ignore SIGINT (see :class:`_IgnoreSigint`)."""
+
+    def __init__(self, env_fns: list[Any], start_method: str | None = None) -> None:
+        super().__init__([_IgnoreSigint(fn) for fn in env_fns], start_method)
+
+
+def _close(env: Any) -> None:
+    """Close a VecEnv; a worker already gone is not an error worth a traceback."""
+    try:
+        env.close()
+    except (EOFError, BrokenPipeError, ConnectionResetError):
+        for proc in getattr(getattr(env, "venv", env), "processes", []):
+            proc.terminate()
+
+
+def _check_fresh_out(out: Path) -> None:
+    if out.is_dir() and any(out.iterdir()):
+        raise ConfigError(
+            f"--out {out} already holds files (an earlier run?); continue that run with "
+            "--resume, or start this one in another --out"
+        )
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"--out {out} exists and is not a directory")
+
+
 def train(args: TrainArgs, given: set[str] | None = None) -> Path:
     """Train (or resume) a run; returns the final model zip.
 
     Raises:
         FileNotFoundError: for a missing config, or ``resume`` without a checkpoint.
-        ConfigError: for an invalid config.
+        ConfigError: for an invalid config, a fresh run in a non-empty ``out``, or a resume
+            with a setting that differs from the run's.
+        KeyboardInterrupt: on Ctrl-C, after one line on stderr (the resume point is on disk).
     """
     import torch
 
-    run = _resolve(args, given)
+    given = given if given is not None else set()
+    saved: dict[str, Any] | None = None
+    if args.resume:
+        run, saved = _resolve_resume(args, given)
+    else:
+        run = _resolve(args, given)
+        _check_fresh_out(run.args.out)
     a = run.args
     torch.set_num_threads(a.torch_threads)
-    out = a.out
-    out.mkdir(parents=True, exist_ok=True)
-    ckpt_dir, eval_dir, best_dir = out / "checkpoints", out / "eval", out / "best"
     if a.init_from is not None and not a.resume:
         init_files(a.init_from)  # a missing file fails before any env starts
+    a.out.mkdir(parents=True, exist_ok=True)
     env, eval_env = _make_envs(run)
-    config = _config_dict(run, _residual_section(env), {})
-    tb = str(out / "tb") if a.tensorboard else None
+    try:
+        model, config, steps = _setup_model(run, env, saved)
+        return _learn(run, model, env, eval_env, config, steps)
+    finally:
+        _close(env)
+        if eval_env is not None:
+            _close(eval_env)
 
-    if a.resume:
-        found = _latest_checkpoint(ckpt_dir, a.name)
-        if found is None:
-            raise FileNotFoundError(f"--resume: no checkpoint {a.name}_*_steps.zip in {ckpt_dir}")
-        zip_path, pkl, _steps = found
+
+def _setup_model(run: _Run, env: Any, saved: dict[str, Any] | None) -> tuple[Any, dict, int]:
+    """The model (new, fine-tuned or resumed), the run's config and the step count it starts at.
+
+    ``run_config.yaml`` is written once the model is set up, so that a failed start leaves an
+    earlier run's file alone.
+    """
+    a = run.args
+    ckpt_dir = a.out / "checkpoints"
+    tb = str(a.out / "tb") if a.tensorboard else None
+    if saved is not None:
+        zip_path, pkl, is_point = _resume_source(ckpt_dir, a.name)
         if isinstance(env, VecNormalize):
             env = VecNormalize.load(str(pkl), env.venv)
         model = PPO.load(zip_path, env=env, device=a.device, tensorboard_log=tb)
-        print(f"resuming from {zip_path} at {model.num_timesteps} steps", file=sys.stderr)
+        steps = int(model.num_timesteps)
+        model.set_random_seed(a.seed + steps)  # a resumed run is reproducible too
+        what = "the state after the update at" if is_point else "snapshot (no resume point) at"
+        print(
+            f"resuming from {zip_path}: {what} {steps} steps, budget {run.total}", file=sys.stderr
+        )
+        args = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(a).items()}
+        config = dict(saved, train=args, total_timesteps=run.total)
     else:
+        config = _config_dict(run, _residual_section(env), {})
         model = PPO(
             run.hyper.get("policy", "MlpPolicy"),
             env,
@@ -586,37 +848,63 @@ def train(args: TrainArgs, given: set[str] | None = None) -> Path:
             verbose=a.verbose,
             **_ppo_kwargs(run),
         )
+        steps = 0
         if a.init_from is not None:
             config["init_from_sha256"] = _init_from(model, env, a.init_from)
             print(f"starting from the weights of {a.init_from}", file=sys.stderr)
-    # written once the model is set up, so that a failed start leaves an earlier run's file alone
-    (out / "run_config.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
+    (a.out / "run_config.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
+    return model, config, steps
+
+
+def _learn(
+    run: _Run, model: Any, env: Any, eval_env: Any, config: dict[str, Any], steps: int
+) -> Path:
+    """Run PPO to the budget with checkpoints, resume points and periodic evaluations."""
+    a = run.args
+    ckpt_dir, eval_dir, best_dir = a.out / "checkpoints", a.out / "eval", a.out / "best"
+    eval_cb: _MetricsEvalCallback | None = None
 
     class _SaveBest(BaseCallback):
         def _on_step(self) -> bool:
-            _save_triple(self.model, None, best_dir / a.name, config)
+            assert eval_cb is not None
+            cfg = dict(config, eval_mean_reward=float(eval_cb.best_mean_reward))
+            _save_triple(self.model, None, best_dir / a.name, cfg)
             return True
 
+    point = _ResumePoint(ckpt_dir, a.name)
     callbacks: list[Any] = [
         CheckpointCallback(
             save_freq=max(1, a.checkpoint_freq // run.n_envs),
             save_path=str(ckpt_dir),
             name_prefix=a.name,
             save_vecnormalize=True,
-        )
+        ),
+        point,
     ]
     if eval_env is not None:
-        callbacks.append(
-            _MetricsEvalCallback(
-                eval_env,
-                n_eval_episodes=a.n_eval_episodes,
-                eval_freq=max(1, a.eval_freq // run.n_envs),
-                log_path=str(eval_dir),
-                deterministic=True,
-                callback_on_new_best=_SaveBest(),
-            )
+        eval_cb = _MetricsEvalCallback(
+            eval_env,
+            n_eval_episodes=a.n_eval_episodes,
+            eval_freq=max(1, a.eval_freq // run.n_envs),
+            log_path=str(eval_dir),
+            deterministic=True,
+            callback_on_new_best=_SaveBest(),
         )
-    remaining = max(0, run.total - int(model.num_timesteps))
+        callbacks.append(eval_cb)
+        if a.resume:
+            n = _restore_history(eval_cb, eval_dir, best_dir / f"{a.name}_config.yaml", steps)
+            print(f"{n} earlier evaluations carried over", file=sys.stderr)
+    for cb in callbacks:  # the schedules go on where the interrupted run was
+        cb.n_calls = steps // run.n_envs
+    remaining = max(0, run.total - steps)
+    final = a.out / a.name
+    if a.resume and remaining == 0 and final.with_suffix(".zip").is_file():
+        print(
+            f"the run has reached its budget of {run.total} steps; nothing to do (give "
+            "--total-timesteps to train further)",
+            file=sys.stderr,
+        )
+        return final.with_suffix(".zip")
     t0 = time.perf_counter()
     try:
         model.learn(
@@ -627,22 +915,20 @@ def train(args: TrainArgs, given: set[str] | None = None) -> Path:
             tb_log_name="ppo",
         )
     except KeyboardInterrupt:
-        zip_path, pkl = checkpoint_files(ckpt_dir, a.name, int(model.num_timesteps))
-        model.save(zip_path)
-        vn = model.get_vec_normalize_env()
-        if vn is not None:
-            vn.save(str(pkl))
+        where = (
+            f"the state after the update at {point.saved_at} steps is in "
+            f"{resume_files(ckpt_dir, a.name)[0].parent}"
+            if point.saved_at is not None
+            else "nothing to resume from yet"
+        )
         print(
-            f"interrupted at {model.num_timesteps} steps; continue with --resume", file=sys.stderr
+            f"train.ppo: interrupted at {model.num_timesteps} steps; {where}; continue with "
+            "--resume",
+            file=sys.stderr,
         )
         raise
-    finally:
-        env.close()
-        if eval_env is not None:
-            eval_env.close()
     wall = time.perf_counter() - t0
     config["wall_time_s"] = round(wall, 1)
-    final = out / a.name
     _save_triple(model, None, final, config)
     print(f"wrote {final}.zip ({model.num_timesteps} steps, {wall:.0f} s)", file=sys.stderr)
     return final.with_suffix(".zip")

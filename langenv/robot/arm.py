@@ -6,7 +6,8 @@ velocity actuators by name, and runs one 500 Hz control tick per :meth:`Arm.step
 1. **Cartesian command.** ``v_ref`` is clipped to ``max_hand_speed``. A reference point
    ``x_ref`` integrates the commanded velocity and a proportional term ``position_gain *
    (x_ref - x)`` (clamped to ``max_tracking_error``, which also bounds wind-up) removes the drift
-   a pure velocity servo would accumulate under a steady ``F_ext``. The orientation held since
+   a pure velocity servo would accumulate under a steady ``F_ext``; the sum is clipped to
+   ``max_hand_speed`` again, so the arm never commands a faster hand. The orientation held since
    :meth:`Arm.reset` gives an angular velocity command ``orientation_gain * e_R`` with
    ``e_R = 1/2 sum_i r_i x r0_i`` (``r_i``, ``r0_i``: columns of the current and held rotation;
    equal to the rotation vector for small errors). ``e_R`` is linear in the current rotation
@@ -45,6 +46,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from langenv.errors import ActionError, ConfigError
+from langenv.safety import DEFAULT_MAX_SPEED
 from langenv.validation import as_vec3
 
 if TYPE_CHECKING:
@@ -128,7 +130,9 @@ class Arm:
     Args:
         model_path: MJCF file; ``None`` loads our UR5 (:data:`UR5_XML`).
         handle_site: name of the site where the human force acts and whose velocity is controlled.
-        max_hand_speed: hand speed limit (m/s); ``|v_ref|`` is clipped to it.
+        max_hand_speed: hand speed limit (m/s); ``|v_ref|`` and the whole Cartesian command
+            are clipped to it (default: the safety limit,
+            :data:`langenv.safety.DEFAULT_MAX_SPEED`).
         joints: names of the controlled joints (hinge or slide); ``None`` takes every 1-dof joint
             on the kinematic chain from the world to the handle site, base first.
         actuators: names of the velocity actuators driving ``joints`` (same order); ``None``
@@ -166,7 +170,7 @@ class Arm:
         model_path: str | Path | None = None,
         handle_site: str = "handle",
         *,
-        max_hand_speed: float = 0.5,
+        max_hand_speed: float = DEFAULT_MAX_SPEED,
         joints: Sequence[str] | None = None,
         actuators: Sequence[str] | None = None,
         home_keyframe: str | None = "home",
@@ -489,6 +493,12 @@ class Arm:
         return self.data.qvel[self._dofs].copy()
 
     @property
+    def joint_range(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Lower and upper ends of the controlled joints' ranges, each (n,) rad or m (copies;
+        ``-inf``/``inf`` for an unlimited joint)."""
+        return self._lo.copy(), self._hi.copy()
+
+    @property
     def reference_position(self) -> NDArray[np.float64]:
         """The integrated reference point ``x_ref`` the controller corrects towards, (3,) m."""
         return self._x_ref.copy()
@@ -540,6 +550,10 @@ class Arm:
             np.add(self._site_xpos, err, out=x_ref)  # anti-wind-up
         np.multiply(err, self._kp, out=xdot_lin)
         xdot_lin += v_ref
+        if math.sqrt(s2) + self._kp * math.sqrt(min(e2, self._emax2)) > vmax:  # may exceed it
+            c2 = xdot_lin.dot(xdot_lin)
+            if c2 > vmax * vmax:
+                xdot_lin *= vmax / math.sqrt(c2)
         if self._task == 6:
             np.matmul(self._rot_b, self._site_xmat, out=self._xdot_rot)
 

@@ -22,6 +22,8 @@ import numpy as np
 from langenv.errors import LangEnvError, SessionDataError
 from langenv.speech.audio import DEFAULT_RATE, DEFAULT_SR, DEFAULT_VOICE, ClipLibrary
 from langenv.speech.graph import SHIPPED_GRAPHS, PhraseGraph, graph_path
+from langenv.speech.render import MAX_AUDIO_PACE, MIN_AUDIO_PACE
+from langenv.validation import check_time_axis
 
 _PROGRESS_AFTER = 5.0  # s of trace: longer renders show a progress bar (on a terminal)
 _FORMATS = {".wav": ("WAV", "PCM_16"), ".flac": ("FLAC", "PCM_16")}
@@ -74,7 +76,7 @@ def _parser() -> argparse.ArgumentParser:
         "audio_pace and optionally t_x (s, the motion's time to completion; with it, phrases "
         "follow the paper's choice rule, without it the shortest path). Extra columns are "
         "ignored, so the study's session CSVs work as traces. OUT (.wav or .flac) is written "
-        "only on success.",
+        "only on success, and replaces an existing file only with --overwrite.",
     )
     r.add_argument("graph", metavar="GRAPH", help="phrase graph YAML file or shipped graph name")
     r.add_argument(
@@ -82,6 +84,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     r.add_argument("out", metavar="OUT", type=Path, help="sound file to write (.wav or .flac)")
     r.add_argument("--no-t-x", action="store_true", help="ignore a t_x column: shortest path")
+    r.add_argument("--overwrite", action="store_true", help="replace an existing OUT")
     return p
 
 
@@ -98,8 +101,10 @@ def read_trace(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
 
     Raises:
         SessionDataError: naming the file (and the column and row) when it is unreadable, lacks a
-            column, has a non-numeric or non-finite value, a non-increasing ``t``, a pace <= 0, or
-            fewer than two rows.
+            column, has a non-numeric or non-finite value, a non-increasing ``t``, a span beyond
+            ``MAX_SESSION_S`` (600 s) or samples closer than ``MIN_SAMPLE_SPACING`` (0.1 ms)
+            (:mod:`langenv.validation`), a pace outside ``[MIN_AUDIO_PACE, MAX_AUDIO_PACE]``
+            (0.25 to 4), or fewer than two rows.
     """
     try:
         with path.open(newline="", encoding="utf-8") as f:
@@ -135,9 +140,16 @@ def read_trace(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     bad = np.flatnonzero(np.diff(t) <= 0.0)
     if bad.size:
         raise SessionDataError(f"{path}: row {bad[0] + 3}, column 't': times must increase")
+    check_time_axis(t, str(path), SessionDataError, lambda i: f"row {i + 2}", from_zero=False)
     bad = np.flatnonzero(a <= 0.0)
     if bad.size:
         raise SessionDataError(f"{path}: row {bad[0] + 2}, column 'audio_pace': must be > 0")
+    bad = np.flatnonzero((a < MIN_AUDIO_PACE) | (a > MAX_AUDIO_PACE))
+    if bad.size:
+        raise SessionDataError(
+            f"{path}: row {bad[0] + 2}, column 'audio_pace': {float(a[bad[0]])!r} is outside "
+            f"[{MIN_AUDIO_PACE:g}, {MAX_AUDIO_PACE:g}]"
+        )
     return t, a, values.get("t_x")
 
 
@@ -182,6 +194,9 @@ def _render(args: argparse.Namespace) -> int:
         return 1
     if not out.parent.is_dir():
         print(f"error: {out}: directory {out.parent} does not exist", file=sys.stderr)
+        return 1
+    if out.exists() and not args.overwrite:
+        print(f"error: {out}: exists; give --overwrite to replace it", file=sys.stderr)
         return 1
     clips = _clips(args)
     graph = PhraseGraph.load(_graph_path(args.graph), clips)

@@ -26,8 +26,15 @@ from langenv.errors import ConfigError
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.graph import PhraseGraph
 from langenv.speech.timeline import SpeechTimeline, Utterance
+from langenv.validation import check_time_axis
 
-__all__ = ["plan_speech", "render_history", "render_speech"]
+__all__ = ["MAX_AUDIO_PACE", "MIN_AUDIO_PACE", "plan_speech", "render_history", "render_speech"]
+
+MIN_AUDIO_PACE = 0.25
+"""Slowest audio pace a trace may ask for (the env keeps ``a`` within [0.6, 1.4]); it bounds how
+far the speech can outlast the trace."""
+MAX_AUDIO_PACE = 4.0
+"""Fastest audio pace a trace may ask for."""
 
 _PLAN_DT = 0.002  # s, timeline step when planning beyond the trace's samples
 _BLOCK = 512  # output samples per vocoder pull
@@ -39,7 +46,9 @@ class _HasPhrase(Protocol):
 
 
 def _trace(t: Any, a: Any, t_x: Any = None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-    """Validate a trace: 1-D, same length, finite, ``t`` increasing, ``a > 0``."""
+    """Validate a trace: 1-D, same length, finite, ``t`` increasing over at most
+    ``MAX_SESSION_S`` with samples at least ``MIN_SAMPLE_SPACING`` apart, ``a`` within
+    ``[MIN_AUDIO_PACE, MAX_AUDIO_PACE]``."""
     tt = np.asarray(t, dtype=np.float64)
     aa = np.asarray(a, dtype=np.float64)
     if tt.ndim != 1 or tt.size < 2:
@@ -48,9 +57,14 @@ def _trace(t: Any, a: Any, t_x: Any = None) -> tuple[np.ndarray, np.ndarray, np.
         raise ConfigError(f"a must have the shape of t {tt.shape}, got {aa.shape}")
     if not np.all(np.isfinite(tt)) or np.any(np.diff(tt) <= 0.0):
         raise ConfigError("t must be finite and strictly increasing")
-    if not np.all(np.isfinite(aa)) or np.any(aa <= 0.0):
-        bad = int(np.flatnonzero(~(np.isfinite(aa) & (aa > 0.0)))[0])
-        raise ConfigError(f"a must be finite and > 0, got a[{bad}] = {aa[bad]!r}")
+    check_time_axis(tt, "trace", ConfigError, lambda i: f"t[{i}]", from_zero=False)
+    ok = np.isfinite(aa) & (aa >= MIN_AUDIO_PACE) & (aa <= MAX_AUDIO_PACE)
+    if not np.all(ok):
+        bad = int(np.flatnonzero(~ok)[0])
+        raise ConfigError(
+            f"a must be finite and > 0, within [{MIN_AUDIO_PACE:g}, {MAX_AUDIO_PACE:g}]; "
+            f"got a[{bad}] = {float(aa[bad])!r}"
+        )
     xx = None
     if t_x is not None:
         xx = np.asarray(t_x, dtype=np.float64)

@@ -27,10 +27,13 @@ from langenv.users.base import (
     sample_table_array,
 )
 from langenv.users.session_csv import Session, load_session
+from langenv.validation import MAX_SESSION_S
 
 __all__ = ["ReplayUser", "invert_cooperation"]
 
 _MIN_SPLINE_POINTS = 5
+_MAX_GRID_DT = 0.001  # s: finest grid step at the longest session
+_MAX_GRID = MAX_SESSION_S / _MAX_GRID_DT
 
 
 def _check_positive(name: str, value: float, owner: str) -> float:
@@ -78,7 +81,8 @@ def invert_cooperation(
         post-deadband force magnitude (m,), N, in ``[0, f_max]``.
 
     Raises:
-        ConfigError: on a bad argument (names it).
+        ConfigError: on a bad argument (names it), or a grid of more than 600 000 points
+            (``t[-1] / dt``: 600 s at 1 ms).
     """
     owner = "invert_cooperation"
     alpha = float(alpha)
@@ -96,6 +100,11 @@ def invert_cooperation(
         raise ConfigError(f"{owner}: t and cooperation must be finite")
     if t[0] < 0.0 or np.any(np.diff(t) <= 0.0):
         raise ConfigError(f"{owner}: t must be >= 0 and strictly increasing")
+    if not t[-1] / dt <= _MAX_GRID:  # before allocating the grid
+        raise ConfigError(
+            f"{owner}: t[-1] / dt = {t[-1] / dt:.3g} grid points, more than {_MAX_GRID:.3g} "
+            f"(t[-1] <= {MAX_SESSION_S:g} s at dt >= {_MAX_GRID_DT:g} s)"
+        )
     smoothing = _check_positive("smoothing", smoothing, owner)
     floor = float(floor)
     if not (math.isfinite(floor) and floor >= 0.0):

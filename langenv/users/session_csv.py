@@ -1,10 +1,13 @@
 """Reading and validating recorded-session CSVs (SPEC §3).
 
-A session file is a comma-separated table with a header row. Only ``t`` (s, strictly increasing)
-and ``cooperation`` (in [0, 1]) are required, so any lab's recordings with at least these two
-columns load. The other SPEC §3 columns (``ee_speed``, ``audio_pace``, ``physical_pace``, ``t_a``,
-``t_x``, ``em``) are read when present; any further columns are ignored. Column names are matched
-after stripping whitespace and lower-casing.
+A session file is a comma-separated table with a header row. Only ``t`` (s since the session
+started, strictly increasing) and ``cooperation`` (in [0, 1]) are required, so any lab's
+recordings with at least these two columns load. The other SPEC §3 columns (``ee_speed``,
+``audio_pace``, ``physical_pace``, ``t_a``, ``t_x``, ``em``) are read when present; any further
+columns are ignored. Column names are matched after stripping whitespace and lower-casing. Times
+must lie in ``[0, MAX_SESSION_S]`` (600 s) with samples at least ``MIN_SAMPLE_SPACING`` (0.1 ms)
+apart (:mod:`langenv.validation`), so that what a replay allocates is bounded by these limits,
+not by whatever a file says.
 """
 
 from __future__ import annotations
@@ -18,8 +21,17 @@ from pathlib import Path
 import numpy as np
 
 from langenv.errors import SessionDataError
+from langenv.validation import MAX_SESSION_S, MIN_SAMPLE_SPACING, check_time_axis
 
-__all__ = ["OPTIONAL_COLUMNS", "REQUIRED_COLUMNS", "Session", "load_session", "load_sessions"]
+__all__ = [
+    "MAX_SESSION_S",
+    "MIN_SAMPLE_SPACING",
+    "OPTIONAL_COLUMNS",
+    "REQUIRED_COLUMNS",
+    "Session",
+    "load_session",
+    "load_sessions",
+]
 
 REQUIRED_COLUMNS: tuple[str, ...] = ("t", "cooperation")
 """Columns every session file must have."""
@@ -43,7 +55,8 @@ class Session:
 
     Attributes:
         name: The file's stem (``"u3_lc"`` for ``u3_lc.csv``).
-        t: Time since the session started (s), strictly increasing.
+        t: Time since the session started (s), strictly increasing, in ``[0, MAX_SESSION_S]``,
+            samples at least ``MIN_SAMPLE_SPACING`` apart.
         cooperation: The controller's cooperation estimate ``c(t)`` in [0, 1].
         ee_speed: Hand speed (m/s), or ``None`` if the file has no such column.
         audio_pace: Audio pace ``a(t)``, or ``None``.
@@ -79,6 +92,7 @@ class Session:
                 f"{where}: column 't' must be strictly increasing, but {at(i + 1)} "
                 f"has t={t[i + 1]!r} after t={t[i]!r}"
             )
+        check_time_axis(t, where, SessionDataError, at)
         c = _frozen_column(self.cooperation, "cooperation", where, at, n)
         out = np.flatnonzero((c < 0.0) | (c > 1.0))
         if out.size:
@@ -144,7 +158,9 @@ def load_session(path: str | Path) -> Session:
         SessionDataError: naming the file (and the column and line where it applies) when the
             file cannot be read or is empty, lacks ``t`` or ``cooperation``, has a row with the
             wrong number of cells, a non-numeric, NaN or infinite cell in a column it reads,
-            ``t`` not strictly increasing, ``cooperation`` outside [0, 1], or fewer than 2 rows.
+            ``t`` not strictly increasing, starting before 0, ending after
+            :data:`MAX_SESSION_S` or with samples closer than :data:`MIN_SAMPLE_SPACING`,
+            ``cooperation`` outside [0, 1], or fewer than 2 rows.
     """
     path = Path(path)
     try:
