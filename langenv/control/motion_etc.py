@@ -26,6 +26,7 @@ state, assuming a fully cooperative user (``F_ext = 0``) at base pace (``p = 1``
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -118,7 +119,7 @@ class _Law:
         q_sw: float,
         lateral: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
         t_max: float = 60.0,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Vectorised discrete law on one leg from states ``(q, u, w)`` until each switches.
 
         The same update as :func:`reference_etc` in the leg's frame: along it, force ``F_prop``
@@ -129,7 +130,8 @@ class _Law:
         ``q < q_sw`` (checked before the tick, as the guide does).
 
         Returns:
-            ``(time, u, w)`` at the switch, flat arrays; ``inf`` time if not within ``t_max``.
+            ``(time, q, u, w)`` at the switch, flat arrays; for a state that has not switched
+            within ``t_max``, ``inf`` time and its ``q, u, w`` then.
         """
         q = np.array(q, dtype=np.float64).ravel()
         u = np.array(u, dtype=np.float64).ravel()
@@ -139,7 +141,7 @@ class _Law:
         else:
             y, ul, wl = (np.array(a, dtype=np.float64).ravel() for a in lateral)
         t_out = np.full(q.size, np.inf)
-        u_out, w_out = u.copy(), w.copy()
+        q_out, u_out, w_out = q.copy(), u.copy(), w.copy()
         idx = np.arange(q.size)
         gain = (1.0 - self.decay) * self.inv_d
         dw = self.acc * self.dt
@@ -147,7 +149,8 @@ class _Law:
             hit = q < q_sw
             if hit.any():
                 where = idx[hit]
-                t_out[where], u_out[where], w_out[where] = n * self.dt, u[hit], w[hit]
+                t_out[where], q_out[where] = n * self.dt, q[hit]
+                u_out[where], w_out[where] = u[hit], w[hit]
                 keep = ~hit
                 q, u, w, idx = q[keep], u[keep], w[keep], idx[keep]
                 y, ul, wl = y[keep], ul[keep], wl[keep]
@@ -163,7 +166,8 @@ class _Law:
             wl = wl + dl * scale
             q = q - w * self.dt
             y = y + wl * self.dt
-        return t_out, u_out, w_out
+        q_out[idx], u_out[idx], w_out[idx] = q, u, w
+        return t_out, q_out, u_out, w_out
 
     def ramp_end(self, u0: float, w0: float) -> tuple[float, float]:
         """When the command catches up with ``v_ref`` on the leg: ``(time, direction)``.
@@ -242,6 +246,14 @@ class _Law:
         return t_c + t, u, u
 
 
+_TURN_TIME = 1.5
+"""Time (s) after a switch simulated in the rest tables: the turn into the next leg (the
+lateral motion and the command's lag die out); the rest of the leg is the closed form."""
+
+_TABLES: dict[tuple[object, ...], Any] = {}
+"""FastETC's tables by trajectory geometry, parameters and table settings (built once)."""
+
+
 class _Table2:
     """A bilinear table over a uniform grid, clamped at its edges (plain floats, hot path)."""
 
@@ -312,7 +324,7 @@ class FastETC:
         *,
         dt: float = DT,
         u_range: tuple[float, float] = (-0.3, 0.5),
-        u_step: float = 0.005,
+        u_step: float = 0.01,
         overshoot: float = 0.1,
         q_step: float = 0.005,
         behind_u_step: float = 0.02,
@@ -350,42 +362,74 @@ class FastETC:
         self._inv_acc = 1.0 / law.acc
         n_u = math.ceil((u_range[1] - u_range[0]) / u_step) + 1
         self._u0, self._du, self._nu = float(u_range[0]), float(u_step), n_u
-        ug = self._u0 + self._du * np.arange(n_u)
+        key = (
+            traj.fingerprint(),
+            admittance.params,
+            dt,
+            u_range,
+            u_step,
+            overshoot,
+            q_step,
+            behind_u_step,
+        )
+        self._behind: list[tuple[_Table3, _Table3, _Table3]] = []
+        self._rest: list[_Table2] = []
+        tables = _TABLES.get(key)
+        if tables is None:
+            tables = _TABLES[key] = self._build(u_step, overshoot, q_step, behind_u_step)
+        self._behind, self._rest = tables
+
+    def _build(
+        self, u_step: float, overshoot: float, q_step: float, behind_u_step: float
+    ) -> tuple[list[tuple[_Table3, _Table3, _Table3]], list[_Table2]]:
+        """The behind-the-start and rest-after-switch tables (cached per geometry and params)."""
+        law = self._law
+        ug = self._u0 + self._du * np.arange(self._nu)
+        # behind a leg's start (pushed back past it): time and (u, w) when back on it
+        n_q = math.ceil(overshoot / q_step) + 1
+        n_b = math.ceil((ug[-1] - ug[0]) / behind_u_step) + 1
+        ub = self._u0 + behind_u_step * np.arange(n_b)
+        ee, bu, bw = np.meshgrid(q_step * np.arange(n_q), ub, ub, indexing="ij")
+        origin = (0.0, self._u0, self._u0)
+        steps = (q_step, behind_u_step, behind_u_step)
+        self._behind = []
+        for length in self._lengths:
+            back = law.simulate(length + ee.ravel(), bu.ravel(), bw.ravel(), length, length)
+            t_b = np.where(np.isfinite(back[0]), back[0], 60.0)
+            tabs = [_Table3(origin, steps, a.reshape(ee.shape)) for a in (t_b, back[2], back[3])]
+            self._behind.append((tabs[0], tabs[1], tabs[2]))
+        # rest of the exercise after the switch at the end of leg k, over (u, w) then: the turn
+        # into leg k + 1 simulated (with its lateral part), then the closed form of that leg
         uu, ww = np.meshgrid(ug, ug, indexing="ij")
-        # rest of the exercise after the switch at the end of leg k, over (u, w) then
         brake = np.broadcast_to(np.abs(ug)[None, :] * self._inv_acc, uu.shape)
-        self._rest: list[_Table2] = [_Table2(self._u0, u_step, self._u0, u_step, brake)] * len(ends)
-        for k in range(len(ends) - 2, -1, -1):
+        last = _Table2(self._u0, u_step, self._u0, u_step, brake)
+        self._rest = [last] * self._n_legs
+        for k in range(self._n_legs - 2, -1, -1):
             c, j = self._cos[k], k + 1
             sn = math.sqrt(max(1.0 - c * c, 0.0))
             q_next = self._lengths[j] + self._q_sw[k] * c
             lateral = (np.full(uu.size, -self._q_sw[k] * sn), uu.ravel() * sn, ww.ravel() * sn)
-            t1, u1, w1 = law.simulate(
+            t1, q1, u1, w1 = law.simulate(
                 np.full(uu.size, q_next),
                 uu.ravel() * c,
                 ww.ravel() * c,
                 self._lengths[j],
                 self._q_sw[j],
                 lateral,
+                t_max=_TURN_TIME,
             )
-            if not np.all(np.isfinite(t1)):
-                raise ConfigError("FastETC: some states never finish the next leg (check params)")
             nxt = self._rest[j]
-            rest = t1 + np.array([nxt(a, b) for a, b in zip(u1.tolist(), w1.tolist(), strict=True)])
-            self._rest[k] = _Table2(self._u0, u_step, self._u0, u_step, rest.reshape(uu.shape))
-        # behind a leg's start (pushed back past it): time and (u, w) when back on it
-        n_q = math.ceil(overshoot / q_step) + 1
-        n_b = math.ceil((u_range[1] - u_range[0]) / behind_u_step) + 1
-        ub = self._u0 + behind_u_step * np.arange(n_b)
-        ee, bu, bw = np.meshgrid(q_step * np.arange(n_q), ub, ub, indexing="ij")
-        self._behind: list[tuple[_Table3, _Table3, _Table3]] = []
-        origin = (0.0, self._u0, self._u0)
-        steps = (q_step, behind_u_step, behind_u_step)
-        for length in self._lengths:
-            back = law.simulate(length + ee.ravel(), bu.ravel(), bw.ravel(), length, length)
-            t_b = np.where(np.isfinite(back[0]), back[0], 60.0)
-            tabs = [_Table3(origin, steps, a.reshape(ee.shape)) for a in (t_b, back[1], back[2])]
-            self._behind.append((tabs[0], tabs[1], tabs[2]))
+            t_turn = (int(_TURN_TIME / self.dt) + 1) * self.dt  # the ticks simulate() ran
+            rest = [
+                t + nxt(u, w) if t < math.inf else t_turn + self._finish(j, q, u, w)
+                for t, q, u, w in zip(
+                    t1.tolist(), q1.tolist(), u1.tolist(), w1.tolist(), strict=True
+                )
+            ]
+            self._rest[k] = _Table2(
+                self._u0, u_step, self._u0, u_step, np.array(rest).reshape(uu.shape)
+            )
+        return self._behind, self._rest
 
     # --- evaluation -------------------------------------------------------------------------
     def _finish(self, k: int, q: float, u: float, w: float) -> float:

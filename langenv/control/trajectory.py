@@ -351,6 +351,17 @@ class Trajectory:
             f"waypoints={self.waypoint_s.tolist()})"
         )
 
+    def fingerprint(self) -> tuple[object, ...]:
+        """Hashable summary of the geometry (segments, waypoints, turns), equal for equal paths."""
+        parts: list[object] = []
+        for seg in self.segments:
+            if isinstance(seg, ArcSegment):
+                geo = (*seg.center.tolist(), *seg.axis.tolist(), *seg.start.tolist(), seg.angle)
+            else:
+                geo = (*seg.start.tolist(), *seg.end.tolist())
+            parts.append((type(seg).__name__, geo, seg.waypoint, seg.turn))
+        return tuple(parts)
+
     # ------------------------------------------------------------------ lookup
     def segment_index(self, s: float, side: str = "right") -> int:
         """Index of the segment containing arc length ``s``.
