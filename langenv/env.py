@@ -46,6 +46,20 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     stay near 1. The analytic controllers of the paper are policies of this env (``policies/``):
     at ``decision_hz=500`` the LC policy is exactly the paper's controller.
 
+    ## The plant (measured against the study's recordings: ``python -m eval.fidelity``)
+
+    * Exercise (:func:`~langenv.control.trajectory.default_exercise`): an arc of 43 deg out,
+      straight back, the arc again; one leg each (the arc angle is fitted to the recorded legs).
+    * Legs (:mod:`langenv.control.guide`), as in the study's lab code: the full propelling force
+      up to a leg's end, and the next leg as soon as the hand's 6-D pose is within 0.1 of the
+      leg's end pose (3.5 cm before it), without slowing down; the last leg ends the motion the
+      same way, and the hand then brakes to rest. Nominal session without resistance: 10.1 s,
+      plateaus at 0.125 m/s with short V-shaped dips at the corners.
+    * The velocity command sent to the arm follows ``v_ref`` changing at most at 0.14 m/s^2 (a
+      UR's ``speedL`` acceleration, fitted to the recordings' dips and final ramps); a speed
+      governor keeps a hand that a person pushes along from overshooting the corners.
+    * The person's force above the 5 N deadband drives the admittance and the cooperation filter.
+
     ## Action space
 
     ``Box(-1, 1, (2 + n_choice,), float32)``:
@@ -151,7 +165,11 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
 
     ## Version history
 
-    * v0: initial release (with the safety layer and protective stops).
+    * v0 (langctrl 0.2): plant, speech and synthetic users fitted to the study's recordings (the
+      lab's leg switching instead of a rest at each end, the acceleration-limited command, a 43 deg
+      arc, the study's speech lengths, recalibrated users); the safety layer and protective stops.
+      Results and models of 0.1 are not comparable with it.
+    * v0 (langctrl 0.1): initial release.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 25}  # noqa: RUF012

@@ -132,7 +132,10 @@ def test_finishing_phase_ends_the_other_channel_as_fast_as_allowed() -> None:
 @pytest.mark.parametrize("hz", [25, 500])
 @pytest.mark.parametrize("push", [0.0, -20.0])
 def test_terminal_phase_ends_speech_and_motion_together(hz: int, push: float) -> None:
-    """Closed loop: with the terminal phase |AM| is a few ms, well below LC's on the same user."""
+    """Closed loop: with the terminal phase |AM| is a few ms, well below LC's on the same user.
+
+    On the plant fitted to the recordings (the hand brakes to rest at the end) it measures 3-9 ms
+    against LC's 250-270 ms: within a quarter of a 25 Hz decision step."""
     import gymnasium as gym
 
     results = {}
@@ -152,5 +155,5 @@ def test_terminal_phase_ends_speech_and_motion_together(hz: int, push: float) ->
             done = term or trunc
         assert term
         results[name] = abs(info["am"])
-    assert results["lc-end"] < 0.005
-    assert results["lc-end"] < results["lc"]
+    assert results["lc-end"] < 0.01
+    assert results["lc-end"] < 0.1 * results["lc"]

@@ -61,7 +61,7 @@ def test_check_prints_one_line(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["check", str(default_graph_path("lc"))]) == 0
     out = capsys.readouterr().out.splitlines()
     assert len(out) == 1
-    assert "15 phrases" in out[0] and "paths" in out[0] and "lc.yaml" in out[0]
+    assert "16 phrases" in out[0] and "paths" in out[0] and "lc.yaml" in out[0]
 
 
 def test_check_accepts_shipped_names_and_lists_paths(capsys: pytest.CaptureFixture[str]) -> None:

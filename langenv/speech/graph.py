@@ -84,8 +84,9 @@ def default_graph_path(name: str) -> Path:
 
 
 def graph_path(spec: str | Path) -> Path:
-    """A phrase graph given as a shipped graph's name (:data:`SHIPPED_GRAPHS`) or a YAML path."""
-    name = str(spec)
+    """A phrase graph given as a shipped graph's name (:data:`SHIPPED_GRAPHS`; ``_`` for ``-``
+    also accepted) or a YAML path."""
+    name = str(spec).replace("_", "-")
     return SHIPPED_GRAPHS[name] if name in SHIPPED_GRAPHS else Path(spec)
 
 

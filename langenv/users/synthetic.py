@@ -254,7 +254,10 @@ class SyntheticUserParams:
             if key in _LOGNORMAL_FIELDS:
                 if not (isinstance(value, Mapping) and set(value) == {"median", "sigma"}):
                     raise ConfigError(f"{where}: {key} must be {{median: ..., sigma: ...}}")
-                value = LogNormal(float(value["median"]), float(value["sigma"]))
+                try:
+                    value = LogNormal(float(value["median"]), float(value["sigma"]))
+                except (TypeError, ValueError) as exc:  # ConfigError is a ValueError
+                    raise ConfigError(f"{where}: {key}: {exc}") from None
             elif key == "count_pmf" and value is not None:
                 if not isinstance(value, list):
                     raise ConfigError(f"{where}: count_pmf must be a list of probabilities")
