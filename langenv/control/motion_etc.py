@@ -34,6 +34,8 @@ from langenv.control.admittance import VariableAdmittance
 from langenv.control.command import follow
 from langenv.control.guide import Guide, GuideState
 from langenv.errors import ConfigError
+from langenv.kernels import etc as etc_kernel
+from langenv.kernels.path import pack as pack_path
 
 __all__ = ["DT", "FastETC", "reference_etc"]
 
@@ -169,82 +171,6 @@ class _Law:
         q_out[idx], u_out[idx], w_out[idx] = q, u, w
         return t_out, q_out, u_out, w_out
 
-    def ramp_end(self, u0: float, w0: float) -> tuple[float, float]:
-        """When the command catches up with ``v_ref`` on the leg: ``(time, direction)``.
-
-        From ``(u0, w0)`` the command ramps at ``a`` in the direction of ``u - w`` while
-        ``u(t) = U + (u0 - U) e^{-t/tau}`` relaxes to ``U = F_prop / D0``; it catches up at the
-        first ``t > 0`` with ``w0 + s a t = u(t)``. ``(0, 0)`` if the command already follows.
-        """
-        ui, tau, acc = self.u_inf, self.tau, self.acc
-        gap = u0 - w0
-        slope0 = (ui - u0) / tau
-        if acc == math.inf or (-1e-12 < gap < 1e-12 and -acc <= slope0 <= acc):
-            return 0.0, 0.0
-        s = (1.0 if gap > 0.0 else -1.0) if abs(gap) >= 1e-12 else (1.0 if slope0 > 0 else -1.0)
-
-        def g(t: float) -> float:  # > 0 until the command has caught up
-            return s * (ui + (u0 - ui) * math.exp(-t / tau) - w0) - acc * t
-
-        hi = (abs(ui - w0) + abs(u0 - ui)) / acc + tau
-        lo = 0.0
-        if g(0.0) <= 0.0:  # equal now but v_ref pulls away faster than a: find g > 0
-            lo = min(tau, hi) * 1e-3
-            while g(lo) <= 0.0 and lo < hi:
-                lo *= 2.0
-        for _ in range(60):
-            mid = 0.5 * (lo + hi)
-            if g(mid) > 0.0:
-                lo = mid
-            else:
-                hi = mid
-            if hi - lo < 1e-6:
-                break
-        return hi, s
-
-    def time_to_cover(self, dist: float, u0: float) -> float:
-        """Time for the tracking (``w = u``) motion from speed ``u0`` to cover ``dist``."""
-        if dist <= 0.0:
-            return 0.0
-        ui, tau = self.u_inf, self.tau
-        a = (u0 - ui) * self.tau_d
-        t = (dist - a) / ui
-        if t < 0.0:
-            t = 0.0
-        for _ in range(30):
-            ex = math.exp(-t / tau)
-            g = ui * t + a * (1.0 - ex) - dist
-            dg = ui + a / tau * ex
-            if dg <= 0.0:
-                dg = ui
-            step = g / dg
-            t -= step
-            if t < 0.0:
-                t = 0.0
-            if -1e-7 < step < 1e-7:
-                break
-        return t
-
-    def to_switch(self, dist: float, u0: float, w0: float) -> tuple[float, float, float]:
-        """Time for the leg's motion from ``(u0, w0)`` to cover ``dist`` and ``(u, w)`` then."""
-        ui, tau, acc = self.u_inf, self.tau, self.acc
-        t_c, s = self.ramp_end(u0, w0)
-        if t_c > 0.0:
-            reach = w0 * t_c + 0.5 * s * acc * t_c * t_c
-            if reach >= dist:  # the switch comes during the ramp
-                disc = w0 * w0 + 2.0 * s * acc * dist
-                t = (
-                    (-w0 + math.sqrt(max(disc, 0.0))) / acc
-                    if s > 0
-                    else ((w0 - math.sqrt(max(disc, 0.0))) / acc)
-                )
-                return t, ui + (u0 - ui) * math.exp(-t / tau), w0 + s * acc * t
-            u0 = ui + (u0 - ui) * math.exp(-t_c / tau)
-            dist -= reach
-        t = self.time_to_cover(dist, u0)
-        u = ui + (u0 - ui) * math.exp(-t / tau)
-        return t_c + t, u, u
-
 
 _TURN_TIME = 1.5
 """Time (s) after a switch simulated in the rest tables: the turn into the next leg (the
@@ -252,50 +178,6 @@ lateral motion and the command's lag die out); the rest of the leg is the closed
 
 _TABLES: dict[tuple[object, ...], Any] = {}
 """FastETC's tables by trajectory geometry, parameters and table settings (built once)."""
-
-
-class _Table2:
-    """A bilinear table over a uniform grid, clamped at its edges (plain floats, hot path)."""
-
-    def __init__(self, x0: float, dx: float, y0: float, dy: float, values: np.ndarray) -> None:
-        self.x0, self.dx, self.y0, self.dy = x0, dx, y0, dy
-        self.nx, self.ny = values.shape
-        self.rows: list[list[float]] = values.tolist()
-
-    def __call__(self, x: float, y: float) -> float:
-        fi = (x - self.x0) / self.dx
-        fj = (y - self.y0) / self.dy
-        hi_i, hi_j = self.nx - 1.000001, self.ny - 1.000001
-        fi = 0.0 if fi < 0.0 else (hi_i if fi > hi_i else fi)
-        fj = 0.0 if fj < 0.0 else (hi_j if fj > hi_j else fj)
-        i, k = int(fi), int(fj)
-        a, b = fi - i, fj - k
-        r0, r1 = self.rows[i], self.rows[i + 1]
-        return (1.0 - a) * (r0[k] + b * (r0[k + 1] - r0[k])) + a * (r1[k] + b * (r1[k + 1] - r1[k]))
-
-
-class _Table3:
-    """A trilinear table over a uniform grid, clamped at its edges (plain floats, hot path)."""
-
-    def __init__(self, origin: tuple[float, ...], step: tuple[float, ...], values: np.ndarray):
-        self.origin, self.step, self.shape = origin, step, values.shape
-        self.flat: list[float] = values.ravel().tolist()
-
-    def __call__(self, x: float, y: float, z: float) -> float:
-        (x0, y0, z0), (dx, dy, dz), (nx, ny, nz) = self.origin, self.step, self.shape
-        fi = min(max((x - x0) / dx, 0.0), nx - 1.000001)
-        fj = min(max((y - y0) / dy, 0.0), ny - 1.000001)
-        fk = min(max((z - z0) / dz, 0.0), nz - 1.000001)
-        i, j, k = int(fi), int(fj), int(fk)
-        a, b, c = fi - i, fj - j, fk - k
-        f = self.flat
-        base = (i * ny + j) * nz + k
-        out = 0.0
-        for di, wa in ((0, 1.0 - a), (ny * nz, a)):
-            for dj, wb in ((0, 1.0 - b), (nz, b)):
-                n = base + di + dj
-                out += wa * wb * (f[n] + c * (f[n + 1] - f[n]))
-        return out
 
 
 class FastETC:
@@ -372,17 +254,45 @@ class FastETC:
             q_step,
             behind_u_step,
         )
-        self._behind: list[tuple[_Table3, _Table3, _Table3]] = []
-        self._rest: list[_Table2] = []
+        self.path: np.ndarray = pack_path(traj)
+        """The trajectory packed for the compiled kernels (:func:`langenv.kernels.path.pack`)."""
         tables = _TABLES.get(key)
         if tables is None:
             tables = _TABLES[key] = self._build(u_step, overshoot, q_step, behind_u_step)
-        self._behind, self._rest = tables
+        self.prm, self.tab = tables
+        """The law, grids and legs (``prm``) and the tables (``tab``), packed for
+        :func:`langenv.kernels.etc.estimate`."""
+
+    def _params(self, behind_shape: tuple[int, int, int], origin: tuple[float, ...],
+                steps: tuple[float, ...]) -> np.ndarray:
+        """``prm`` of :mod:`langenv.kernels.etc`: the law, the table grids and the legs."""
+        law = self._law
+        size = behind_shape[0] * behind_shape[1] * behind_shape[2]
+        prm = np.zeros(etc_kernel.LEG0 + 3 * self._n_legs)
+        prm[: etc_kernel.P_BO] = (law.dt, law.acc, law.u_inf, law.tau, law.tau_d, self._inv_acc)
+        prm[etc_kernel.P_BO : etc_kernel.P_BO + 3] = origin
+        prm[etc_kernel.P_BS : etc_kernel.P_BS + 3] = steps
+        prm[etc_kernel.P_BN : etc_kernel.P_BN + 3] = behind_shape
+        prm[etc_kernel.P_U0 : etc_kernel.LEG0] = (
+            self._u0,
+            self._du,
+            self._nu,
+            self._n_legs,
+            3 * self._n_legs * size,
+        )
+        for k in range(self._n_legs):
+            prm[etc_kernel.LEG0 + 3 * k : etc_kernel.LEG0 + 3 * k + 3] = (
+                self._ends[k],
+                self._lengths[k],
+                self._q_sw[k],
+            )
+        return prm
 
     def _build(
         self, u_step: float, overshoot: float, q_step: float, behind_u_step: float
-    ) -> tuple[list[tuple[_Table3, _Table3, _Table3]], list[_Table2]]:
-        """The behind-the-start and rest-after-switch tables (cached per geometry and params)."""
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The packed law and tables (cached per geometry and params): behind each leg's start,
+        and the rest of the exercise after each switch."""
         law = self._law
         ug = self._u0 + self._du * np.arange(self._nu)
         # behind a leg's start (pushed back past it): time and (u, w) when back on it
@@ -390,20 +300,22 @@ class FastETC:
         n_b = math.ceil((ug[-1] - ug[0]) / behind_u_step) + 1
         ub = self._u0 + behind_u_step * np.arange(n_b)
         ee, bu, bw = np.meshgrid(q_step * np.arange(n_q), ub, ub, indexing="ij")
-        origin = (0.0, self._u0, self._u0)
-        steps = (q_step, behind_u_step, behind_u_step)
-        self._behind = []
+        prm = self._params(
+            (n_q, n_b, n_b), (0.0, self._u0, self._u0), (q_step, behind_u_step, behind_u_step)
+        )
+        behind = []
         for length in self._lengths:
             back = law.simulate(length + ee.ravel(), bu.ravel(), bw.ravel(), length, length)
             t_b = np.where(np.isfinite(back[0]), back[0], 60.0)
-            tabs = [_Table3(origin, steps, a.reshape(ee.shape)) for a in (t_b, back[2], back[3])]
-            self._behind.append((tabs[0], tabs[1], tabs[2]))
+            behind += [t_b, back[2], back[3]]
         # rest of the exercise after the switch at the end of leg k, over (u, w) then: the turn
         # into leg k + 1 simulated (with its lateral part), then the closed form of that leg
+        n_u = self._nu
+        rest = np.zeros((self._n_legs, n_u, n_u))
+        rest[-1] = np.abs(ug)[None, :] * self._inv_acc  # the last leg: braking to rest
+        tab = np.concatenate([*behind, rest.ravel()])
         uu, ww = np.meshgrid(ug, ug, indexing="ij")
-        brake = np.broadcast_to(np.abs(ug)[None, :] * self._inv_acc, uu.shape)
-        last = _Table2(self._u0, u_step, self._u0, u_step, brake)
-        self._rest = [last] * self._n_legs
+        r0 = int(prm[etc_kernel.P_REST])
         for k in range(self._n_legs - 2, -1, -1):
             c, j = self._cos[k], k + 1
             sn = math.sqrt(max(1.0 - c * c, 0.0))
@@ -418,35 +330,25 @@ class FastETC:
                 lateral,
                 t_max=_TURN_TIME,
             )
-            nxt = self._rest[j]
             t_turn = (int(_TURN_TIME / self.dt) + 1) * self.dt  # the ticks simulate() ran
-            rest = [
-                t + nxt(u, w) if t < math.inf else t_turn + self._finish(j, q, u, w)
+            off_j = r0 + j * n_u * n_u
+            values = [
+                t + etc_kernel.table2(tab, off_j, self._u0, self._du, n_u, u, w)
+                if t < math.inf
+                else t_turn + etc_kernel.finish(prm, tab, j, q, u, w)
                 for t, q, u, w in zip(
                     t1.tolist(), q1.tolist(), u1.tolist(), w1.tolist(), strict=True
                 )
             ]
-            self._rest[k] = _Table2(
-                self._u0, u_step, self._u0, u_step, np.array(rest).reshape(uu.shape)
-            )
-        return self._behind, self._rest
+            tab[r0 + k * n_u * n_u : r0 + (k + 1) * n_u * n_u] = values
+        prm.setflags(write=False)
+        tab.setflags(write=False)
+        return prm, tab
 
     # --- evaluation -------------------------------------------------------------------------
     def _finish(self, k: int, q: float, u: float, w: float) -> float:
         """Time to finish the exercise from the 1-D state ``(q, u, w)`` on leg ``k``."""
-        t = 0.0
-        length = self._lengths[k]
-        if q > length:
-            tab_t, tab_u, tab_w = self._behind[k]
-            e = q - length
-            t, u, w = tab_t(e, u, w), tab_u(e, u, w), tab_w(e, u, w)
-            q = length
-        dist = q - self._q_sw[k]
-        if dist > 0.0:
-            tp, u, w = self._law.to_switch(dist, u, w)
-            # the guide checks at the start of each tick: the switch comes on the next one
-            t += math.ceil(tp / self.dt - 1e-9) * self.dt
-        return t + self._rest[k](u, w)
+        return float(etc_kernel.finish(self.prm, self.tab, k, q, u, w))
 
     def along_path(
         self, state: GuideState, x: np.ndarray, v_ref: np.ndarray, v_cmd: np.ndarray
@@ -492,10 +394,22 @@ class FastETC:
             Time (s); after the last leg the braking time left, ``0.0`` once at rest.
         """
         w_vec = v_ref if v_cmd is None else v_cmd
-        if state.done:
-            return math.sqrt(float(w_vec @ w_vec)) * self._inv_acc
-        q, u, w = self.along_path(state, x, v_ref, w_vec)
-        return self._finish(state.leg, q, u, w)
+        x0, x1, x2 = x.tolist()
+        v0, v1, v2 = v_ref.tolist()
+        c0, c1, c2 = w_vec.tolist()
+        return float(
+            etc_kernel.estimate(
+                self.prm,
+                self.tab,
+                self.path,
+                state.leg,
+                state.s,
+                state.done,
+                (x0, x1, x2),
+                (v0, v1, v2),
+                (c0, c1, c2),
+            )
+        )
 
     def nominal(self) -> float:
         """Estimated time of the whole exercise from rest at the start (s)."""

@@ -1,0 +1,202 @@
+"""FastETC's evaluation, compiled: the closed form of a leg, its tables, and the projection.
+
+The parameters and tables of a :class:`~langenv.control.motion_etc.FastETC` are packed in two
+float64 arrays (``prm``: the law, the table grids, the legs; ``tab``: the tables, flat); see
+:data:`LEG0` and the ``P_*`` indices. :func:`estimate` is ``FastETC.etc``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from langenv.kernels import jit
+from langenv.kernels.path import frame, locate
+
+__all__ = ["LEG0", "estimate", "finish", "ramp_end", "table2", "to_switch"]
+
+P_DT, P_ACC, P_UINF, P_TAU, P_TAUD, P_INVACC = 0, 1, 2, 3, 4, 5
+P_BO, P_BS, P_BN = 6, 9, 12  # behind-the-start tables: origin, steps, shape (3 each)
+P_U0, P_DU, P_NU, P_NLEGS, P_REST = 15, 16, 17, 18, 19  # rest tables: grid, count, offset
+LEG0 = 20
+"""Index of the first leg's entries in ``prm``: per leg its end, length and switch distance."""
+
+
+@jit
+def table2(tab: np.ndarray, off: int, x0: float, dx: float, n: int, x: float, y: float) -> float:
+    """Bilinear lookup in the ``n`` x ``n`` table at ``tab[off:]`` (grid ``x0 + dx i`` on both
+    axes), clamped at its edges."""
+    fi = (x - x0) / dx
+    fj = (y - x0) / dx
+    hi = n - 1.000001
+    fi = 0.0 if fi < 0.0 else (hi if fi > hi else fi)
+    fj = 0.0 if fj < 0.0 else (hi if fj > hi else fj)
+    i, k = int(fi), int(fj)
+    a, b = fi - i, fj - k
+    r0 = off + i * n
+    r1 = r0 + n
+    return (1.0 - a) * (tab[r0 + k] + b * (tab[r0 + k + 1] - tab[r0 + k])) + a * (
+        tab[r1 + k] + b * (tab[r1 + k + 1] - tab[r1 + k])
+    )
+
+
+@jit
+def _clamp(v: float, hi: float) -> float:
+    v = 0.0 if 0.0 > v else v  # Python's max(v, 0.0)
+    return hi if hi < v else v  # min(v, hi)
+
+
+@jit
+def _table3(tab: np.ndarray, off: int, prm: np.ndarray, x: float, y: float, z: float) -> float:
+    """Trilinear lookup in a behind-the-start table, clamped at its edges."""
+    nx, ny, nz = int(prm[P_BN]), int(prm[P_BN + 1]), int(prm[P_BN + 2])
+    fi = _clamp((x - prm[P_BO]) / prm[P_BS], nx - 1.000001)
+    fj = _clamp((y - prm[P_BO + 1]) / prm[P_BS + 1], ny - 1.000001)
+    fk = _clamp((z - prm[P_BO + 2]) / prm[P_BS + 2], nz - 1.000001)
+    i, j, k = int(fi), int(fj), int(fk)
+    a, b, c = fi - i, fj - j, fk - k
+    base = off + (i * ny + j) * nz + k
+    out = 0.0
+    for di in range(2):
+        wa = 1.0 - a if di == 0 else a
+        for dj in range(2):
+            wb = 1.0 - b if dj == 0 else b
+            n = base + di * ny * nz + dj * nz
+            out += wa * wb * (tab[n] + c * (tab[n + 1] - tab[n]))
+    return out
+
+
+@jit
+def _g(t: float, s: float, ui: float, u0: float, w0: float, tau: float, acc: float) -> float:
+    return s * (ui + (u0 - ui) * math.exp(-t / tau) - w0) - acc * t
+
+
+@jit
+def ramp_end(prm: np.ndarray, u0: float, w0: float) -> tuple[float, float]:
+    """When the command catches up with ``v_ref`` on a leg: ``(time, direction)``."""
+    ui, tau, acc = prm[P_UINF], prm[P_TAU], prm[P_ACC]
+    gap = u0 - w0
+    slope0 = (ui - u0) / tau
+    if acc == math.inf or (-1e-12 < gap < 1e-12 and -acc <= slope0 <= acc):
+        return 0.0, 0.0
+    if abs(gap) >= 1e-12:
+        s = 1.0 if gap > 0.0 else -1.0
+    else:
+        s = 1.0 if slope0 > 0 else -1.0
+    hi = (abs(ui - w0) + abs(u0 - ui)) / acc + tau
+    lo = 0.0
+    if _g(0.0, s, ui, u0, w0, tau, acc) <= 0.0:
+        lo = (tau if tau < hi else hi) * 1e-3
+        while _g(lo, s, ui, u0, w0, tau, acc) <= 0.0 and lo < hi:
+            lo *= 2.0
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if _g(mid, s, ui, u0, w0, tau, acc) > 0.0:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo < 1e-6:
+            break
+    return hi, s
+
+
+@jit
+def _time_to_cover(prm: np.ndarray, dist: float, u0: float) -> float:
+    if dist <= 0.0:
+        return 0.0
+    ui, tau = prm[P_UINF], prm[P_TAU]
+    a = (u0 - ui) * prm[P_TAUD]
+    t = (dist - a) / ui
+    if t < 0.0:
+        t = 0.0
+    for _ in range(30):
+        ex = math.exp(-t / tau)
+        g = ui * t + a * (1.0 - ex) - dist
+        dg = ui + a / tau * ex
+        if dg <= 0.0:
+            dg = ui
+        step = g / dg
+        t -= step
+        if t < 0.0:
+            t = 0.0
+        if -1e-7 < step < 1e-7:
+            break
+    return t
+
+
+@jit
+def to_switch(prm: np.ndarray, dist: float, u0: float, w0: float) -> tuple[float, float, float]:
+    """Time for a leg's motion from ``(u0, w0)`` to cover ``dist`` and ``(u, w)`` then."""
+    ui, tau, acc = prm[P_UINF], prm[P_TAU], prm[P_ACC]
+    t_c, s = ramp_end(prm, u0, w0)
+    if t_c > 0.0:
+        reach = w0 * t_c + 0.5 * s * acc * t_c * t_c
+        if reach >= dist:  # the switch comes during the ramp
+            disc = w0 * w0 + 2.0 * s * acc * dist
+            root = math.sqrt(0.0 if 0.0 > disc else disc)  # Python's max(disc, 0.0)
+            t = (-w0 + root) / acc if s > 0 else (w0 - root) / acc
+            return t, ui + (u0 - ui) * math.exp(-t / tau), w0 + s * acc * t
+        u0 = ui + (u0 - ui) * math.exp(-t_c / tau)
+        dist -= reach
+    t = _time_to_cover(prm, dist, u0)
+    u = ui + (u0 - ui) * math.exp(-t / tau)
+    return t_c + t, u, u
+
+
+@jit
+def finish(prm: np.ndarray, tab: np.ndarray, k: int, q: float, u: float, w: float) -> float:
+    """Time to finish the exercise from the 1-D state ``(q, u, w)`` on leg ``k`` (s)."""
+    t = 0.0
+    length = prm[LEG0 + 3 * k + 1]
+    if q > length:
+        size = int(prm[P_BN]) * int(prm[P_BN + 1]) * int(prm[P_BN + 2])
+        off = 3 * k * size
+        e = q - length
+        t, u, w = (
+            _table3(tab, off, prm, e, u, w),
+            _table3(tab, off + size, prm, e, u, w),
+            _table3(tab, off + 2 * size, prm, e, u, w),
+        )
+        q = length
+    dist = q - prm[LEG0 + 3 * k + 2]
+    if dist > 0.0:
+        tp, u, w = to_switch(prm, dist, u, w)
+        dt = prm[P_DT]
+        t += math.ceil(tp / dt - 1e-9) * dt  # the switch comes on the next tick
+    nu = int(prm[P_NU])
+    rest = int(prm[P_REST]) + k * nu * nu
+    return t + table2(tab, rest, prm[P_U0], prm[P_DU], nu, u, w)
+
+
+@jit
+def estimate(
+    prm: np.ndarray,
+    tab: np.ndarray,
+    path: np.ndarray,
+    leg: int,
+    s: float,
+    done: bool,
+    x: tuple[float, float, float],
+    v: tuple[float, float, float],
+    c: tuple[float, float, float],
+) -> float:
+    """``FastETC.etc``: the time to complete the exercise from the state (s).
+
+    Args:
+        prm, tab: The packed FastETC.
+        path: The packed trajectory.
+        leg, s, done: The guide state.
+        x: Hand position (m).
+        v: The admittance's reference velocity (m/s).
+        c: The velocity command (m/s).
+    """
+    if done:
+        return math.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]) * prm[P_INVACC]
+    s_end = prm[LEG0 + 3 * leg]
+    i, t = locate(path, s, s >= s_end)
+    xd0, xd1, xd2, b0, b1, b2, _, _, _, _ = frame(path, i, t)
+    q = s_end - s - ((x[0] - xd0) * b0 + (x[1] - xd1) * b1 + (x[2] - xd2) * b2)
+    u = v[0] * b0 + v[1] * b1 + v[2] * b2
+    w = c[0] * b0 + c[1] * b1 + c[2] * b2
+    return finish(prm, tab, leg, q, u, w)
