@@ -18,6 +18,7 @@ from langenv.control.guide import Guide, GuideState
 from langenv.control.motion_etc import DT, FastETC, reference_etc
 from langenv.control.trajectory import Trajectory
 from langenv.control.virtual_loop import ForceFn, PaceFn, simulate_virtual
+from langenv.pacing import PaceLimits
 
 __all__ = ["etc_agreement", "random_pace", "random_resistance"]
 
@@ -118,6 +119,7 @@ def etc_agreement(
     guide = Guide(trajectory, params)
     adm = VariableAdmittance(params)
     fast = FastETC(guide, adm, dt=dt)
+    paces = PaceLimits()
     states: list[tuple[GuideState, np.ndarray, np.ndarray, np.ndarray]] = []
     for r in range(n_runs):
         if r == 0:
@@ -126,7 +128,7 @@ def etc_agreement(
             run = simulate_virtual(
                 trajectory,
                 params,
-                p=random_pace(rng, params.p_min, params.p_max),
+                p=random_pace(rng, paces.p_min, paces.p_max),
                 force=random_resistance(rng),
                 dt=dt,
             )

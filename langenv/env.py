@@ -17,6 +17,7 @@ from langenv.control.cooperation import CooperationFilter
 from langenv.control.trajectory import Trajectory, default_exercise
 from langenv.errors import ActionError, ConfigError
 from langenv.motion import GuidedArm
+from langenv.observation import T_SCALE, TREND_WINDOW, ObservationEncoder, observation_size
 from langenv.pacing import PaceActuator, PaceLimits, command_from_action
 from langenv.robot.arm import Arm
 from langenv.robot.force_sensor import ForceSensor
@@ -29,9 +30,6 @@ from langenv.users import CallableUser, ReplayUser, SyntheticUser, User
 __all__ = ["LangCtrlEnv", "make_env"]
 
 PHYSICS_HZ = 500
-T_SCALE = 40.0  # s, normalisation of times in the observation
-MAX_TRAJECTORY_SPEED = 0.25  # m/s, normalisation of the hand speed
-TREND_WINDOW = 0.5  # s, cooperation trend window
 CHOICE_OCTAVES = 2.0  # target-duration action spans t_x * 2**(±2)
 
 
@@ -81,29 +79,34 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
 
     ## Observation space
 
-    ``Box(-1, 1, (16 + 3 max_children,), float32)``; times are divided by ``T_SCALE = 40`` s:
+    ``Box(-1, 1, (16 + 3 max_children,), float32)``; times are divided by ``T_SCALE = 40`` s. The
+    layout's one home is :mod:`langenv.observation`: the field names of :class:`~langenv.observation.Obs`
+    index it, and its decoders (``seconds``, ``pace``, ``fraction``, ``flag``, ``child``...) read it.
 
-    | index | name | unit / scaling |
-    |---|---|---|
-    | 0 | ``t_x`` motion ETC at base pace | s / 40 |
-    | 1 | ``t_a`` speech ETC at base pace | s / 40 |
-    | 2 | misalignment at current paces ``t_a/a - t_x/p`` | s / 40 |
-    | 3 | ``p`` | ``(p - 1)/0.4`` |
-    | 4 | ``a`` | ``(a - 1)/0.4`` |
-    | 5 | cooperation ``c`` | ``2c - 1`` |
-    | 6 | cooperation trend ``dc/dt`` over 0.5 s | 1/s, clipped |
-    | 7 | progress ``d`` along the path | ``2d - 1`` |
-    | 8 | hand speed | m/s / 0.25 |
-    | 9 | share of the current phrase said | ``2f - 1`` |
-    | 10 | rest of the current phrase at ``a = 1`` | s / 40 |
-    | 11 | in the pause after a phrase | ±1 |
-    | 12 | speech over | ±1 |
-    | 13 | motion over | ±1 |
-    | 14 | a phrase boundary is due before the next decision | ±1 |
-    | 15 | elapsed time | s / 60 |
-    | 16 + 3k | child ``k`` is a valid next phrase | ±1 |
-    | 17 + 3k | its ``t_min`` | s / 40 |
-    | 18 + 3k | its ``t_max`` | s / 40 |
+    | index | field | name | unit / scaling |
+    |---|---|---|---|
+    | 0 | ``T_X`` | ``t_x`` motion ETC at base pace | s / 40 |
+    | 1 | ``T_A`` | ``t_a`` speech ETC at base pace | s / 40 |
+    | 2 | ``MISALIGNMENT`` | misalignment at current paces ``t_a/a - t_x/p`` | s / 40 |
+    | 3 | ``P`` | ``p`` | ``(p - 1)/0.4`` |
+    | 4 | ``A`` | ``a`` | ``(a - 1)/0.4`` |
+    | 5 | ``COOPERATION`` | cooperation ``c`` | ``2c - 1`` |
+    | 6 | ``COOPERATION_TREND`` | cooperation trend ``dc/dt`` over 0.5 s | 1/s, clipped |
+    | 7 | ``PROGRESS`` | progress ``d`` along the path | ``2d - 1`` |
+    | 8 | ``HAND_SPEED`` | hand speed | m/s / 0.25 |
+    | 9 | ``PHRASE_SAID`` | share of the current phrase said | ``2f - 1`` |
+    | 10 | ``PHRASE_LEFT`` | rest of the current phrase at ``a = 1`` | s / 40 |
+    | 11 | ``IN_PAUSE`` | in the pause after a phrase | ±1 |
+    | 12 | ``SPEECH_DONE`` | speech over | ±1 |
+    | 13 | ``MOTION_DONE`` | motion over | ±1 |
+    | 14 | ``BOUNDARY_DUE`` | a phrase boundary is due before the next decision | ±1 |
+    | 15 | ``ELAPSED`` | elapsed time | s / 60 |
+    | 16 + 3k | child ``VALID`` | child ``k`` is a valid next phrase | ±1 |
+    | 17 + 3k | child ``T_MIN`` | its ``t_min`` | s / 40 |
+    | 18 + 3k | child ``T_MAX`` | its ``t_max`` | s / 40 |
+
+    The scales normalise; they do not bound: a pace outside ``[0.6, 1.4]`` (wider ``paces``) or a
+    time beyond the scale reads as ±1.
 
     ## Rewards
 
@@ -245,8 +248,11 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
 
         n_choice = 1 if choice_mode == "target" else self.max_children
         self.action_space = spaces.Box(-1.0, 1.0, (2 + n_choice,), np.float32)
-        self.observation_space = spaces.Box(-1.0, 1.0, (16 + 3 * self.max_children,), np.float32)
-        self._obs = np.zeros(self.observation_space.shape, np.float32)
+        durations = {u: (self.graph.t_min(u), self.graph.t_max(u)) for u in self.graph.phrases}
+        self._encoder = ObservationEncoder(self.max_children, durations)
+        size = observation_size(self.max_children)
+        self.observation_space = spaces.Box(-1.0, 1.0, (size,), np.float32)
+        self._obs = np.zeros(size, np.float32)
         self._choice_u = np.zeros(n_choice)
         self._renderer: Any = None
         self.time = 0.0
@@ -400,40 +406,32 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self.t_a = self.speech.eta(self.motion.t_x)
 
     def _observation(self) -> np.ndarray:
-        m, sp, obs = self.motion, self.speech, self._obs
-        p, a = self.paces.p, self.paces.a
-        t_x, t_a = m.t_x, self.t_a
-        obs[0] = t_x / T_SCALE
-        obs[1] = t_a / T_SCALE
-        obs[2] = (t_a / a - t_x / p) / T_SCALE
-        obs[3] = (p - 1.0) / 0.4
-        obs[4] = (a - 1.0) / 0.4
-        obs[5] = 2.0 * m.cooperation - 1.0
+        """The observation (layout and scales: :mod:`langenv.observation`)."""
+        m, sp = self.motion, self.speech
+        a = self.paces.a
         n = self._coop_hist.size
         newest = self._coop_hist[(self._coop_i - 1) % n]
         oldest = self._coop_hist[self._coop_i % n] if self._coop_i >= n else 1.0
-        obs[6] = (newest - oldest) / TREND_WINDOW
-        obs[7] = 2.0 * m.progress - 1.0
-        obs[8] = m.hand_speed / MAX_TRAJECTORY_SPEED
-        obs[9] = 2.0 * sp.fraction_said - 1.0
-        obs[10] = sp.remaining_in_phrase / T_SCALE
-        obs[11] = 1.0 if sp.in_pause else -1.0
-        obs[12] = 1.0 if sp.done else -1.0
-        obs[13] = 1.0 if m.motion_done else -1.0
-        horizon = self.ticks_per_step * self.dt
-        obs[14] = 1.0 if sp.boundary_due(horizon, a) else -1.0
-        obs[15] = self.time / 60.0
-        children = sp.candidates
-        for k in range(self.max_children):
-            base = 16 + 3 * k
-            if k < len(children):
-                obs[base] = 1.0
-                obs[base + 1] = self.graph.t_min(children[k]) / T_SCALE
-                obs[base + 2] = self.graph.t_max(children[k]) / T_SCALE
-            else:
-                obs[base : base + 3] = (-1.0, 0.0, 0.0)
-        np.clip(obs, -1.0, 1.0, out=obs)
-        return obs.copy()
+        self._encoder.encode(
+            self._obs,
+            t_x=m.t_x,
+            t_a=self.t_a,
+            p=self.paces.p,
+            a=a,
+            cooperation=m.cooperation,
+            cooperation_trend=(newest - oldest) / TREND_WINDOW,
+            progress=m.progress,
+            hand_speed=m.hand_speed,
+            phrase_said=sp.fraction_said,
+            phrase_left=sp.remaining_in_phrase,
+            in_pause=sp.in_pause,
+            speech_done=sp.done,
+            motion_done=m.motion_done,
+            boundary_due=sp.boundary_due(self.ticks_per_step * self.dt, a),
+            elapsed=self.time,
+            children=sp.candidates,
+        )
+        return self._obs.copy()
 
     def _info(self) -> dict[str, Any]:
         m = self.motion

@@ -15,16 +15,13 @@ from typing import Any, Literal
 
 import numpy as np
 
-from langenv.env import T_SCALE
+from langenv import observation as ob
 from langenv.errors import ConfigError
+from langenv.observation import Obs
 from langenv.pacing import PaceLimits, action_from_command
 from policies.aligner import AlignerGains, audio_command, optimal_paces
 
 __all__ = ["AdmittanceController", "LanguageController", "make_analytic"]
-
-# observation indices (see LangCtrlEnv's docstring)
-OBS_T_X, OBS_T_A, OBS_COOP, OBS_SPEECH_DONE, OBS_MOTION_DONE, OBS_ELAPSED = 0, 1, 5, 12, 13, 15
-OBS_ELAPSED_SCALE = 60.0  # s, scale of the elapsed-time observation
 
 #: Time constant (s) of the terminal phase's estimate of the motion's actual rate ``-dt_x/dt``.
 RATE_TAU = 0.04
@@ -120,22 +117,22 @@ class LanguageController:
             finished as fast as allowed; ``"over"``: both are over. Without a terminal phase
             (``terminal == 0``) only ``"aligning"`` and ``"over"`` occur.
         """
-        motion_done = bool(observation[OBS_MOTION_DONE] > 0.0)
-        speech_done = bool(observation[OBS_SPEECH_DONE] > 0.0)
+        motion_done = ob.flag(observation, Obs.MOTION_DONE)
+        speech_done = ob.flag(observation, Obs.SPEECH_DONE)
         if motion_done and speech_done:
             return "over"
         if self.terminal <= 0.0:
             return "aligning"
         if motion_done or speech_done:
             return "finishing"
-        t_x = float(observation[OBS_T_X]) * T_SCALE
+        t_x = ob.seconds(observation, Obs.T_X)
         return "terminal" if t_x < self.terminal else "aligning"
 
     def _update_rate(self, observation: np.ndarray) -> None:
         """Average ``-dt_x/dt`` over ``RATE_TAU``; idempotent for a repeated observation."""
-        t_x = float(observation[OBS_T_X]) * T_SCALE
-        now = float(observation[OBS_ELAPSED]) * OBS_ELAPSED_SCALE
-        if observation[OBS_MOTION_DONE] > 0.0:
+        t_x = ob.seconds(observation, Obs.T_X)
+        now = ob.elapsed(observation)
+        if ob.flag(observation, Obs.MOTION_DONE):
             self._last = None
             return
         if self._last is not None:
@@ -150,19 +147,20 @@ class LanguageController:
         """Pace commands from the ETCs and cooperation; the paper's phrase rule."""
         if self.terminal > 0.0:
             self._update_rate(observation)
-        t_x = max(0.0, float(observation[OBS_T_X]) * T_SCALE)
-        t_a = max(0.0, float(observation[OBS_T_A]) * T_SCALE)
-        c = 0.5 * (float(observation[OBS_COOP]) + 1.0)
+        t_x = max(0.0, ob.seconds(observation, Obs.T_X))
+        t_a = max(0.0, ob.seconds(observation, Obs.T_A))
+        c = ob.fraction(observation, Obs.COOPERATION)
         p_star, a_star = optimal_paces(t_x, t_a)
         a_cmd = audio_command(a_star, c, self.gains)
-        if self.k_em > 0.0 and observation[OBS_MOTION_DONE] < 0.0:
+        motion_done = ob.flag(observation, Obs.MOTION_DONE)
+        if self.k_em > 0.0 and not motion_done:
             p_star -= min(self.em_clip, max(-self.em_clip, self.k_em * (t_a - t_x)))
         phase = self.phase(observation)
         if phase == "terminal":
             p_star = 1.0
             a_cmd = t_a * max(self._rate, RATE_FLOOR) / max(t_x, 1e-6)
         elif phase == "finishing":
-            if observation[OBS_MOTION_DONE] > 0.0:
+            if motion_done:
                 a_cmd = self.limits.a_max
             else:
                 p_star = self.limits.p_max

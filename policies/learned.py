@@ -35,8 +35,9 @@ from typing import Any, Literal
 import numpy as np
 import yaml
 
-from langenv.env import T_SCALE
+from langenv import observation as ob
 from langenv.errors import ConfigError
+from langenv.observation import Obs
 from langenv.pacing import PaceLimits, action_from_command, command_from_action
 from policies.analytic import LanguageController
 
@@ -50,10 +51,6 @@ __all__ = [
     "graph_digest",
     "model_files",
 ]
-
-# observation indices of LangCtrl-v0 (see LangCtrlEnv's docstring)
-_T_X, _T_A, _P, _A, _ELAPSED = 0, 1, 3, 4, 15
-_CHILD0 = 16
 
 #: Names of the features :class:`ResidualLC` appends to the env's observation, in order.
 FEATURES: tuple[str, ...] = (
@@ -186,7 +183,7 @@ class ResidualLC:
         """Begin an episode at its first observation; returns the augmented observation."""
         self._obs = np.asarray(obs, dtype=np.float32)
         self.lc.reset()
-        self._t_x0 = float(self._obs[_T_X]) * T_SCALE
+        self._t_x0 = ob.seconds(self._obs, Obs.T_X)
         self._rate = self._rate_avg = 0.0
         self._last_r = np.zeros(2)
         return self._augment()
@@ -196,10 +193,10 @@ class ResidualLC:
         new = np.asarray(obs, dtype=np.float32)
         if self._obs.size == 0:
             return self.start(new)
-        dt = (float(new[_ELAPSED]) - float(self._obs[_ELAPSED])) * 60.0
+        dt = (float(new[Obs.ELAPSED]) - float(self._obs[Obs.ELAPSED])) * ob.ELAPSED_SCALE
         if dt <= 0.0:
             dt = 1.0 / self.spec.decision_hz
-        rate = (float(self._obs[_T_X]) - float(new[_T_X])) * T_SCALE / dt - 1.0
+        rate = (float(self._obs[Obs.T_X]) - float(new[Obs.T_X])) * ob.T_SCALE / dt - 1.0
         self._rate = min(1.0, max(-1.0, rate))
         w = 1.0 - math.exp(-dt / _RATE_TAU)
         self._rate_avg += w * (self._rate - self._rate_avg)
@@ -208,13 +205,13 @@ class ResidualLC:
 
     def _augment(self) -> np.ndarray:
         obs = self._obs
-        t_x = max(0.0, float(obs[_T_X]) * T_SCALE)
-        t_a = max(0.0, float(obs[_T_A]) * T_SCALE)
-        p = 1.0 + 0.4 * float(obs[_P])
-        a = 1.0 + 0.4 * float(obs[_A])
+        t_x = max(0.0, ob.seconds(obs, Obs.T_X))
+        t_a = max(0.0, ob.seconds(obs, Obs.T_A))
+        p = ob.pace(obs, Obs.P)
+        a = ob.pace(obs, Obs.A)
         lc = self._base = self.lc.act(obs)  # once per observation: action() reuses it
         self._base_final = self.lc.phase(obs) in ("terminal", "finishing")
-        elapsed = float(obs[_ELAPSED]) * 60.0
+        elapsed = ob.elapsed(obs)
         lost = elapsed - (self._t_x0 - t_x)
         feats = np.array(
             [
@@ -271,12 +268,12 @@ class ResidualLC:
         if spec.choice_mode == "target":
             out[2] = min(1.0, max(-1.0, spec.choice_scale * r[2]))
         else:
-            t_x = max(0.0, float(obs[_T_X]) * T_SCALE)
+            t_x = max(0.0, ob.seconds(obs, Obs.T_X))
             for k in range(spec.max_children):
-                base = _CHILD0 + 3 * k
+                base = ob.child_index(k)
                 if base + 2 >= obs.shape[0]:
                     break
-                mid = 0.5 * (float(obs[base + 1]) + float(obs[base + 2])) * T_SCALE
+                mid = 0.5 * (float(obs[base + 1]) + float(obs[base + 2])) * ob.T_SCALE
                 d = abs(t_x - mid)
                 prior = (_PRIOR_SCALE - d) / (_PRIOR_SCALE + d)
                 score = 0.5 * (prior + spec.choice_scale * r[2 + k])

@@ -9,8 +9,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import langenv
-from langenv.env import T_SCALE
+from langenv import observation as ob
 from langenv.errors import ConfigError
+from langenv.observation import Obs
 from langenv.pacing import command_from_action
 from policies.analytic import (
     AdmittanceController,
@@ -27,11 +28,12 @@ def _obs(
     speech_done: bool = False,
     time: float = 0.0,
 ) -> np.ndarray:
-    obs = np.zeros(19, np.float32)
-    obs[0], obs[1], obs[5] = t_x / T_SCALE, t_a / T_SCALE, 2.0 * coop - 1.0
-    obs[12] = 1.0 if speech_done else -1.0
-    obs[13] = 1.0 if motion_done else -1.0
-    obs[15] = time / 60.0
+    obs = np.zeros(ob.observation_size(1), np.float32)
+    obs[Obs.T_X], obs[Obs.T_A] = ob.encode_seconds(t_x), ob.encode_seconds(t_a)
+    obs[Obs.COOPERATION] = ob.encode_fraction(coop)
+    obs[Obs.SPEECH_DONE] = ob.encode_flag(speech_done)
+    obs[Obs.MOTION_DONE] = ob.encode_flag(motion_done)
+    obs[Obs.ELAPSED] = ob.encode_elapsed(time)
     return obs
 
 

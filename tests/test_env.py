@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import gymnasium as gym
@@ -14,6 +15,7 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 import langenv
 from langenv.env import LangCtrlEnv
 from langenv.errors import ActionError, ConfigError, PhraseGraphError
+from langenv.pacing import PaceLimits
 from policies import load_policy
 from policies.aligner import AlignerGains, optimal_paces
 
@@ -187,6 +189,33 @@ def test_scores_mode_never_picks_an_invalid_child() -> None:
 
 
 @pytest.mark.skipif(not SESSIONS.is_dir(), reason="recorded sessions not available")
+@pytest.mark.parametrize(
+    ("limits", "u", "in_range"),
+    [
+        (PaceLimits(p_max=1.6), 1.0, lambda p: p > 1.55),
+        (PaceLimits(p_min=0.3, a_min=0.3), -1.0, lambda p: p < 0.35),
+    ],
+)
+def test_wider_pace_limits_run_whole_episodes(
+    limits: PaceLimits, u: float, in_range: Callable[[float], bool]
+) -> None:
+    """The pace bounds have one source, the env's PaceLimits: a pace beyond SPEC's [0.6, 1.4]
+    that they allow drives the arm for whole episodes (it once stopped mid-episode with
+    "VariableAdmittance.step: p must lie in [0.6, 1.4], got 1.402")."""
+    env = gym.make(langenv.ENV_ID, paces=limits, max_episode_steps=6000)
+    for seed in (0, 1):
+        env.reset(seed=seed)
+        paces = []
+        while True:
+            _, _, term, trunc, info = env.step(np.array([u, u, 0.0], np.float32))
+            paces.append(info["p"])
+            if term or trunc:
+                break
+        assert term and info["safety_stop"] is None and info["am"] is not None
+        assert any(in_range(p) for p in paces)
+        assert limits.p_min <= min(paces) and max(paces) <= limits.p_max
+
+
 def test_replay_user_reproduces_recorded_cooperation() -> None:
     csv = SESSIONS / "u3_lc.csv"
     env = gym.make(langenv.ENV_ID, users="replay", session=csv, decision_hz=50)
@@ -202,13 +231,10 @@ def test_replay_user_reproduces_recorded_cooperation() -> None:
     assert rmse < 0.05
 
 
-def test_render_rgb_array() -> None:
+def test_render_rgb_array(offscreen_gl: None) -> None:
     env = gym.make(langenv.ENV_ID, render_mode="rgb_array", width=160, height=120)
     env.reset(seed=0)
-    try:
-        frame = env.render()
-    except Exception as exc:  # no GL backend on this machine
-        pytest.skip(f"no off-screen GL: {exc}")
+    frame = env.render()
     assert isinstance(frame, np.ndarray)
     assert frame.shape == (120, 160, 3) and frame.dtype == np.uint8
     assert frame.std() > 1.0  # not a blank image

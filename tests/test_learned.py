@@ -13,8 +13,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import langenv
-from langenv.env import T_SCALE
+from langenv import observation as ob
 from langenv.errors import ConfigError
+from langenv.observation import ChildField, Obs
 from langenv.pacing import command_from_action
 from policies import load_policy
 from policies.analytic import LanguageController
@@ -34,15 +35,30 @@ def _make(**kw: Any) -> Any:
 
 def _obs(t_x: float, t_a: float, coop: float, mids: list[float], n_children: int) -> np.ndarray:
     """A synthetic observation with the fields the residual map reads."""
-    obs = np.zeros(16 + 3 * n_children, np.float32)
-    obs[0], obs[1], obs[5] = t_x / T_SCALE, t_a / T_SCALE, 2.0 * coop - 1.0
+    obs = np.zeros(ob.observation_size(n_children), np.float32)
+    obs[Obs.T_X], obs[Obs.T_A] = ob.encode_seconds(t_x), ob.encode_seconds(t_a)
+    obs[Obs.COOPERATION] = ob.encode_fraction(coop)
     for k in range(n_children):
-        base = 16 + 3 * k
-        if k < len(mids):
-            obs[base : base + 3] = (1.0, (mids[k] - 0.5) / T_SCALE, (mids[k] + 0.5) / T_SCALE)
-        else:
-            obs[base : base + 3] = (-1.0, 0.0, 0.0)
+        valid = k < len(mids)
+        obs[ob.child_index(k, ChildField.VALID)] = ob.encode_flag(valid)
+        if valid:
+            obs[ob.child_index(k, ChildField.T_MIN)] = ob.encode_seconds(mids[k] - 0.5)
+            obs[ob.child_index(k, ChildField.T_MAX)] = ob.encode_seconds(mids[k] + 0.5)
     return obs
+
+
+def _papers_choice_as_scores(obs: np.ndarray, env: Any) -> np.ndarray:
+    """Scores that make the "scores" env pick the paper's child: +1 for the valid child whose
+    mid-length is closest to ``t_x``, -1 for the others (read from the observation alone)."""
+    t_x = max(0.0, ob.seconds(obs, Obs.T_X))
+    dist = np.full(env.max_children, np.inf)
+    for k in range(env.max_children):
+        block = ob.child(obs, k)
+        if block is not None and block[0]:
+            dist[k] = abs(t_x - 0.5 * (block[1] + block[2]))
+    scores = -np.ones(env.max_children, np.float32)
+    scores[int(np.argmin(dist))] = 1.0
+    return scores
 
 
 @pytest.mark.parametrize(
@@ -63,8 +79,8 @@ def test_zero_residual_is_lc_on_the_env(mode: str, terminal: float, k_em: float)
     assert np.array_equal(w_obs[: obs.size], obs)
     for _ in range(2000):
         act = lc.act(obs)
-        if mode == "scores":  # LC's rule as scores: the wrapper's prior
-            act = wrapped.core.action(np.zeros(wrapped.residual_spec.action_dim))
+        if mode == "scores":  # the paper's rule, as scores the plain env reads
+            act = np.concatenate([act[:2], _papers_choice_as_scores(obs, plain.unwrapped)])
         w_obs, _, w_term, _, w_info = wrapped.step(np.zeros(wrapped.residual_spec.action_dim))
         obs, _, term, _, info = plain.step(act)
         assert w_info["phrase"] == info["phrase"]
@@ -193,7 +209,8 @@ def test_motion_rate_feature_tracks_resistance() -> None:
     """Time lost and motion rate: zero without resistance, negative rate when the person resists."""
     resist = ResidualLCWrapper(_make(users=lambda t, v, b: -30.0 * b))
     free = ResidualLCWrapper(_make(users=lambda t, v, b: 0.0 * b))
-    i_rate, i_lost = 16 + 30 + FEATURES.index("motion_rate_avg"), 46 + FEATURES.index("time_lost")
+    n_env = resist.env.observation_space.shape[0]
+    i_rate, i_lost = n_env + FEATURES.index("motion_rate_avg"), n_env + FEATURES.index("time_lost")
     for env, sign in ((resist, -1), (free, 0)):
         env.reset(seed=0)
         for _ in range(100):

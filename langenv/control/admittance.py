@@ -48,8 +48,9 @@ class AdmittanceParams:
             ``math.inf``: the hand tracks ``v_ref`` exactly.
         curvature_feedforward: Add the centripetal term ``M0 kappa (v_par / p)^2`` on curved
             segments (an addition to the paper; it keeps the hand on arcs).
-        p_min: Lowest physical pace accepted (SPEC §1: 0.6), > 0.
-        p_max: Highest physical pace accepted (SPEC §1: 1.4), >= ``p_min``.
+
+    The bounds of the physical pace are not here: they are the env's
+    :class:`~langenv.pacing.PaceLimits`, their one source; the admittance accepts any pace > 0.
 
     Raises:
         ConfigError: a field out of range or non-finite (names the field).
@@ -62,8 +63,6 @@ class AdmittanceParams:
     switch_tol: float = 0.1
     max_acceleration: float = 0.14
     curvature_feedforward: bool = True
-    p_min: float = 0.6
-    p_max: float = 1.4
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -77,17 +76,13 @@ class AdmittanceParams:
             if not math.isfinite(value) and not (f.name == "max_acceleration" and value > 0):
                 raise ConfigError(f"AdmittanceParams.{f.name} must be finite, got {value!r}")
             object.__setattr__(self, f.name, float(value))
-        positive = ("mass", "damping", "stiffness", "switch_tol", "max_acceleration", "p_min")
+        positive = ("mass", "damping", "stiffness", "switch_tol", "max_acceleration")
         for name in positive:
             if getattr(self, name) <= 0.0:
                 raise ConfigError(f"AdmittanceParams.{name} must be > 0, got {getattr(self, name)}")
         if self.propel_force < 0.0:
             raise ConfigError(
                 f"AdmittanceParams.propel_force must be >= 0, got {self.propel_force}"
-            )
-        if self.p_max < self.p_min:
-            raise ConfigError(
-                f"AdmittanceParams.p_max must be >= p_min={self.p_min}, got {self.p_max}"
             )
         if not isinstance(self.curvature_feedforward, bool):
             raise ConfigError(
@@ -105,7 +100,7 @@ class VariableAdmittance:
     """The paper's ``A(p)``: reference velocity from force, pace and pace rate.
 
     Args:
-        params: Mass and damping (and the accepted pace range) are read from here.
+        params: Mass and damping are read from here.
 
     Raises:
         ConfigError: ``params`` is not an :class:`AdmittanceParams`.
@@ -120,8 +115,6 @@ class VariableAdmittance:
         self._m = params.mass
         self._d_over_m = params.damping / params.mass
         self._inv_d = 1.0 / params.damping
-        self._p_min = params.p_min
-        self._p_max = params.p_max
 
     def step(
         self, v: np.ndarray, force: np.ndarray, p: float, p_dot: float, dt: float
@@ -134,7 +127,8 @@ class VariableAdmittance:
         Args:
             v: Reference velocity at the start of the step, shape (3,), m/s.
             force: Total force ``F_ext + F_virtual``, shape (3,), N.
-            p: Physical pace at the start of the step, in ``[p_min, p_max]``.
+            p: Physical pace at the start of the step, > 0 (the env keeps it within its
+                :class:`~langenv.pacing.PaceLimits`).
             p_dot: Its rate (1/s), finite; ``p + p_dot dt`` must stay > 0.
             dt: Step (s), > 0.
 
@@ -142,13 +136,11 @@ class VariableAdmittance:
             Reference velocity at the end of the step, shape (3,), m/s (a new array).
 
         Raises:
-            ConfigError: ``p`` outside ``[p_min, p_max]``, a non-finite ``v``, ``force`` or
+            ConfigError: ``p`` not > 0 or not finite, a non-finite ``v``, ``force`` or
                 ``p_dot``, or a non-positive ``dt`` (names the argument).
         """
-        if not (self._p_min <= p <= self._p_max):
-            raise ConfigError(
-                f"VariableAdmittance.step: p must lie in [{self._p_min}, {self._p_max}], got {p!r}"
-            )
+        if not 0.0 < p < math.inf:
+            raise ConfigError(f"VariableAdmittance.step: p must be finite and > 0, got {p!r}")
         if not dt > 0.0 or not math.isfinite(dt):
             raise ConfigError(f"VariableAdmittance.step: dt must be > 0 and finite, got {dt!r}")
         if not math.isfinite(p_dot):

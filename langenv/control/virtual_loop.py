@@ -102,7 +102,7 @@ def simulate_virtual(
     Args:
         trajectory: The path.
         params: Virtual dynamics and guide parameters.
-        p: Constant pace, or a function of time (s) returning the pace (in ``[p_min, p_max]``).
+        p: Constant pace, or a function of time (s) returning the pace (> 0).
         force: External force ``force(t, v, tangent) -> (3,)`` N (the ``User.force`` signature,
             given the hand's velocity), or ``None`` for a fully cooperative user.
         dt: Tick (s).

@@ -23,16 +23,39 @@ import tempfile
 import threading
 import warnings
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from langenv.errors import AudioError, ConfigError
 
-if TYPE_CHECKING:
-    from langenv.speech.graph import Phrase
+__all__ = [
+    "DEFAULT_RATE",
+    "DEFAULT_SR",
+    "DEFAULT_VOICE",
+    "ClipLibrary",
+    "SpokenPhrase",
+    "default_cache_dir",
+]
 
-__all__ = ["DEFAULT_RATE", "DEFAULT_SR", "DEFAULT_VOICE", "ClipLibrary", "default_cache_dir"]
+class SpokenPhrase(Protocol):
+    """What a clip is made from (a :class:`~langenv.speech.graph.Phrase` is one)."""
+
+    @property
+    def id(self) -> str:
+        """Phrase id, named in error messages."""
+        ...
+
+    @property
+    def text(self) -> str | None:
+        """The words, spoken by eSpeak NG when there is no ``audio``."""
+        ...
+
+    @property
+    def audio(self) -> Path | None:
+        """A recorded clip."""
+        ...
+
 
 DEFAULT_SR = 22050
 """Sample rate of the clips (Hz): eSpeak NG's native rate."""
@@ -254,7 +277,7 @@ class ClipLibrary:
         )
 
     # ------------------------------------------------------------------ public API
-    def clip(self, phrase: Phrase) -> np.ndarray:
+    def clip(self, phrase: SpokenPhrase) -> np.ndarray:
         """The audio of ``phrase``: its ``audio`` file if it has one, else its ``text`` spoken.
 
         Returns:
@@ -270,7 +293,7 @@ class ClipLibrary:
             raise AudioError(f"phrase {phrase.id!r} has neither text nor audio")
         return self.synthesize(phrase.text, phrase=phrase.id)
 
-    def duration(self, phrase: Phrase) -> float:
+    def duration(self, phrase: SpokenPhrase) -> float:
         """Length of the phrase's clip at pace 1 (s)."""
         return self.clip(phrase).size / self.sr
 

@@ -28,12 +28,10 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from langenv.errors import AudioError, ConfigError, PhraseGraphError
-
-if TYPE_CHECKING:
-    from langenv.speech.audio import ClipLibrary
+from langenv.speech.audio import ClipLibrary
 
 __all__ = [
     "DEFAULT_PAUSE",
@@ -254,8 +252,6 @@ class PhraseGraph:
             raise PhraseGraphError("\n".join(problems))
 
         if clips is None:
-            from langenv.speech.audio import ClipLibrary
-
             clips = ClipLibrary()
         durations: dict[str, float] = {}
         for pid, ph in phrases.items():
