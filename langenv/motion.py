@@ -36,6 +36,8 @@ from langenv.control.cooperation import CooperationFilter
 from langenv.control.guide import Guide, GuideState
 from langenv.control.motion_etc import FastETC
 from langenv.control.trajectory import Trajectory
+from langenv.kernels.runner import CompiledTick
+from langenv.kernels.tick import S_FMEAS, S_VCMD, S_VREF
 from langenv.robot.arm import Arm
 from langenv.robot.force_sensor import ForceSensor
 from langenv.safety import SafetyLimits, SafetyMonitor, SafetyStop, limit_velocity
@@ -54,6 +56,9 @@ class GuidedArm:
         cooperation: The cooperation filter.
         safety: Safety limits (default :class:`~langenv.safety.SafetyLimits`); its ``max_speed``
             becomes the arm's velocity command limit (``arm.max_hand_speed``).
+        compiled: Run the tick as compiled code (:mod:`langenv.kernels`, the same operations in
+            the same order: bit-identical results, about 5x faster); ``False`` runs the Python
+            parts themselves, the reference.
     """
 
     def __init__(
@@ -64,6 +69,8 @@ class GuidedArm:
         sensor: ForceSensor,
         cooperation: CooperationFilter,
         safety: SafetyLimits | None = None,
+        *,
+        compiled: bool = True,
     ) -> None:
         self.arm = arm
         self.trajectory = trajectory
@@ -84,18 +91,49 @@ class GuidedArm:
         """Hand's distance ``|x - T(s)|`` from its closest path point, after the last tick (m)."""
         self.dt: float = arm.dt
         self.state: GuideState = self.guide.initial_state()
-        self.v_ref = np.zeros(3)
-        self.v_cmd = np.zeros(3)
+        self._v_ref = np.zeros(3)
+        self._v_cmd = np.zeros(3)
         self.f_user = np.zeros(3)
-        self.f_measured = np.zeros(3)
+        self._f_measured = np.zeros(3)
         self.t_x: float = 0.0
         self._dv_max = params.max_acceleration * arm.dt
         self.t_motion_end: float | None = None
         self.time: float = 0.0
         self._hand_velocity = np.zeros(3)
         self._hand_speed = 0.0
+        self._compiled: CompiledTick | None = CompiledTick(self) if compiled else None
+        if self._compiled is not None:
+            self._compiled.load()
 
     # ------------------------------------------------------------------ state
+    @property
+    def _fast(self) -> CompiledTick | None:
+        """The compiled tick while it runs (not after a protective stop), else None."""
+        return self._compiled if self.safety_stop is None else None
+
+    @property
+    def compiled(self) -> bool:
+        """Whether the tick runs as compiled code (see the ``compiled`` argument)."""
+        return self._compiled is not None
+
+    @property
+    def v_ref(self) -> np.ndarray:
+        """The admittance's reference velocity after the last tick, shape (3,), m/s."""
+        fast = self._fast
+        return self._v_ref if fast is None else fast.vector(S_VREF)
+
+    @property
+    def v_cmd(self) -> np.ndarray:
+        """The velocity command sent to the arm in the last tick, shape (3,), m/s."""
+        fast = self._fast
+        return self._v_cmd if fast is None else fast.vector(S_VCMD)
+
+    @property
+    def f_measured(self) -> np.ndarray:
+        """The force sensor's reading in the last tick, shape (3,), N."""
+        fast = self._fast
+        return self._f_measured if fast is None else fast.vector(S_FMEAS)
+
     @property
     def hand_position(self) -> np.ndarray:
         """Hand (handle site) position, shape (3,), m."""
@@ -104,7 +142,8 @@ class GuidedArm:
     @property
     def hand_velocity(self) -> np.ndarray:
         """Hand (handle site) linear velocity after the last tick, shape (3,), m/s (read-only)."""
-        return self._hand_velocity
+        fast = self._fast
+        return self._hand_velocity if fast is None else fast.hand_velocity()
 
     @property
     def hand_speed(self) -> float:
@@ -133,6 +172,9 @@ class GuidedArm:
 
     def tangent(self) -> np.ndarray:
         """Unit direction of progress at the hand, shape (3,) (:meth:`Guide.tangent`)."""
+        fast = self._fast
+        if fast is not None:
+            return fast.tangent()
         return self.guide.tangent(self.state, self.arm.hand_position())
 
     # ------------------------------------------------------------------ loop
@@ -141,17 +183,19 @@ class GuidedArm:
         self.arm.reset(self.trajectory.position(0.0))
         self.coop.reset()
         self.state = self.guide.initial_state()
-        self.v_ref = np.zeros(3)
-        self.v_cmd = np.zeros(3)
+        self._v_ref = np.zeros(3)
+        self._v_cmd = np.zeros(3)
         self.f_user = np.zeros(3)
-        self.f_measured = np.zeros(3)
+        self._f_measured = np.zeros(3)
         self.time = 0.0
         self.t_motion_end = None
-        self.t_x = self.etc.etc(self.state, self.arm.hand_position(), self.v_ref, self.v_cmd)
+        self.t_x = self.etc.etc(self.state, self.arm.hand_position(), self._v_ref, self._v_cmd)
         self.safety_stop = None
         self.monitor.reset()
         self._path_point = self.trajectory.position(self.state.s).tolist()
         self._measure_hand()
+        if self._compiled is not None:
+            self._compiled.load()
 
     def _measure_hand(self) -> None:
         v = self.arm.hand_velocity()
@@ -185,14 +229,23 @@ class GuidedArm:
             f_user = np.asarray(f_user, dtype=np.float64)
         self.f_user = f_user
         if self.safety_stop is not None:  # protective stop: the arm holds still
-            self.v_ref = np.zeros(3)
-            self.v_cmd = np.zeros(3)
-            self.arm.step(self.v_cmd, f_user)
+            self._v_ref = np.zeros(3)
+            self._v_cmd = np.zeros(3)
+            self.arm.step(self._v_cmd, f_user)
             self._measure_hand()
             self.time += self.dt
             return
+        if self._compiled is not None:
+            self._compiled.tick(f_user, p, p_dot, rng)
+            return
+        self._tick_python(f_user, p, p_dot, rng)
+
+    def _tick_python(
+        self, f_user: np.ndarray, p: float, p_dot: float, rng: np.random.Generator | None
+    ) -> None:
+        """The tick in Python: the reference that the compiled tick repeats."""
         f_meas = self.sensor.measure(f_user, rng)
-        self.f_measured = f_meas
+        self._f_measured = f_meas
         self.coop.update(math.sqrt(float(f_meas @ f_meas)), self.dt)
         x = self.arm.hand_position()
         if not self.state.done:
@@ -201,25 +254,25 @@ class GuidedArm:
         offset = self._offset(x)
         braking = self.state.done
         if braking:
-            self.v_ref = np.zeros(3)
+            self._v_ref = np.zeros(3)
         else:
-            force = f_meas + self.guide.virtual_force(self.state, x, self.v_ref, p)
-            v_ref = self.admittance.step(self.v_ref, force, p, p_dot, self.dt)
-            self.v_ref = limit_velocity(v_ref, offset, self.limits)
-        was_moving = bool(self.v_cmd.any())
-        target = self.v_ref
+            force = f_meas + self.guide.virtual_force(self.state, x, self._v_ref, p)
+            v_ref = self.admittance.step(self._v_ref, force, p, p_dot, self.dt)
+            self._v_ref = limit_velocity(v_ref, offset, self.limits)
+        was_moving = bool(self._v_cmd.any())
+        target = self._v_ref
         if not braking and float(f_meas @ self.tangent()) > 0.0:  # pushed along: the governor
-            target = cap_speed(target, self.guide.speed_limit(self.state, self.v_cmd))
+            target = cap_speed(target, self.guide.speed_limit(self.state, self._v_cmd))
         # the safety limits override the acceleration limit
-        self.v_cmd = limit_velocity(follow(self.v_cmd, target, self._dv_max), offset, self.limits)
-        self.arm.step(self.v_cmd, f_user)
+        self._v_cmd = limit_velocity(follow(self._v_cmd, target, self._dv_max), offset, self.limits)
+        self.arm.step(self._v_cmd, f_user)
         if braking:
-            moving = bool(self.v_cmd.any())
+            moving = bool(self._v_cmd.any())
             if not moving and self.t_motion_end is None:
                 self.t_motion_end = self.time + (self.dt if was_moving else 0.0)
-            self.t_x = math.sqrt(float(self.v_cmd @ self.v_cmd)) / self.params.max_acceleration
+            self.t_x = math.sqrt(float(self._v_cmd @ self._v_cmd)) / self.params.max_acceleration
         else:
-            self.t_x = self.etc.etc(self.state, self.arm.hand_position(), self.v_ref, self.v_cmd)
+            self.t_x = self.etc.etc(self.state, self.arm.hand_position(), self._v_ref, self._v_cmd)
         self._measure_hand()
         self.time += self.dt
         self.safety_stop = self.monitor.check(

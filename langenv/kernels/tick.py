@@ -32,18 +32,20 @@ __all__ = ["control", "observe"]
 
 # state
 S_S, S_LEG, S_DONE, S_VREF, S_VCMD, S_FMEAS = 0, 1, 2, 3, 6, 9
-S_R, S_C, S_TX, S_TIME, S_TEND, S_PP, S_HV, S_HS, S_DEV, S_MONCD, S_WAS = (
-    12, 13, 14, 15, 16, 17, 20, 23, 24, 25, 26
+S_R, S_C, S_TX, S_TIME, S_TEND, S_PP, S_HV, S_HS, S_DEV, S_MONCD, S_WAS, S_TAN = (
+    12, 13, 14, 15, 16, 17, 20, 23, 24, 25, 26, 27
 )
+N_STATE = 30
+"""State slots (``S_TAN``: the guide's tangent at the hand after the tick, 3)."""
 # settings
-C_DEADBAND, C_KEEP, C_INV_FMAX, C_DT, C_K, C_FPROP, C_TOL2, C_FFMASS, C_ACC, C_VTURN2 = (
-    30, 31, 32, 33, 34, 35, 36, 37, 38, 39
+C_END_TAN, C_KEEP, C_INV_FMAX, C_DT, C_K, C_FPROP, C_TOL2, C_FFMASS, C_ACC, C_VTURN2 = (
+    30, 33, 34, 35, 36, 37, 38, 39, 40, 41
 )
-C_DOVERM, C_INVD, C_PMIN, C_PMAX, C_DVMAX, C_HOLD, C_VMAX, C_FMAX, C_DMAX, C_VTRIP = (
-    40, 41, 42, 43, 44, 45, 46, 47, 48, 49
+C_DOVERM, C_INVD, C_MAXACC, C_DVMAX, C_HOLD, C_VMAX, C_FMAX, C_DMAX, C_VTRIP = (
+    42, 43, 44, 45, 46, 47, 48, 49, 50
 )
-C_PERTICK, C_HASJL, C_NLEGS, C_NJ = 50, 51, 52, 53
-LEGS = 54
+C_PERTICK, C_HASJL, C_NLEGS, C_NJ = 51, 52, 53, 54
+LEGS = 55
 """Start of the legs: start, end, end point (3), end tool angle, switch distance."""
 LEG_COLS = 7
 
@@ -173,7 +175,7 @@ def _speed_limit(ws: np.ndarray, path: np.ndarray, c0: float, c1: float, c2: flo
 def _admittance(ws: np.ndarray, f0: float, f1: float, f2: float, p: float, p_dot: float) -> int:
     """``VariableAdmittance.step`` of ``v_ref`` in place; an error code for bad input."""
     dt = ws[C_DT]
-    if not (ws[C_PMIN] <= p <= ws[C_PMAX]):
+    if not 0.0 < p < math.inf:
         return BAD_PACE
     if not math.isfinite(p_dot):
         return BAD_PACE_RATE
@@ -234,7 +236,8 @@ def control(
     ctrl: np.ndarray,
     qfrc: np.ndarray,
     force: tuple[float, float, float],
-    sensed: tuple[float, float, float],
+    measured: tuple[float, float, float],
+    f_mag: float,
     p: float,
     p_dot: float,
 ) -> int:
@@ -242,25 +245,18 @@ def control(
 
     Args:
         force: The person's force on the handle (N).
-        sensed: That force plus the sensor's noise (N).
+        measured: The sensor's reading of it (:meth:`ForceSensor.measure
+            <langenv.robot.force_sensor.ForceSensor.measure>`, N).
+        f_mag: Its magnitude (N), the cooperation filter's input.
         p, p_dot: Physical pace and its rate.
 
     Returns:
         :data:`OK`; the arm's ``LIMITS_DUE`` (re-solve, then ``arm.apply``); or a negative
-        code for bad input (nothing done for ``BAD_FORCE``).
+        code for bad input.
     """
-    m0, m1, m2 = sensed
-    norm2 = m0 * m0 + m1 * m1 + m2 * m2
-    if not norm2 < math.inf:
-        return BAD_FORCE
-    norm = math.sqrt(norm2)
-    if norm <= ws[C_DEADBAND]:
-        m0, m1, m2 = 0.0, 0.0, 0.0
-    else:
-        g = 1.0 - ws[C_DEADBAND] / norm
-        m0, m1, m2 = m0 * g, m1 * g, m2 * g
+    m0, m1, m2 = measured
     ws[S_FMEAS], ws[S_FMEAS + 1], ws[S_FMEAS + 2] = m0, m1, m2
-    u = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2) * ws[C_INV_FMAX]
+    u = f_mag * ws[C_INV_FMAX]
     if u > 1.0:
         u = 1.0
     keep = ws[C_KEEP]
@@ -314,7 +310,8 @@ def observe(
         moving = c0 != 0.0 or c1 != 0.0 or c2 != 0.0
         if not moving and math.isnan(ws[S_TEND]):
             ws[S_TEND] = ws[S_TIME] + (ws[C_DT] if ws[S_WAS] != 0.0 else 0.0)
-        ws[S_TX] = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2) / ws[C_ACC]
+        ws[S_TX] = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2) / ws[C_MAXACC]
+        ws[S_TAN], ws[S_TAN + 1], ws[S_TAN + 2] = ws[C_END_TAN], ws[C_END_TAN + 1], ws[C_END_TAN + 2]
     else:
         ws[S_TX] = estimate(
             prm,
@@ -327,6 +324,8 @@ def observe(
             (ws[S_VREF], ws[S_VREF + 1], ws[S_VREF + 2]),
             (c0, c1, c2),
         )
+        b0, b1, b2 = _tangent(ws, path, xpos[0], xpos[1], xpos[2])
+        ws[S_TAN], ws[S_TAN + 1], ws[S_TAN + 2] = b0, b1, b2
     nv = qvel.shape[0]
     hv = np.dot(jac[: 3 * nv].reshape(3, nv), qvel)
     ws[S_HV], ws[S_HV + 1], ws[S_HV + 2] = hv[0], hv[1], hv[2]
