@@ -18,7 +18,7 @@ import mujoco
 import numpy as np
 
 from langenv.control.guide import GuideState
-from langenv.errors import ConfigError
+from langenv.errors import ActionError, ConfigError
 from langenv.kernels import arm as ak
 from langenv.kernels import tick as tk
 from langenv.kernels.path import pack as pack_path
@@ -48,6 +48,7 @@ class CompiledTick:
             GuideState(guide._ends[-1], n_legs, True)
         )
         ws[tk.C_INV_FMAX] = coop._inv_f_max
+        ws[tk.C_DEADBAND] = motion.sensor.deadband
         ws[tk.C_DT] = motion.dt
         ws[tk.C_KEEP] = (
             coop._keep if coop._dt == motion.dt else math.exp(coop._log_alpha * motion.dt)
@@ -134,15 +135,23 @@ class CompiledTick:
     def tick(self, f_user: np.ndarray, p: float, p_dot: float, rng: np.random.Generator | None) -> None:
         """One tick of ``motion`` (not stopped); the same operations as ``GuidedArm`` in Python."""
         m, ws, arm = self.motion, self.ws, self.motion.arm
-        f_meas = m.sensor.measure(f_user, rng)
+        if f_user.shape != (3,) or f_user.dtype != np.float64:
+            f_user = np.asarray(f_user, np.float64)
+            if f_user.shape != (3,):
+                m.sensor.measure(f_user, None)  # raises its ActionError
         f0, f1, f2 = f_user.tolist()
-        f_mag = math.sqrt(float(f_meas @ f_meas))
+        std = m.sensor.noise_std
+        if rng is not None and std > 0.0:  # ForceSensor.measure's noise, drawn the same way
+            n0, n1, n2 = rng.normal(0.0, std, 3).tolist()
+            sensed = (f0 + n0, f1 + n1, f2 + n2)
+        else:
+            sensed = (f0, f1, f2)
         code = tk.control(
             ws, self.path, self.aw, self.ai, self.jac, self.xpos, self.xmat, self.qpos,
-            self.qvel, self.ctrl, self.qfrc, (f0, f1, f2), tuple(f_meas.tolist()), f_mag, p, p_dot,
+            self.qvel, self.ctrl, self.qfrc, (f0, f1, f2), sensed, p, p_dot,
         )  # fmt: skip
         if code != tk.OK:
-            self._rare(code, f_meas, p, p_dot, f0, f1, f2)
+            self._rare(code, f_user, p, p_dot)
         mujoco.mj_step2(self.model, self.data)
         mujoco.mj_step1(self.model, self.data)
         arm._update_jacobian()
@@ -162,15 +171,17 @@ class CompiledTick:
         if stop != tk.STOP_NONE:
             self._stop(f0, f1, f2)
 
-    def _rare(
-        self, code: int, f_meas: np.ndarray, p: float, p_dot: float, f0: float, f1: float,
-        f2: float,
-    ) -> None:  # fmt: skip
-        """Bad input (the Python admittance raises its error) or joint-limit avoidance."""
+    def _rare(self, code: int, f_user: np.ndarray, p: float, p_dot: float) -> None:
+        """Bad input (the Python part raises its error) or joint-limit avoidance."""
         arm, aw = self.motion.arm, self.aw
+        if code == tk.BAD_FORCE:
+            raise ActionError(f"f must be finite, got {f_user.tolist()}")
         if code != ak.LIMITS_DUE:
-            self.motion.admittance.step(np.zeros(3), f_meas, p, p_dot, self.motion.dt)
-            raise ConfigError(f"GuidedArm.tick: the admittance rejected p={p!r}, p_dot={p_dot!r}")
+            self.motion.admittance.step(np.zeros(3), np.zeros(3), p, p_dot, self.motion.dt)
+            raise ConfigError(
+                f"GuidedArm.tick: the admittance rejected the force or velocity (p={p!r}, "
+                f"p_dot={p_dot!r})"
+            )
         n, k = arm.n_joints, arm._task
         qdot = aw[ak.J0 + 5 * n : ak.J0 + 6 * n]
         arm._qdot[:] = qdot
@@ -178,6 +189,7 @@ class CompiledTick:
         q = arm._qpos_view if arm._qpos_view is not None else self.data.qpos[arm._qadr]
         arm._avoid_limits(q)
         qdot[:] = arm._qdot
+        f0, f1, f2 = f_user.tolist()
         ak.apply(aw, self.ai, self.jac, self.ctrl, self.qfrc, f0, f1, f2)
 
     def _stop(self, f0: float, f1: float, f2: float) -> None:

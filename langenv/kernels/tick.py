@@ -38,14 +38,15 @@ S_R, S_C, S_TX, S_TIME, S_TEND, S_PP, S_HV, S_HS, S_DEV, S_MONCD, S_WAS, S_TAN =
 N_STATE = 30
 """State slots (``S_TAN``: the guide's tangent at the hand after the tick, 3)."""
 # settings
-C_END_TAN, C_KEEP, C_INV_FMAX, C_DT, C_K, C_FPROP, C_TOL2, C_FFMASS, C_ACC, C_VTURN2 = (
+C_END_TAN, C_DEADBAND, C_KEEP, C_INV_FMAX, C_DT, C_K, C_FPROP, C_TOL2, C_FFMASS, C_ACC = (
     30, 33, 34, 35, 36, 37, 38, 39, 40, 41
 )
+C_VTURN2 = 55
 C_DOVERM, C_INVD, C_MAXACC, C_DVMAX, C_HOLD, C_VMAX, C_FMAX, C_DMAX, C_VTRIP = (
     42, 43, 44, 45, 46, 47, 48, 49, 50
 )
 C_PERTICK, C_HASJL, C_NLEGS, C_NJ = 51, 52, 53, 54
-LEGS = 55
+LEGS = 56
 """Start of the legs: start, end, end point (3), end tool angle, switch distance."""
 LEG_COLS = 7
 
@@ -236,8 +237,7 @@ def control(
     ctrl: np.ndarray,
     qfrc: np.ndarray,
     force: tuple[float, float, float],
-    measured: tuple[float, float, float],
-    f_mag: float,
+    sensed: tuple[float, float, float],
     p: float,
     p_dot: float,
 ) -> int:
@@ -245,18 +245,27 @@ def control(
 
     Args:
         force: The person's force on the handle (N).
-        measured: The sensor's reading of it (:meth:`ForceSensor.measure
-            <langenv.robot.force_sensor.ForceSensor.measure>`, N).
-        f_mag: Its magnitude (N), the cooperation filter's input.
+        sensed: That force plus the sensor's noise (N); the deadband of
+            :meth:`ForceSensor.measure <langenv.robot.force_sensor.ForceSensor.measure>` is
+            applied here.
         p, p_dot: Physical pace and its rate.
 
     Returns:
         :data:`OK`; the arm's ``LIMITS_DUE`` (re-solve, then ``arm.apply``); or a negative
-        code for bad input.
+        code for bad input (nothing done for ``BAD_FORCE``).
     """
-    m0, m1, m2 = measured
+    m0, m1, m2 = sensed
+    norm2 = m0 * m0 + m1 * m1 + m2 * m2
+    if not norm2 < math.inf:
+        return BAD_FORCE
+    norm = math.sqrt(norm2)
+    if norm <= ws[C_DEADBAND]:
+        m0, m1, m2 = 0.0, 0.0, 0.0
+    else:
+        g = 1.0 - ws[C_DEADBAND] / norm
+        m0, m1, m2 = m0 * g, m1 * g, m2 * g
     ws[S_FMEAS], ws[S_FMEAS + 1], ws[S_FMEAS + 2] = m0, m1, m2
-    u = f_mag * ws[C_INV_FMAX]
+    u = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2) * ws[C_INV_FMAX]
     if u > 1.0:
         u = 1.0
     keep = ws[C_KEEP]
