@@ -13,6 +13,10 @@ Figures (all measured here, on this machine, in this process):
 | ``plateau_speed`` | highest hand speed in that run (m/s) |
 | ``max_path_dev_m`` | largest distance of the hand from the path along the legs (closest point more than 8 cm from a leg's ends: the turn at a corner takes about that much of the next leg) in that run (m) |
 | ``corner_overshoot_m`` | largest distance of the hand from the path anywhere in that run (m): at the corners the hand, braking at ``max_acceleration`` from the switch 3.5 cm before a leg's end, overshoots |
+| ``env_step_us`` | one ``LangCtrl-v0`` step at 25 Hz (20 ticks: user, pacing, speech, the tick) with a fixed action, default env (µs) |
+| ``env_steps_per_s`` | ``1e6 / env_step_us``: env steps per second on one core |
+| ``env_step_ratio`` | ``env_step_us / (20 mj_step_us)``, with ``mj_step_us`` measured again beside it |
+| ``train_steps_per_s`` | PPO with the shipped config (``configs/ppo.yaml``: 2 envs in subprocesses, the residual LC wrappers) for 4096 steps: env steps per second of ``model.learn`` (rollouts and updates; building the envs not counted) |
 | ``audio_rtf`` | seconds of speech rendered by the variable-rate phase vocoder per second of wall time |
 | ``compare_s`` | wall time of the main job: ``eval.compare`` with AC, LC-noAP and LC on 12 synthetic users (all outputs) |
 """
@@ -123,6 +127,60 @@ def measure_etc() -> dict[str, float]:
     return {"etc_us": float(res["etc_us"]), "etc_rel_err": float(res["max_rel_err"])}
 
 
+def measure_env(n_steps: int = 400) -> dict[str, float]:
+    """``LangCtrl-v0`` steps at 25 Hz with a fixed action, and a bare ``mj_step`` beside them."""
+    from langenv.env import LangCtrlEnv
+
+    env = LangCtrlEnv(decision_hz=25)
+    action = np.zeros(env.action_space.shape)
+    model, data = env.motion.arm.model, env.motion.arm.data
+    n_bare = 2000
+
+    def steps() -> None:
+        env.reset(seed=0)
+        for _ in range(n_steps):
+            if env.step(action)[2]:
+                env.reset(seed=0)
+
+    def bare() -> None:
+        for _ in range(n_bare):
+            mujoco.mj_step(model, data)
+
+    steps()  # warm up (compiled code loaded, tables built)
+    step = _best_of(steps, n_steps, repeats=3)
+    mj = _best_of(bare, n_bare)
+    env.close()
+    return {
+        "env_step_us": step * 1e6,
+        "env_steps_per_s": 1.0 / step,
+        "env_step_ratio": step / (env.ticks_per_step * mj),
+    }
+
+
+def measure_train(total: int = 4096) -> dict[str, float]:
+    """PPO with the shipped config for ``total`` steps: env steps per second of learning."""
+    import contextlib
+    import io
+    import tempfile
+    from pathlib import Path
+
+    import yaml
+
+    from train.ppo import main as train
+
+    with tempfile.TemporaryDirectory() as tmp:
+        config = Path(__file__).resolve().parents[1] / "configs" / "ppo.yaml"
+        argv = ["--config", str(config), "--out", f"{tmp}/run", "--name", "bench"]
+        argv += ["--total-timesteps", str(total), "--eval-freq", "1000000000"]
+        argv += ["--checkpoint-freq", "1000000000", "--no-progress-bar", "--no-tensorboard"]
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+            rc = train(argv)
+        if rc != 0:
+            raise RuntimeError(f"train.ppo exited with {rc}")
+        cfg = yaml.safe_load(Path(f"{tmp}/run/bench_config.yaml").read_text())
+    return {"train_steps_per_s": float(cfg["num_timesteps"]) / float(cfg["wall_time_s"])}
+
+
 def measure_audio() -> dict[str, float]:
     """Variable-rate phase vocoder throughput."""
     from bench.audio import measure_audio_rtf
@@ -163,6 +221,8 @@ SECTIONS: dict[str, Callable[[], dict[str, float]]] = {
     "physics": measure_physics,
     "nominal": measure_nominal,
     "etc": measure_etc,
+    "env": measure_env,
+    "train": measure_train,
     "audio": measure_audio,
     "compare": measure_compare,
 }
