@@ -127,8 +127,14 @@ def solve(
 
 @jit
 def apply(
-    aw: np.ndarray, ai: np.ndarray, jac: np.ndarray, ctrl: np.ndarray, qfrc: np.ndarray,
-    f0: float, f1: float, f2: float,
+    aw: np.ndarray,
+    ai: np.ndarray,
+    jac: np.ndarray,
+    ctrl: np.ndarray,
+    qfrc: np.ndarray,
+    f0: float,
+    f1: float,
+    f2: float,
 ) -> None:
     """Joint speed limit, reference point, ``ctrl`` and ``qfrc_applied = J_p^T F`` (4-6)."""
     n, nv = int(aw[A_N]), int(aw[A_NV])

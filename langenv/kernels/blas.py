@@ -44,7 +44,9 @@ def dot(a: np.ndarray, ia: int, b: np.ndarray, ib: int, n: int) -> float:
 
 
 @jit
-def mul_mat_mat_t(res: np.ndarray, m1: np.ndarray, m2: np.ndarray, r1: int, c1: int, r2: int) -> None:
+def mul_mat_mat_t(
+    res: np.ndarray, m1: np.ndarray, m2: np.ndarray, r1: int, c1: int, r2: int
+) -> None:
     """``mju_mulMatMatT``: ``res (r1, r2) = m1 (r1, c1) @ m2 (r2, c1).T`` on flat arrays."""
     for i in range(r1):
         for j in range(r2):

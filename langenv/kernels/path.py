@@ -18,7 +18,20 @@ __all__ = ["COLS", "closest", "frame", "locate", "pack", "point", "tool_angle", 
 
 # columns of a segment's row
 KIND, S0, S1, LEN, TURN0, TURN_RATE, P0, U, C, E1, E2, RADIUS, SIGN, ANGLE = (
-    0, 1, 2, 3, 4, 5, 6, 9, 6, 9, 12, 15, 16, 17
+    0,
+    1,
+    2,
+    3,
+    4,
+    5,
+    6,
+    9,
+    6,
+    9,
+    12,
+    15,
+    16,
+    17,
 )
 COLS = 18
 """Columns of a packed segment: kind (0 line, 1 arc), start and end arc length, length, tool

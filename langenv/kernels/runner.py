@@ -124,6 +124,7 @@ class CompiledTick:
         m._v_cmd = ws[tk.S_VCMD : tk.S_VCMD + 3].copy()
         m._f_measured = ws[tk.S_FMEAS : tk.S_FMEAS + 3].copy()
         m._path_point = ws[tk.S_PP : tk.S_PP + 3].tolist()
+        m._hand_velocity = self.hand_velocity()
         m.monitor._countdown = int(ws[tk.S_MONCD])
         m.arm._limit_countdown = int(self.aw[ak.A_COUNTDOWN])
 
@@ -132,7 +133,9 @@ class CompiledTick:
         return self.ws[slot : slot + 3].copy()
 
     # ------------------------------------------------------------------ the tick
-    def tick(self, f_user: np.ndarray, p: float, p_dot: float, rng: np.random.Generator | None) -> None:
+    def tick(
+        self, f_user: np.ndarray, p: float, p_dot: float, rng: np.random.Generator | None
+    ) -> None:
         """One tick of ``motion`` (not stopped); the same operations as ``GuidedArm`` in Python."""
         m, ws, arm = self.motion, self.ws, self.motion.arm
         if f_user.shape != (3,) or f_user.dtype != np.float64:
@@ -143,12 +146,12 @@ class CompiledTick:
         std = m.sensor.noise_std
         if rng is not None and std > 0.0:  # ForceSensor.measure's noise, drawn the same way
             n0, n1, n2 = rng.normal(0.0, std, 3).tolist()
-            sensed = (f0 + n0, f1 + n1, f2 + n2)
+            m0, m1, m2 = f0 + n0, f1 + n1, f2 + n2
         else:
-            sensed = (f0, f1, f2)
+            m0, m1, m2 = f0, f1, f2
         code = tk.control(
             ws, self.path, self.aw, self.ai, self.jac, self.xpos, self.xmat, self.qpos,
-            self.qvel, self.ctrl, self.qfrc, (f0, f1, f2), sensed, p, p_dot,
+            self.qvel, self.ctrl, self.qfrc, f0, f1, f2, m0, m1, m2, p, p_dot,
         )  # fmt: skip
         if code != tk.OK:
             self._rare(code, f_user, p, p_dot)

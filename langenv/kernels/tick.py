@@ -33,17 +33,45 @@ __all__ = ["control", "observe"]
 # state
 S_S, S_LEG, S_DONE, S_VREF, S_VCMD, S_FMEAS = 0, 1, 2, 3, 6, 9
 S_R, S_C, S_TX, S_TIME, S_TEND, S_PP, S_HV, S_HS, S_DEV, S_MONCD, S_WAS, S_TAN = (
-    12, 13, 14, 15, 16, 17, 20, 23, 24, 25, 26, 27
+    12,
+    13,
+    14,
+    15,
+    16,
+    17,
+    20,
+    23,
+    24,
+    25,
+    26,
+    27,
 )
 N_STATE = 30
 """State slots (``S_TAN``: the guide's tangent at the hand after the tick, 3)."""
 # settings
 C_END_TAN, C_DEADBAND, C_KEEP, C_INV_FMAX, C_DT, C_K, C_FPROP, C_TOL2, C_FFMASS, C_ACC = (
-    30, 33, 34, 35, 36, 37, 38, 39, 40, 41
+    30,
+    33,
+    34,
+    35,
+    36,
+    37,
+    38,
+    39,
+    40,
+    41,
 )
 C_VTURN2 = 55
 C_DOVERM, C_INVD, C_MAXACC, C_DVMAX, C_HOLD, C_VMAX, C_FMAX, C_DMAX, C_VTRIP = (
-    42, 43, 44, 45, 46, 47, 48, 49, 50
+    42,
+    43,
+    44,
+    45,
+    46,
+    47,
+    48,
+    49,
+    50,
 )
 C_PERTICK, C_HASJL, C_NLEGS, C_NJ = 51, 52, 53, 54
 LEGS = 56
@@ -53,7 +81,12 @@ LEG_COLS = 7
 # control()'s answers (the arm's LIMITS_DUE is 1)
 OK = 0
 BAD_FORCE, BAD_PACE, BAD_PACE_RATE, BAD_PACE_END, BAD_TOTAL_FORCE, BAD_VELOCITY = (
-    -1, -2, -3, -4, -5, -6
+    -1,
+    -2,
+    -3,
+    -4,
+    -5,
+    -6,
 )
 # observe()'s answers: the limit breached
 STOP_NONE, STOP_FORCE, STOP_DEVIATION, STOP_SPEED, STOP_JOINT = 0, 1, 2, 3, 4
@@ -236,16 +269,20 @@ def control(
     qvel: np.ndarray,
     ctrl: np.ndarray,
     qfrc: np.ndarray,
-    force: tuple[float, float, float],
-    sensed: tuple[float, float, float],
+    f0: float,
+    f1: float,
+    f2: float,
+    m0: float,
+    m1: float,
+    m2: float,
     p: float,
     p_dot: float,
 ) -> int:
     """The tick up to the physics step: ``ctrl`` and ``qfrc_applied`` set.
 
     Args:
-        force: The person's force on the handle (N).
-        sensed: That force plus the sensor's noise (N); the deadband of
+        f0, f1, f2: The person's force on the handle (N).
+        m0, m1, m2: That force plus the sensor's noise (N); the deadband of
             :meth:`ForceSensor.measure <langenv.robot.force_sensor.ForceSensor.measure>` is
             applied here.
         p, p_dot: Physical pace and its rate.
@@ -254,7 +291,6 @@ def control(
         :data:`OK`; the arm's ``LIMITS_DUE`` (re-solve, then ``arm.apply``); or a negative
         code for bad input (nothing done for ``BAD_FORCE``).
     """
-    m0, m1, m2 = sensed
     norm2 = m0 * m0 + m1 * m1 + m2 * m2
     if not norm2 < math.inf:
         return BAD_FORCE
@@ -291,7 +327,7 @@ def control(
     code = arm_kernel.solve(aw, ai, jac, xpos, xmat, qpos, qvel, c0, c1, c2)
     if code != OK:
         return code
-    arm_kernel.apply(aw, ai, jac, ctrl, qfrc, force[0], force[1], force[2])
+    arm_kernel.apply(aw, ai, jac, ctrl, qfrc, f0, f1, f2)
     return OK
 
 
@@ -320,7 +356,11 @@ def observe(
         if not moving and math.isnan(ws[S_TEND]):
             ws[S_TEND] = ws[S_TIME] + (ws[C_DT] if ws[S_WAS] != 0.0 else 0.0)
         ws[S_TX] = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2) / ws[C_MAXACC]
-        ws[S_TAN], ws[S_TAN + 1], ws[S_TAN + 2] = ws[C_END_TAN], ws[C_END_TAN + 1], ws[C_END_TAN + 2]
+        ws[S_TAN], ws[S_TAN + 1], ws[S_TAN + 2] = (
+            ws[C_END_TAN],
+            ws[C_END_TAN + 1],
+            ws[C_END_TAN + 2],
+        )
     else:
         ws[S_TX] = estimate(
             prm,

@@ -1,0 +1,128 @@
+"""The compiled tick (langenv.kernels) against the Python parts, the reference: bit-identical."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from langenv.control.admittance import AdmittanceParams
+from langenv.control.cooperation import CooperationFilter
+from langenv.control.trajectory import default_exercise
+from langenv.errors import ActionError, ConfigError
+from langenv.motion import GuidedArm
+from langenv.robot.arm import Arm
+from langenv.robot.force_sensor import ForceSensor
+from langenv.safety import SafetyLimits
+
+
+def _pair(**arm_kwargs: float) -> tuple[GuidedArm, GuidedArm]:
+    def make(compiled: bool) -> GuidedArm:
+        return GuidedArm(
+            Arm(**arm_kwargs),  # type: ignore[arg-type]
+            default_exercise(),
+            AdmittanceParams(),
+            ForceSensor(),
+            CooperationFilter(),
+            SafetyLimits(),
+            compiled=compiled,
+        )
+
+    fast, ref = make(True), make(False)
+    assert fast.compiled and not ref.compiled
+    return fast, ref
+
+
+def _snapshot(m: GuidedArm) -> tuple[object, ...]:
+    st = m.state
+    vectors = np.concatenate(
+        [
+            m.v_ref,
+            m.v_cmd,
+            m.f_measured,
+            m.hand_velocity,
+            m.tangent(),
+            m.arm.data.qpos,
+            m.arm.data.qvel,
+            m.arm.reference_position,
+        ]
+    )
+    scalars = (st.s, st.leg, st.done, m.t_x, m.time, m.t_motion_end, m.path_deviation)
+    return (*scalars, m.hand_speed, m.cooperation, m.progress, repr(m.safety_stop), vectors)
+
+
+def _same(a: tuple[object, ...], b: tuple[object, ...]) -> bool:
+    return a[:-1] == b[:-1] and np.array_equal(a[-1], b[-1])  # type: ignore[arg-type]
+
+
+def _run(fast: GuidedArm, ref: GuidedArm, force: object, pace: object, n: int, seed: int) -> None:
+    """Tick both with the same inputs and noise; every observable equal after every tick."""
+    fast.reset()
+    ref.reset()
+    rng_a, rng_b = np.random.default_rng(seed), np.random.default_rng(seed)
+    assert _same(_snapshot(fast), _snapshot(ref))
+    for i in range(n):
+        f = force(i, fast)  # type: ignore[operator]
+        p, p_dot = pace(i)  # type: ignore[operator]
+        fast.tick(f, p, p_dot, rng_a)
+        ref.tick(f, p, p_dot, rng_b)
+        a, b = _snapshot(fast), _snapshot(ref)
+        assert _same(a, b), f"tick {i}: compiled {a} != Python {b}"
+
+
+def _pace(i: int) -> tuple[float, float]:
+    return 1.0 + 0.3 * math.sin(i / 300), 0.5 * math.cos(i / 300)
+
+
+def test_episode_with_noise_pushes_and_paces_is_bit_identical() -> None:
+    fast, ref = _pair()
+    gen = np.random.default_rng(7)
+
+    def force(i: int, m: GuidedArm) -> np.ndarray:
+        push = 5.0 if (i // 600) % 2 else -3.0  # along, then against the guide
+        return gen.normal(0.0, 4.0, 3) + push * m.tangent()
+
+    _run(fast, ref, force, _pace, 5000, seed=3)
+    assert fast.motion_done and ref.motion_done  # braking and the end of motion covered
+
+
+def test_joint_limit_avoidance_is_bit_identical() -> None:
+    # margins wider than the joints' room: the re-solve (Python, from the kernel) runs every tick
+    fast, ref = _pair(joint_limit_margin=4.5)
+    calls = []
+    avoid = fast.arm._avoid_limits
+
+    def spy(q: np.ndarray) -> None:
+        calls.append(1)
+        avoid(q)
+
+    fast.arm._avoid_limits = spy  # type: ignore[method-assign]
+    _run(fast, ref, lambda i, m: np.zeros(3), lambda i: (1.0, 0.0), 400, seed=0)
+    assert calls
+
+
+def test_protective_stop_and_after_are_bit_identical() -> None:
+    fast, ref = _pair()
+    # a push far beyond the force limit after 200 ticks: a stop, then the arm holds still
+    _run(fast, ref, lambda i, m: np.array([0.0, 0.0, 200.0 if i >= 200 else 0.0]), _pace, 300, 1)
+    assert fast.safety_stop is not None and fast.safety_stop == ref.safety_stop
+    assert fast.safety_stop.limit == "force"
+    fast.reset()
+    assert fast.safety_stop is None and fast.v_cmd.tolist() == [0.0, 0.0, 0.0]
+
+
+def test_bad_input_raises_the_python_parts_errors() -> None:
+    fast, ref = _pair()
+    for m in (fast, ref):
+        m.reset()
+        with pytest.raises(ActionError):
+            m.tick(np.array([math.nan, 0.0, 0.0]), 1.0, 0.0)
+        with pytest.raises(ActionError):
+            m.tick(np.zeros(4), 1.0, 0.0)
+        m.reset()
+        with pytest.raises(ConfigError, match="p"):
+            m.tick(np.zeros(3), -1.0, 0.0)
+        m.reset()
+        with pytest.raises(ConfigError, match="p_dot"):
+            m.tick(np.zeros(3), 1.0, math.inf)
