@@ -132,7 +132,7 @@ def measure_env(n_steps: int = 400) -> dict[str, float]:
     from langenv.env import LangCtrlEnv
 
     env = LangCtrlEnv(decision_hz=25)
-    action = np.zeros(env.action_space.shape)
+    action = np.zeros(env.action_space.shape or (0,))
     model, data = env.motion.arm.model, env.motion.arm.data
     n_bare = 2000
 

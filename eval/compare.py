@@ -39,7 +39,7 @@ import tempfile
 import time
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -62,7 +62,7 @@ class CompareArgs:
         seed: Seed of the first synthetic user (user ``i`` has seed ``seed + i``) and of the
             bootstrap.
         out: Output directory.
-        workers: Parallel worker processes.
+        workers: Parallel worker processes (default: one per CPU core this process may use).
         audio: Render each session's speech to WAV.
         figures: Draw the per-session close-up figures.
         decision_hz: Override every policy's decision rate (default: each policy's own).
@@ -80,7 +80,7 @@ class CompareArgs:
     pattern: str = "*.csv"
     seed: int = 0
     out: Path = Path("out/compare")
-    workers: int = 2
+    workers: int = field(default_factory=lambda: usable_cores())
     audio: bool = True
     figures: bool = True
     decision_hz: int | None = None
@@ -133,7 +133,12 @@ def parse_args(argv: Sequence[str] | None = None) -> CompareArgs:
         action="store_true",
         help="replace the outputs of an earlier run in a non-empty --out (other files stay)",
     )
-    p.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=usable_cores(),
+        help="parallel episode processes (default: one per usable CPU core)",
+    )
     p.add_argument("--no-audio", action="store_true", help="skip WAV rendering")
     p.add_argument("--no-figures", action="store_true", help="skip per-session figures")
     p.add_argument(
@@ -234,6 +239,13 @@ def _check_video() -> None:
     if proc.returncode != 0:
         lines = proc.stderr.strip().splitlines() or ["unknown error"]
         raise UsageError(f"--video: {lines[-1]}")
+
+
+def usable_cores() -> int:
+    """CPU cores this process may run on (its affinity where the OS tells it)."""
+    if hasattr(os, "sched_getaffinity"):
+        return max(1, len(os.sched_getaffinity(0)))
+    return max(1, os.cpu_count() or 1)
 
 
 def _users(args: CompareArgs) -> list[tuple[str, int, str | None]]:

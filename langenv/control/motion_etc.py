@@ -259,9 +259,11 @@ class FastETC:
         tables = _TABLES.get(key)
         if tables is None:
             tables = _TABLES[key] = self._build(u_step, overshoot, q_step, behind_u_step)
-        self.prm, self.tab = tables
-        """The law, grids and legs (``prm``) and the tables (``tab``), packed for
-        :func:`langenv.kernels.etc.estimate`."""
+        self.prm: np.ndarray = tables[0]
+        """The law, the table grids and the legs, packed for :func:`langenv.kernels.etc.estimate`
+        (read-only)."""
+        self.tab: np.ndarray = tables[1]
+        """The tables, flat (read-only)."""
 
     def _params(self, behind_shape: tuple[int, int, int], origin: tuple[float, ...],
                 steps: tuple[float, ...]) -> np.ndarray:

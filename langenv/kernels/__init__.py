@@ -20,7 +20,7 @@ Modules: :mod:`~langenv.kernels.blas` (MuJoCo's dense routines), :mod:`~langenv.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any, TypeVar
+from typing import Any, TypeVar, cast
 
 import numba
 
@@ -31,4 +31,5 @@ F = TypeVar("F", bound=Callable[..., Any])
 
 def jit(fn: F) -> F:
     """Compile ``fn`` in nopython mode, cached on disk (no ``fastmath``: IEEE order kept)."""
-    return numba.njit(cache=True, nogil=True, error_model="numpy")(fn)  # type: ignore[no-any-return]
+    compiled: Any = numba.njit(cache=True, nogil=True, error_model="numpy")(fn)
+    return cast(F, compiled)
