@@ -12,7 +12,7 @@ the reference.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -23,9 +23,6 @@ from langenv.kernels import arm as ak
 from langenv.kernels import tick as tk
 from langenv.kernels.path import pack as pack_path
 
-if TYPE_CHECKING:
-    from langenv.motion import GuidedArm
-
 __all__ = ["CompiledTick"]
 
 
@@ -33,10 +30,11 @@ class CompiledTick:
     """The compiled 500 Hz tick of ``motion`` (built once; :meth:`load` after each reset).
 
     Args:
-        motion: The guided arm whose parts the tick repeats.
+        motion: The :class:`~langenv.motion.GuidedArm` whose parts the tick repeats (typed
+            ``Any``: ``langenv.motion`` imports this module, and the import graph has no cycles).
     """
 
-    def __init__(self, motion: GuidedArm) -> None:
+    def __init__(self, motion: Any) -> None:
         self.motion = motion
         arm, guide, coop = motion.arm, motion.guide, motion.coop
         n, nv, k = arm.n_joints, arm.model.nv, arm._task
