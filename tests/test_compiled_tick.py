@@ -126,3 +126,21 @@ def test_bad_input_raises_the_python_parts_errors() -> None:
         m.reset()
         with pytest.raises(ConfigError, match="p_dot"):
             m.tick(np.zeros(3), 1.0, math.inf)
+
+
+def test_compiled_leg_law_equals_the_numpy_one() -> None:
+    from langenv.control.admittance import VariableAdmittance
+    from langenv.control.motion_etc import _Law
+
+    law = _Law(VariableAdmittance(AdmittanceParams()), 0.002)
+    rng = np.random.default_rng(0)
+    n = 400
+    q = rng.uniform(-0.05, 0.4, n)
+    u, w = rng.uniform(-0.2, 0.3, n), rng.uniform(-0.2, 0.3, n)
+    lateral = (rng.uniform(-0.02, 0.02, n), rng.uniform(-0.1, 0.1, n), rng.uniform(-0.1, 0.1, n))
+    for lat, t_max in ((None, 60.0), (lateral, 1.5), (lateral, 0.01)):
+        fast = law.simulate(q, u, w, 0.3, 0.02, lat, t_max)
+        ref = law.simulate_numpy(q, u, w, 0.3, 0.02, lat, t_max)
+        for a, b in zip(fast, ref, strict=True):
+            assert np.array_equal(a, b)
+        assert np.isinf(fast[0]).any() or t_max == 60.0

@@ -35,6 +35,7 @@ from langenv.control.command import follow
 from langenv.control.guide import Guide, GuideState
 from langenv.errors import ConfigError
 from langenv.kernels import etc as etc_kernel
+from langenv.kernels.law import simulate as simulate_law
 from langenv.kernels.path import pack as pack_path
 
 __all__ = ["DT", "FastETC", "reference_etc"]
@@ -113,6 +114,33 @@ class _Law:
         self.tau_d = dt * e / (1.0 - e)  # displacement factor of the discrete law (~ tau - dt/2)
 
     def simulate(
+        self,
+        q: np.ndarray,
+        u: np.ndarray,
+        w: np.ndarray,
+        length: float,
+        q_sw: float,
+        lateral: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+        t_max: float = 60.0,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`simulate_numpy`, compiled (:mod:`langenv.kernels.law`): the same results."""
+        q = np.array(q, dtype=np.float64).ravel()
+        u = np.array(u, dtype=np.float64).ravel()
+        w = np.array(w, dtype=np.float64).ravel()
+        if lateral is None:
+            y, ul, wl = np.zeros(q.size), np.zeros(q.size), np.zeros(q.size)
+        else:
+            y, ul, wl = (np.array(a, dtype=np.float64).ravel() for a in lateral)
+        out = np.empty((4, q.size))
+        gain = (1.0 - self.decay) * self.inv_d
+        n_ticks = int(t_max / self.dt) + 1
+        simulate_law(
+            q, u, w, y, ul, wl, length, q_sw, self.f_prop, self.k, self.decay, gain,
+            self.acc * self.dt, self.dt, n_ticks, out,
+        )  # fmt: skip
+        return out[0], out[1], out[2], out[3]
+
+    def simulate_numpy(
         self,
         q: np.ndarray,
         u: np.ndarray,
