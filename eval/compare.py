@@ -204,7 +204,7 @@ def _check_policies(spec: str) -> list[str]:
 
 
 def _chooses_phrases(spec: str) -> bool:
-    return spec in ("lc", "lc-em", "lc-end") or spec.startswith("ppo:")
+    return spec in ("lc", "lc-em", "lc-end", "lc-em-end") or spec.startswith("ppo:")
 
 
 def _check_options(args: CompareArgs) -> None:

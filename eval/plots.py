@@ -309,10 +309,25 @@ def session_figure(log: EpisodeLog, path: str | Path) -> Path:
             "bottom": 0.055,
         },
     )
-    c_ax, v_ax, pace_ax, etc_ax, em_ax, say_ax = axes
+    say_ax = axes[-1]
     t = log.t
     t_hi = max(float(t[-1]), log.t_motion, log.t_speech)
     x_range = (float(t[0]), t_hi + 0.02 * (t_hi - float(t[0])))
+    _plot_session_signals(axes[:5], log)
+    say_ax.set_ylabel("phrase said")
+    say_ax.set_xlabel("time (s)")
+    width_px = SESSION_SIZE[0] * DPI * (right - left)
+    _phrase_labels(say_ax, log, x_range, width_px)
+    _share_time_axis(axes, log, x_range)
+    _mark_session_ends(fig, say_ax, log, x_range, width_px, right)
+    _session_title(fig, log, left)
+    return _save(fig, path)
+
+
+def _plot_session_signals(axes: Sequence[Axes], log: EpisodeLog) -> None:
+    """The five signal panels: cooperation, hand speed, paces, ETCs, EM."""
+    c_ax, v_ax, pace_ax, etc_ax, em_ax = axes
+    t = log.t
     motion = ~log.motion_done
     speech = ~log.speech_done
 
@@ -362,11 +377,10 @@ def session_figure(log: EpisodeLog, path: str | Path) -> Path:
     em_ax.set_ylim(-lim, lim)
     em_ax.set_ylabel("EM (s)")
 
-    say_ax.set_ylabel("phrase said")
-    say_ax.set_xlabel("time (s)")
-    width_px = SESSION_SIZE[0] * DPI * (right - left)
-    _phrase_labels(say_ax, log, x_range, width_px)
 
+def _share_time_axis(axes: Sequence[Axes], log: EpisodeLog, x_range: tuple[float, float]) -> None:
+    """One time axis for all panels, with the ends of motion and speech marked on each."""
+    say_ax = axes[-1]
     # One time axis for all panels. Tick labels only at the bottom; the other panels get no
     # ticks at all (tick objects dominate matplotlib's drawing time), only their grid lines.
     candidates = np.asarray(MaxNLocator(nbins=10, steps=[1, 2, 2.5, 5, 10]).tick_values(*x_range))
@@ -376,7 +390,7 @@ def session_figure(log: EpisodeLog, path: str | Path) -> Path:
         ax.axvline(log.t_motion, color=_MOTION_END, linewidth=1.1, zorder=5)
         ax.axvline(log.t_speech, color=_SPEECH_END, linewidth=1.1, linestyle="--", zorder=5)
         ax.tick_params(labelsize=8)
-        ax.yaxis.label.set_size(9)
+        ax.yaxis.label.set_fontsize(9)
         ax.set_axisbelow(True)
         if ax is say_ax:
             ax.xaxis.set_major_locator(FixedLocator(x_ticks.tolist()))
@@ -396,6 +410,16 @@ def session_figure(log: EpisodeLog, path: str | Path) -> Path:
                 zorder=0.5,
             )
 
+
+def _mark_session_ends(
+    fig: Figure,
+    say_ax: Axes,
+    log: EpisodeLog,
+    x_range: tuple[float, float],
+    width_px: float,
+    right: float,
+) -> None:
+    """The legend of the two ends and the AM arrow (labelled where there is room)."""
     ends = [
         Line2D([], [], color=_MOTION_END, linewidth=1.1, label=f"motion end {log.t_motion:.2f} s"),
         Line2D(
@@ -436,6 +460,11 @@ def session_figure(log: EpisodeLog, path: str | Path) -> Path:
                 fontsize=8,
                 zorder=6,
             )
+
+
+def _session_title(fig: Figure, log: EpisodeLog, left: float) -> None:
+    """The title: policy, user, AM (which ended first) and return, in the policy's colour."""
+    am = log.am
     first = "motion ended first" if am > 0 else ("speech ended first" if am < 0 else "together")
     fig.suptitle(
         f"{display_name(log.policy)} · user {log.user} · AM = {am:+.2f} s ({first}) · "
@@ -446,4 +475,3 @@ def session_figure(log: EpisodeLog, path: str | Path) -> Path:
         x=left,
         ha="left",
     )
-    return _save(fig, path)

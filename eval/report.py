@@ -48,6 +48,7 @@ _NAMES = {
     "lc": "LC",
     "lc-em": "LC-EM",
     "lc-end": "LC-end",
+    "lc-em-end": "LC-EM-end",
     "ppo": "PPO",
 }
 

@@ -8,7 +8,13 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["MAX_SESSION_S", "MIN_SAMPLE_SPACING", "as_vec3", "check_time_axis"]
+__all__ = [
+    "MAX_SESSION_S",
+    "MIN_SAMPLE_SPACING",
+    "as_vec3",
+    "check_time_axis",
+    "finite_positive",
+]
 
 MAX_SESSION_S = 600.0
 """Longest time span (s) of a session CSV or speech trace: 10 minutes, ten times the env's
@@ -43,6 +49,33 @@ def as_vec3(value: ArrayLike, name: str, error: type[Exception]) -> NDArray[np.f
     if not np.all(np.isfinite(arr)):
         raise error(f"{name} must be finite, got {arr.tolist()}")
     return np.ascontiguousarray(arr)
+
+
+def finite_positive(
+    name: str, value: float, error: type[Exception], *, allow_zero: bool = False
+) -> float:
+    """A scalar argument checked to be a finite number > 0 (or >= 0 with ``allow_zero``).
+
+    Args:
+        name: The argument, named in the error message.
+        value: The value.
+        error: Exception type to raise (the package's own, e.g. ``ConfigError``).
+        allow_zero: Accept 0.
+
+    Returns:
+        ``value`` as float.
+
+    Raises:
+        error: if not a number, not finite, negative, or zero when not allowed.
+    """
+    try:
+        v = float(value)
+    except (TypeError, ValueError) as exc:
+        raise error(f"{name} must be a number, got {value!r}") from exc
+    if not math.isfinite(v) or v < 0.0 or (v == 0.0 and not allow_zero):
+        bound = ">= 0" if allow_zero else "> 0"
+        raise error(f"{name} must be finite and {bound}, got {value!r}")
+    return v
 
 
 def check_time_axis(

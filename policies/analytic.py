@@ -173,8 +173,8 @@ class LanguageController:
 def make_analytic(
     name: str, decision_hz: int | None = None
 ) -> AdmittanceController | LanguageController:
-    """Build ``"ac"``, ``"lc-noap"``, ``"lc"``, ``"lc-em"`` (LC with ``k_em = 1``) or ``"lc-end"``
-    (LC with a 1 s terminal phase).
+    """Build ``"ac"``, ``"lc-noap"``, ``"lc"``, ``"lc-em"`` (LC with ``k_em = 1``), ``"lc-end"``
+    (LC with a 1 s terminal phase) or ``"lc-em-end"`` (both: the learned aligner's analytic base).
 
     Args:
         name: The controller.
@@ -196,4 +196,10 @@ def make_analytic(
         return LanguageController(name="lc-em", decision_hz=decision_hz or 500, k_em=1.0)
     if name == "lc-end":
         return LanguageController(name="lc-end", decision_hz=decision_hz or 500, terminal=1.0)
-    raise KeyError(f"unknown analytic policy {name!r}; known: ac, lc-noap, lc, lc-em, lc-end")
+    if name == "lc-em-end":
+        return LanguageController(
+            name="lc-em-end", decision_hz=decision_hz or 500, k_em=1.0, terminal=1.0
+        )
+    raise KeyError(
+        f"unknown analytic policy {name!r}; known: ac, lc-noap, lc, lc-em, lc-end, lc-em-end"
+    )

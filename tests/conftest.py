@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import pytest
 from hypothesis import settings
@@ -27,3 +28,36 @@ def offscreen_gl() -> None:
     except Exception as exc:  # MuJoCo raises several types when no GL context can be made
         backend = os.environ.get("MUJOCO_GL")
         pytest.skip(f"no off-screen OpenGL backend (MUJOCO_GL={backend}): {exc}")
+
+
+@pytest.fixture(scope="session")
+def tiny_ppo_models(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, ...]:
+    """Two learned aligners of the shipped recipe (``configs/ppo.yaml``), trained in-process
+    by ``train.ppo`` for one short rollout each with different seeds: distinct weights, the
+    current observation layout, the three files ``PPOPolicy.load`` reads. Built, never stored, so
+    no test depends on a binary made for an older observation."""
+    from train.ppo import TrainArgs, train
+
+    root = tmp_path_factory.mktemp("tiny_ppo")
+    config = root / "tiny.yaml"
+    recipe = Path(__file__).resolve().parents[1] / "configs" / "ppo.yaml"
+    config.write_text(
+        f"inherit: {recipe}\n"
+        "LangCtrl-v0: {n_steps: 64, batch_size: 32, n_epochs: 1}\n"
+    )
+    models = []
+    for seed in (1_000_000, 2_000_000):
+        args = TrainArgs(
+            config=config,
+            out=root / f"s{seed}",
+            total_timesteps=64,
+            seed=seed,
+            n_envs=1,
+            vec_env="dummy",
+            n_eval_episodes=0,
+            progress_bar=False,
+            tensorboard=False,
+        )
+        # given: these arguments win over the config's train section, as on a command line
+        models.append(train(args, given={"seed", "out", "n_envs", "n_eval_episodes"}))
+    return tuple(models)

@@ -52,6 +52,8 @@ def test_names_build_the_right_controllers() -> None:
         0.0,
         0.0,
     )
+    both = make_analytic("lc-em-end")
+    assert (both.name, both.phrase_graph, both.k_em, both.terminal) == ("lc-em-end", "lc", 1.0, 1.0)
     assert make_analytic("lc", decision_hz=25).decision_hz == 25
     with pytest.raises(KeyError, match="lc-em"):
         make_analytic("lq")

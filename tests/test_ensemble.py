@@ -18,14 +18,16 @@ from policies.ensemble import PPOEnsemble, write_manifest
 from policies.learned import PPOPolicy, model_files
 from train.ensemble import main as ensemble_main
 
-REPO = Path(__file__).resolve().parents[1]
-MANIFEST = REPO / "models" / "ppo_langctrl.yaml"
-pytestmark = pytest.mark.skipif(not MANIFEST.is_file(), reason="no shipped ensemble in models/")
+
+@pytest.fixture
+def members(tiny_ppo_models: tuple[Path, ...], tmp_path: Path) -> list[Path]:
+    """Two members (distinct seeds) copied into this test's folder, where a manifest may go."""
+    return [_copy(m, tmp_path, stem) for m, stem in zip(tiny_ppo_models, "ab", strict=True)]
 
 
-def _members() -> list[Path]:
-    data = yaml.safe_load(MANIFEST.read_text())
-    return [MANIFEST.parent / m["file"] for m in data["members"]]
+@pytest.fixture
+def manifest(members: list[Path], tmp_path: Path) -> Path:
+    return write_manifest(tmp_path / "ensemble.yaml", members)
 
 
 def _copy(model: Path, folder: Path, stem: str) -> Path:
@@ -45,8 +47,8 @@ def _env(policy: Any) -> Any:
     )
 
 
-def test_shipped_ensemble_loads_with_distinct_members() -> None:
-    ens = load_policy(f"ppo:{MANIFEST}")
+def test_ensemble_loads_with_distinct_members(manifest: Path) -> None:
+    ens = load_policy(f"ppo:{manifest}")
     assert isinstance(ens, PPOEnsemble) and len(ens.members) >= 2
     weights = [m.model.weights[-1] for m in ens.members]
     assert not np.array_equal(weights[0], weights[1])
@@ -54,10 +56,10 @@ def test_shipped_ensemble_loads_with_distinct_members() -> None:
     assert ens.members[0].residual.spec.terminal > 0.0
 
 
-def test_ensemble_applies_the_mean_correction() -> None:
+def test_ensemble_applies_the_mean_correction(manifest: Path, members: list[Path]) -> None:
     """Step by step, the ensemble's action is the residual map of its members' mean correction."""
-    ens = PPOEnsemble.load(MANIFEST)
-    solo = [PPOPolicy.load(p) for p in _members()]  # independent copies, fed the same history
+    ens = PPOEnsemble.load(manifest)
+    solo = [PPOPolicy.load(p) for p in members]  # independent copies, fed the same history
     env = _env(ens)
     obs, _ = env.reset(seed=3)
     ens.reset()
@@ -75,8 +77,8 @@ def test_ensemble_applies_the_mean_correction() -> None:
             break
 
 
-def test_one_member_ensemble_is_that_member(tmp_path: Path) -> None:
-    model = _copy(_members()[0], tmp_path, "m")
+def test_one_member_ensemble_is_that_member(members: list[Path], tmp_path: Path) -> None:
+    model = members[0]
     manifest = write_manifest(tmp_path / "one.yaml", [model])
     ens, solo = PPOEnsemble.load(manifest), PPOPolicy.load(model)
     env = _env(solo)
@@ -89,9 +91,8 @@ def test_one_member_ensemble_is_that_member(tmp_path: Path) -> None:
         obs, *_ = env.step(a)
 
 
-def test_manifest_errors_name_the_file(tmp_path: Path) -> None:
-    a = _copy(_members()[0], tmp_path, "a")
-    b = _copy(_members()[1], tmp_path, "b")
+def test_manifest_errors_name_the_file(members: list[Path], tmp_path: Path) -> None:
+    a, b = members
     manifest = write_manifest(tmp_path / "e.yaml", [a, b])
     data = yaml.safe_load(manifest.read_text())
 
@@ -119,9 +120,8 @@ def test_manifest_errors_name_the_file(tmp_path: Path) -> None:
     assert data["kind"] == "ppo-ensemble"
 
 
-def test_members_must_share_their_design(tmp_path: Path) -> None:
-    a = _copy(_members()[0], tmp_path, "a")
-    b = _copy(_members()[1], tmp_path, "b")
+def test_members_must_share_their_design(members: list[Path], tmp_path: Path) -> None:
+    a, b = members
     cfg = model_files(b)[2]
     config = yaml.safe_load(cfg.read_text())
     config["residual"]["terminal"] = 0.0
@@ -132,10 +132,9 @@ def test_members_must_share_their_design(tmp_path: Path) -> None:
 
 
 def test_cli_writes_a_manifest_and_reports_errors(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    members: list[Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    a = _copy(_members()[0], tmp_path, "a")
-    b = _copy(_members()[1], tmp_path, "b")
+    a, b = members
     assert ensemble_main([str(a), str(b), "--out", str(tmp_path / "e.yaml")]) == 0
     assert len(PPOEnsemble.load(tmp_path / "e.yaml").members) == 2
     elsewhere = tmp_path / "sub" / "e.yaml"

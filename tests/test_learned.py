@@ -23,7 +23,6 @@ from policies.learned import FEATURES, PPOPolicy, ResidualLC, ResidualSpec, mode
 from train.wrappers import AlignmentReward, ResidualLCWrapper, SeedCycle
 
 REPO = Path(__file__).resolve().parents[1]
-SHIPPED = REPO / "models" / "ppo_langctrl_s1000000.zip"  # a member of the previous ensemble
 CHOICE = REPO / "models" / "ppo_phrase_choice.zip"  # the shipped learned aligner
 
 
@@ -261,9 +260,8 @@ def test_load_missing_files_name_the_path(tmp_path: Path) -> None:
         load_policy(f"ppo:{tmp_path / 'nope.zip'}")
 
 
-@pytest.mark.skipif(not SHIPPED.is_file(), reason="no shipped model in models/")
-def test_shipped_model_acts_deterministically() -> None:
-    policy = load_policy(f"ppo:{SHIPPED}")
+def test_trained_model_acts_deterministically(tiny_ppo_models: tuple[Path, ...]) -> None:
+    policy = load_policy(f"ppo:{tiny_ppo_models[0]}")
     assert isinstance(policy, PPOPolicy)
     env = _make(
         phrase_graph=policy.phrase_graph, decision_hz=policy.decision_hz, **policy.env_kwargs
@@ -280,12 +278,13 @@ def test_shipped_model_acts_deterministically() -> None:
     assert all(env.action_space.contains(a) for a in acts)
 
 
-@pytest.mark.skipif(not SHIPPED.is_file(), reason="no shipped model in models/")
 @pytest.mark.parametrize("broken", ["zip", "pkl", "yaml"])
-def test_corrupt_files_raise_value_error_naming_them(tmp_path: Path, broken: str) -> None:
-    for src in model_files(SHIPPED):
-        shutil.copy(src, tmp_path / src.name.replace("ppo_langctrl_s1000000", "m"))
+def test_corrupt_files_raise_value_error_naming_them(
+    tiny_ppo_models: tuple[Path, ...], tmp_path: Path, broken: str
+) -> None:
     z, n, c = model_files(tmp_path / "m.zip")
+    for src, dst in zip(model_files(tiny_ppo_models[0]), (z, n, c), strict=True):
+        shutil.copy(src, dst)
     target = {"zip": z, "pkl": n, "yaml": c}[broken]
     target.write_bytes(b"\x00garbage: [" if broken == "yaml" else b"not a real file")
     with pytest.raises(ValueError, match=target.name):

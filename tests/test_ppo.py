@@ -6,6 +6,7 @@ import os
 import shutil
 import subprocess
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -38,40 +39,73 @@ def _train(*extra: str) -> subprocess.CompletedProcess[str]:
     )
 
 
-@pytest.mark.slow
-def test_train_smoke_resume_and_load(tmp_path: Path) -> None:
-    """A tiny run through the real script, resumed, then loaded and run with PPOPolicy."""
-    out = tmp_path / "run"
+@dataclass(frozen=True)
+class SmokeRun:
+    """A tiny run of the real script (2 048 steps, one evaluation), resumed to 4 096 steps."""
+
+    out: Path
+    first: subprocess.CompletedProcess[str]
+    resumed: subprocess.CompletedProcess[str]
+
+    @property
+    def checkpoints(self) -> Path:
+        return self.out / "checkpoints"
+
+
+# The tests of the smoke run share one worker (xdist_group; pyproject: --dist loadgroup), so the
+# run is trained once.
+@pytest.fixture(scope="module")
+def smoke_run(tmp_path_factory: pytest.TempPathFactory) -> SmokeRun:
+    out = tmp_path_factory.mktemp("smoke") / "run"
     common = ["--out", str(out), "--n-envs", "2", "--eval-freq", "2048", "--checkpoint-freq"]
     first = _train(*common, "2048", "--total-timesteps", "2048", "--n-eval-episodes", "1")
     assert first.returncode == 0, first.stderr[-3000:]
-    zip_path, norm_path, cfg_path = model_files(out / "ppo_langctrl.zip")
-    assert zip_path.is_file() and norm_path.is_file() and cfg_path.is_file()
-    assert (out / "checkpoints" / "ppo_langctrl_2048_steps.zip").is_file()
-    assert any((out / "tb").iterdir())
-    assert (out / "eval" / "evaluations.npz").is_file()
-    assert (out / "best" / "ppo_langctrl.zip").is_file()
-    cfg = yaml.safe_load(cfg_path.read_text())
-    assert cfg["num_timesteps"] == 2048
-    assert cfg["train"]["seed"] >= 1_000_000
-    assert cfg["residual"]["choice_mode"] == cfg["env_kwargs"]["choice_mode"]
-
-    again = _train(
+    resumed = _train(
         *common, "2048", "--total-timesteps", "4096", "--n-eval-episodes", "0", "--resume"
     )
-    assert again.returncode == 0, again.stderr[-3000:]
-    assert "resuming from" in again.stderr
-    assert yaml.safe_load(cfg_path.read_text())["num_timesteps"] == 4096
+    assert resumed.returncode == 0, resumed.stderr[-3000:]
+    return SmokeRun(out, first, resumed)
 
+
+def _policy_env(policy: PPOPolicy) -> Any:
     import gymnasium as gym
 
-    policy = PPOPolicy.load(zip_path)
-    env = gym.make(
+    return gym.make(
         langenv.ENV_ID,
         phrase_graph=policy.phrase_graph,
         decision_hz=policy.decision_hz,
         **policy.env_kwargs,
     )
+
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("ppo_smoke_run")
+def test_run_writes_model_checkpoints_logs_and_config(smoke_run: SmokeRun) -> None:
+    out = smoke_run.out
+    zip_path, norm_path, cfg_path = model_files(out / "ppo_langctrl.zip")
+    assert zip_path.is_file() and norm_path.is_file() and cfg_path.is_file()
+    assert (smoke_run.checkpoints / "ppo_langctrl_2048_steps.zip").is_file()
+    assert any((out / "tb").iterdir())
+    assert (out / "eval" / "evaluations.npz").is_file()
+    assert (out / "best" / "ppo_langctrl.zip").is_file()
+    cfg = yaml.safe_load(cfg_path.read_text())
+    assert cfg["train"]["seed"] >= 1_000_000
+    assert cfg["residual"]["choice_mode"] == cfg["env_kwargs"]["choice_mode"]
+
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("ppo_smoke_run")
+def test_resume_extends_the_budget(smoke_run: SmokeRun) -> None:
+    assert "resuming from" in smoke_run.resumed.stderr
+    cfg = yaml.safe_load(model_files(smoke_run.out / "ppo_langctrl.zip")[2].read_text())
+    assert cfg["num_timesteps"] == 4096
+
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("ppo_smoke_run")
+def test_trained_model_drives_the_env(smoke_run: SmokeRun) -> None:
+    policy = PPOPolicy.load(smoke_run.out / "ppo_langctrl.zip")
+    env = _policy_env(policy)
     obs, _ = env.reset(seed=0)
     policy.reset()
     for _ in range(50):
@@ -80,32 +114,45 @@ def test_train_smoke_resume_and_load(tmp_path: Path) -> None:
         obs, *_ = env.step(action)
     assert np.isfinite(obs).all()
 
-    # a checkpoint exported as a model: the checkpoint's weights and normalisation, loadable
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("ppo_smoke_run")
+def test_export_copies_the_checkpoint(smoke_run: SmokeRun, tmp_path: Path) -> None:
+    """A checkpoint exported as a model: the checkpoint's weights and normalisation, loadable."""
     from train.export import main as export_main
 
-    assert export_main([str(out), "--steps", "2048", "--out", str(tmp_path / "m" / "x")]) == 0
-    x_zip, x_norm, x_cfg = model_files(tmp_path / "m" / "x.zip")
-    ckpt = out / "checkpoints"
+    assert export_main([str(smoke_run.out), "--steps", "2048", "--out", str(tmp_path / "x")]) == 0
+    x_zip, x_norm, x_cfg = model_files(tmp_path / "x.zip")
+    ckpt = smoke_run.checkpoints
     assert x_zip.read_bytes() == (ckpt / "ppo_langctrl_2048_steps.zip").read_bytes()
     assert x_norm.read_bytes() == (ckpt / "ppo_langctrl_vecnormalize_2048_steps.pkl").read_bytes()
     x_config = yaml.safe_load(x_cfg.read_text())
     assert x_config["num_timesteps"] == 2048
-    assert x_config["exported_from"].endswith("ppo_langctrl_2048_steps.zip")
+    assert x_config["exported_from"] == "checkpoints/ppo_langctrl_2048_steps.zip"
     exported = PPOPolicy.load(x_zip)
+    env = _policy_env(exported)
     obs, _ = env.reset(seed=1)
     exported.reset()
     assert env.action_space.contains(exported.act(obs))
 
-    # --choice-only: the same network, only its phrase-choice correction kept
-    c_stem = tmp_path / "m" / "c"
-    assert export_main([str(out), "--steps", "2048", "--choice-only", "--out", str(c_stem)]) == 0
-    c_config = yaml.safe_load(model_files(c_stem)[2].read_text())
-    assert c_config["choice_only"] is True
-    assert (c_config["residual"]["pace_scale"], c_config["residual"]["audio_scale"]) == (0.0, 0.0)
-    assert c_config["residual"]["choice_scale"] == x_config["residual"]["choice_scale"]
-    choice = PPOPolicy.load(model_files(c_stem)[0])
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("ppo_smoke_run")
+def test_choice_only_export_keeps_the_base_paces(smoke_run: SmokeRun, tmp_path: Path) -> None:
+    """--choice-only: the same network, only its phrase-choice correction kept."""
+    from train.export import main as export_main
+
+    stem = tmp_path / "c"
+    argv = [str(smoke_run.out), "--steps", "2048", "--choice-only", "--out", str(stem)]
+    assert export_main(argv) == 0
+    config = yaml.safe_load(model_files(stem)[2].read_text())
+    assert config["choice_only"] is True
+    assert (config["residual"]["pace_scale"], config["residual"]["audio_scale"]) == (0.0, 0.0)
+    assert config["residual"]["choice_scale"] > 0.0
+    choice = PPOPolicy.load(model_files(stem)[0])
     spec = choice.residual.spec
     base = LanguageController(action_dim=3, terminal=spec.terminal, k_em=spec.k_em)
+    env = _policy_env(choice)
     obs, _ = env.reset(seed=2)
     choice.reset()
     base.reset()
@@ -114,27 +161,22 @@ def test_train_smoke_resume_and_load(tmp_path: Path) -> None:
         np.testing.assert_allclose(act[:2], want[:2], atol=1e-6)
         obs, *_ = env.step(act)
 
-    # stage two of the shipped recipe: the fine-tune config, started from the checkpoint
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("ppo_smoke_run")
+def test_finetune_stage_starts_from_the_checkpoint(smoke_run: SmokeRun, tmp_path: Path) -> None:
+    """Stage two of the shipped recipe: the fine-tune config, started from a checkpoint."""
     tuned = tmp_path / "tuned"
-    ckpt_zip = ckpt / "ppo_langctrl_2048_steps.zip"
+    ckpt_zip = smoke_run.checkpoints / "ppo_langctrl_2048_steps.zip"
     fine = _train(
-        "--config",
-        str(REPO / "configs" / "ppo_finetune.yaml"),
-        "--out",
-        str(tuned),
-        "--init-from",
-        str(ckpt_zip),
-        "--n-envs",
-        "2",
-        "--total-timesteps",
-        "2048",
-        "--n-eval-episodes",
-        "0",
+        *("--config", str(REPO / "configs" / "ppo_finetune.yaml"), "--out", str(tuned)),
+        *("--init-from", str(ckpt_zip), "--n-envs", "2", "--total-timesteps", "2048"),
+        *("--n-eval-episodes", "0"),
     )
     assert fine.returncode == 0, fine.stderr[-3000:]
     assert "starting from the weights of" in fine.stderr
     t_cfg = yaml.safe_load(model_files(tuned / "ppo_finetune.zip")[2].read_text())
-    assert t_cfg["train"]["init_from"] == str(ckpt_zip)
+    assert t_cfg["train"]["init_from"] == ckpt_zip.name  # outside the working directory
     assert t_cfg["init_from_sha256"] == file_sha256(ckpt_zip)
     assert t_cfg["residual"]["pace_scale"] == 0.0
     assert isinstance(PPOPolicy.load(tuned / "ppo_finetune.zip"), PPOPolicy)
@@ -191,6 +233,47 @@ def test_load_config_errors(tmp_path: Path) -> None:
         load_config(bad, "LangCtrl-v0")
     with pytest.raises(ConfigError, match="policy_kwargs"):
         _policy_kwargs("__import__('os')", bad)
+
+
+def test_config_inherits_and_overrides_key_by_key(tmp_path: Path) -> None:
+    base = tmp_path / "base.yaml"
+    base.write_text(
+        "LangCtrl-v0:\n  n_envs: 2\n  env_kwargs: {decision_hz: 25, w_am: 2.0}\n"
+        "  env_wrapper: [a.B, c.D]\ntrain: {seed: 1000000, name: base}\n"
+    )
+    (tmp_path / "sub").mkdir()
+    child = tmp_path / "sub" / "child.yaml"
+    child.write_text(
+        "inherit: ../base.yaml\nLangCtrl-v0:\n  env_kwargs: {w_am: 1.0}\n"
+        "  env_wrapper: [e.F]\ntrain: {name: child}\n"
+    )
+    hyper, section = load_config(child, "LangCtrl-v0")
+    assert hyper == {
+        "n_envs": 2,
+        "env_kwargs": {"decision_hz": 25, "w_am": 1.0},  # mappings merge
+        "env_wrapper": ["e.F"],  # lists are replaced whole
+    }
+    assert section == {"seed": 1000000, "name": "child"}
+    base.write_text("inherit: sub/child.yaml\nLangCtrl-v0: {n_envs: 1}\n")
+    with pytest.raises(ConfigError, match="cycle"):
+        load_config(child, "LangCtrl-v0")
+    child.write_text("inherit: ../nowhere.yaml\nLangCtrl-v0: {n_envs: 1}\n")
+    with pytest.raises(FileNotFoundError, match=r"nowhere\.yaml"):
+        load_config(child, "LangCtrl-v0")
+    child.write_text("inherit: [1]\nLangCtrl-v0: {n_envs: 1}\n")
+    with pytest.raises(ConfigError, match="inherit"):
+        load_config(child, "LangCtrl-v0")
+
+
+def test_recorded_paths_describe_no_machine(tmp_path: Path) -> None:
+    from train.ppo import recorded_args, recorded_path
+
+    assert recorded_path("runs/ppo") == "runs/ppo"
+    assert recorded_path(Path.cwd() / "runs" / "ppo") == "runs/ppo"
+    assert recorded_path(tmp_path / "elsewhere" / "run") == "run"
+    args = recorded_args(TrainArgs(out=tmp_path / "x", init_from=tmp_path / "m.zip"))
+    assert (args["out"], args["init_from"], args["config"]) == ("x", "m.zip", "configs/ppo.yaml")
+    assert recorded_args({"out": str(tmp_path / "y"), "seed": 1}) == {"out": "y", "seed": 1}
 
 
 def test_schedules_and_cli_overrides() -> None:
@@ -251,8 +334,8 @@ def test_init_from_copies_weights_and_normalisation(tmp_path: Path) -> None:
     src_env.ret_rms.var = np.array(7.0)
     src.save(tmp_path / "src.zip")
     src_env.save(str(tmp_path / "src_vecnormalize.pkl"))
-    # the attempt-15 config (pace corrections off) has the same spaces, so the network fits
-    dst, dst_env = _fresh_model(2, REPO / "configs" / "ppo_attempt15.yaml")
+    # the fine-tune config (pace corrections off) has the same spaces, so the network fits
+    dst, dst_env = _fresh_model(2, REPO / "configs" / "ppo_finetune.yaml")
     before = {k: v.clone() for k, v in dst.policy.state_dict().items()}
     digest = _init_from(dst, dst_env, tmp_path / "src")
     for key, value in src.policy.state_dict().items():

@@ -2,19 +2,20 @@
 
 Run::
 
-    python -m train.export runs/ppo --steps 550000 --out models/ppo_langctrl
+    python -m train.export runs/ppo_finetune --steps 75000 --out models/ppo_phrase_choice
 
 copies ``RUN/checkpoints/NAME_<steps>_steps.zip`` and its ``NAME_vecnormalize_<steps>_steps.pkl``
 to ``OUT.zip`` and ``OUT_vecnormalize.pkl``, writes the run's config (``RUN/run_config.yaml``) as
-``OUT_config.yaml`` with the checkpoint's step count and origin, and loads the result once with
+``OUT_config.yaml`` with the checkpoint's step count and origin (relative to ``RUN``; the run's
+paths as :func:`train.ppo.recorded_path` records them), and loads the result once with
 :meth:`policies.learned.PPOPolicy.load` so that a broken export fails here, not in an evaluation.
 Nothing is written when an input is missing, nor over an existing ``OUT.*`` without
 ``--overwrite``.
 
 ``--choice-only`` exports only the phrase-choice part of the learned correction: the exported
 config's residual gets ``pace_scale = audio_scale = 0``, so the paces are the base controller's
-and the network only moves the next-phrase target (``choice_only: true`` records it). The
-shipped model is exported this way (``docs/learned.md``).
+and the network only moves the next-phrase target (``choice_only: true`` records it). The models
+shipped from attempt 12 to 14 were exported this way (``docs/history.md``).
 """
 
 from __future__ import annotations
@@ -88,7 +89,7 @@ def export(args: ExportArgs) -> Path:
         ValueError: if the exported model does not load.
     """
     from policies.learned import PPOPolicy, model_files
-    from train.ppo import checkpoint_files
+    from train.ppo import checkpoint_files, recorded_args
 
     run_config = args.run / "run_config.yaml"
     if not run_config.is_file():
@@ -114,7 +115,9 @@ def export(args: ExportArgs) -> Path:
         residual["pace_scale"] = 0.0
         residual["audio_scale"] = 0.0
         config["choice_only"] = True
-    config["exported_from"] = str(sources[0])
+    config["exported_from"] = sources[0].relative_to(args.run).as_posix()
+    if isinstance(config.get("train"), dict):
+        config["train"] = recorded_args(config["train"])
     targets = model_files(args.out)
     taken = [t for t in targets if t.exists()]
     if taken and not args.overwrite:

@@ -3,7 +3,7 @@
 Run::
 
     python -m train.ppo --config configs/ppo.yaml                       # the shipped model
-    python -m train.ppo --config configs/ppo.yaml --total-timesteps 4000 --out /tmp/ppo_smoke
+    python -m train.ppo --config configs/ppo.yaml --total-timesteps 4000 --out runs/ppo_smoke
     python -m train.ppo --config configs/ppo.yaml --out runs/ppo --resume  # after an interruption
     python -m train.ppo --config CONFIG --init-from runs/ppo/NAME.zip  # fine-tune a model
 
@@ -12,7 +12,8 @@ The YAML is keyed like rl-baselines3-zoo's (top-level key ``LangCtrl-v0`` with `
 PPO's own arguments), so ``python -m rl_zoo3.train --algo ppo --gym-packages langenv --env
 LangCtrl-v0 --conf-file configs/ppo.yaml`` trains the same model; an optional top-level ``train``
 section sets defaults of :class:`TrainArgs` (seeds, evaluation, checkpoints), which the command
-line overrides.
+line overrides. A config may ``inherit: OTHER.yaml`` and set only what differs (see
+:func:`load_config`; a train.ppo extension that rl-zoo3 does not read).
 
 What a run writes into ``--out``:
 
@@ -80,6 +81,8 @@ __all__ = [
     "load_config",
     "main",
     "parse_args",
+    "recorded_args",
+    "recorded_path",
     "resume_files",
     "train",
 ]
@@ -201,18 +204,18 @@ def parse_args(argv: Sequence[str] | None = None) -> tuple[TrainArgs, set[str]]:
 def load_config(path: Path, env_id: str) -> tuple[dict[str, Any], dict[str, Any]]:
     """Read a zoo-style YAML: ``(hyperparams of env_id, train section)``.
 
+    A config may start from another one: a top-level ``inherit: OTHER.yaml`` (relative to the
+    config's folder) reads ``OTHER.yaml`` first, and this file's mappings are merged into it key
+    by key (a list or a value replaces the inherited one whole). rl-zoo3 does not read
+    ``inherit``; a stage that only ``train.ppo`` runs (such as a fine-tune) may use it.
+
     Raises:
-        FileNotFoundError: if the file does not exist.
-        ConfigError: naming the file, if it is not valid YAML, lacks ``env_id`` or uses a zoo
-            key this script does not support.
+        FileNotFoundError: if the file (or one it inherits from) does not exist.
+        ConfigError: naming the file, if it is not valid YAML, inherits in a cycle, lacks
+            ``env_id`` or uses a zoo key this script does not support.
     """
-    if not path.is_file():
-        raise FileNotFoundError(f"config file not found: {path}")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{path}: not valid YAML: {exc}") from None
-    if not isinstance(data, dict) or not isinstance(data.get(env_id), dict):
+    data = _read_config(path, ())
+    if not isinstance(data.get(env_id), dict):
         raise ConfigError(f"{path}: needs a top-level mapping {env_id!r} of hyperparameters")
     hyper = copy.deepcopy(data[env_id])
     bad = [k for k in _UNSUPPORTED if k in hyper]
@@ -226,6 +229,39 @@ def load_config(path: Path, env_id: str) -> tuple[dict[str, Any], dict[str, Any]
     if unknown:
         raise ConfigError(f"{path}: train: unknown key(s) {', '.join(unknown)}")
     return hyper, section
+
+
+def _read_config(path: Path, seen: tuple[Path, ...]) -> dict[str, Any]:
+    """One config file as a mapping, with what it inherits merged in (``inherit`` removed)."""
+    if not path.is_file():
+        raise FileNotFoundError(f"config file not found: {path}")
+    if path.resolve() in seen:
+        chain = " -> ".join(str(p) for p in (*seen, path.resolve()))
+        raise ConfigError(f"{path}: 'inherit' forms a cycle: {chain}")
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{path}: not valid YAML: {exc}") from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: must be a mapping (top-level keys: the env id, 'train')")
+    parent = data.pop("inherit", None)
+    if parent is None:
+        return data
+    if not isinstance(parent, str) or not parent:
+        raise ConfigError(f"{path}: 'inherit' must name a config file, got {parent!r}")
+    base = _read_config(path.parent / parent, (*seen, path.resolve()))
+    return _merge(base, data)
+
+
+def _merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+    """``over`` merged into a copy of ``base``: mappings key by key, anything else replaced."""
+    out = copy.deepcopy(base)
+    for key, value in over.items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = _merge(out[key], value)
+        else:
+            out[key] = copy.deepcopy(value)
+    return out
 
 
 def _normalize_kwargs(value: Any, path: Path) -> dict[str, Any] | None:
@@ -417,11 +453,10 @@ def _config_dict(run: _Run, residual: dict[str, Any], extra: dict[str, Any]) -> 
     import langenv
     from policies.learned import graph_digest
 
-    args = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(run.args).items()}
     graph = str(run.env_kwargs.get("phrase_graph", "lc"))
     return {
         run.args.env_id: _plain(run.hyper),
-        "train": args,
+        "train": recorded_args(run.args),
         "env_kwargs": _plain(run.env_kwargs),
         "residual": residual,
         "phrase_graph_sha256": graph_digest(graph),
@@ -447,6 +482,38 @@ def _plain(obj: Any) -> Any:
     if isinstance(obj, np.generic):
         return obj.item()
     return obj
+
+
+def recorded_path(path: Path | str) -> str:
+    """A path as a run's config records it: describing no machine.
+
+    A relative path is kept; an absolute path inside the working directory becomes relative to
+    it; any other absolute path (a temporary folder, another disk) is recorded by its name only.
+
+    Args:
+        path: The path given to the run.
+
+    Returns:
+        A POSIX path string.
+    """
+    p = Path(path)
+    if not p.is_absolute():
+        return p.as_posix()
+    try:
+        return p.relative_to(Path.cwd()).as_posix()
+    except ValueError:
+        return p.name
+
+
+def recorded_args(args: TrainArgs | dict[str, Any]) -> dict[str, Any]:
+    """:class:`TrainArgs` (or their recorded mapping) as a config records them: plain values,
+    paths through :func:`recorded_path`."""
+    items = asdict(args) if isinstance(args, TrainArgs) else dict(args)
+    path_keys = {"config", "out", "init_from"}
+    return {
+        k: (recorded_path(v) if (isinstance(v, Path) or k in path_keys) and v is not None else v)
+        for k, v in items.items()
+    }
 
 
 def _save_triple(model: Any, env: Any, stem: Path, config: dict[str, Any]) -> None:
@@ -835,8 +902,7 @@ def _setup_model(run: _Run, env: Any, saved: dict[str, Any] | None) -> tuple[Any
         print(
             f"resuming from {zip_path}: {what} {steps} steps, budget {run.total}", file=sys.stderr
         )
-        args = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(a).items()}
-        config = dict(saved, train=args, total_timesteps=run.total)
+        config = dict(saved, train=recorded_args(a), total_timesteps=run.total)
     else:
         config = _config_dict(run, _residual_section(env), {})
         model = PPO(

@@ -32,6 +32,10 @@ The tick is split as ``mj_step2`` (integrate the state the controller saw) follo
 :meth:`Arm.reset`) the kinematics, :meth:`Arm.hand_position` and :meth:`Arm.hand_velocity` are
 those of the current state, and the cost is one ``mj_step`` plus the controller. If you change
 ``data.qpos``/``data.qvel`` yourself, call :meth:`Arm.forward` before the next step.
+
+Neighbours: the MJCF is loaded and its names resolved in :mod:`langenv.robot.handles`, the reset's
+inverse kinematics is :mod:`langenv.robot.ik`, the orientation-hold math
+:mod:`langenv.robot.rotation`, and off-screen rendering :mod:`langenv.robot.camera`.
 """
 
 from __future__ import annotations
@@ -46,8 +50,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from langenv.errors import ActionError, ConfigError
+from langenv.robot.handles import ArmHandles, load_model
+from langenv.robot.ik import IK_ACCEPT, solve_ik
+from langenv.robot.rotation import rotation_error_matrix, rotation_vector
 from langenv.safety import DEFAULT_MAX_SPEED
-from langenv.validation import as_vec3
+from langenv.validation import as_vec3, finite_positive
 
 if TYPE_CHECKING:
     from langenv.robot.camera import SceneRenderer
@@ -65,63 +72,15 @@ UR5_JOINTS: tuple[str, ...] = (
 )
 """Joint names of the UR5 model, base to flange."""
 
-_IK_MAX_ITER = 300
-_IK_TOL = 1e-9  # m / rad, convergence of the IK step
-_IK_ACCEPT = 1e-4  # m, largest accepted position residual
-_IK_MAX_STEP = 0.05  # m, largest Cartesian step per IK iteration (stays on the home branch)
 _LIMIT_CHECK_MAX = 25  # ticks, longest interval between two joint-limit checks
 
 
-def _finite_positive(name: str, value: float, *, allow_zero: bool = False) -> float:
-    """Validate a scalar keyword argument.
-
-    Args:
-        name: argument name, used in the error message.
-        value: the value.
-        allow_zero: accept 0.
-
-    Returns:
-        ``value`` as float.
-
-    Raises:
-        ConfigError: if not finite, negative, or zero when not allowed.
-    """
-    try:
-        v = float(value)
-    except (TypeError, ValueError) as exc:
-        raise ConfigError(f"{name} must be a number, got {value!r}") from exc
-    if not math.isfinite(v) or v < 0.0 or (v == 0.0 and not allow_zero):
-        bound = ">= 0" if allow_zero else "> 0"
-        raise ConfigError(f"{name} must be finite and {bound}, got {value!r}")
-    return v
-
-
-def _rotation_error_matrix(r_held: NDArray[np.float64], gain: float) -> NDArray[np.float64]:
-    """The (3, 9) matrix B with ``B @ R.ravel() = gain * 1/2 sum_i r_i x r0_i``.
-
-    Args:
-        r_held: (3, 3) rotation to hold (columns ``r0_i``), world frame.
-        gain: scale folded into B (1/s for an angular-velocity command).
-
-    Returns:
-        (3, 9) float64; ``R.ravel()`` is row-major, so entry ``3 a + i`` is ``R[a, i]``.
-    """
-    b = np.zeros((3, 9))
-    for a in range(3):
-        e_a = np.zeros(3)
-        e_a[a] = 1.0
-        for i in range(3):
-            b[:, 3 * a + i] = 0.5 * gain * np.cross(e_a, r_held[:, i])
-    return b
-
-
-def _rotation_vector(r_from: NDArray[np.float64], r_to: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Rotation vector (axis * angle, rad, world frame) taking ``r_from`` to ``r_to``."""
-    quat = np.empty(4)
-    mujoco.mju_mat2Quat(quat, (r_to @ r_from.T).ravel())
-    vel = np.empty(3)
-    mujoco.mju_quat2Vel(vel, quat, 1.0)
-    return vel
+def _joint_speed_limits(max_joint_speed: float | ArrayLike, n: int) -> NDArray[np.float64]:
+    """``max_joint_speed`` (scalar or one per joint) as (n,) finite positive limits."""
+    qdmax = np.broadcast_to(np.asarray(max_joint_speed, dtype=np.float64), (n,)).copy()
+    if not np.all(np.isfinite(qdmax)) or np.any(qdmax <= 0.0):
+        raise ConfigError(f"max_joint_speed must be finite and > 0, got {max_joint_speed!r}")
+    return qdmax
 
 
 class Arm:
@@ -184,69 +143,55 @@ class Arm:
         kv_scale: float = 1.0,
     ) -> None:
         self.path = Path(UR5_XML if model_path is None else model_path)
-        if not self.path.is_file():
-            raise ConfigError(f"model_path {str(self.path)!r} is not a file")
-        try:
-            self.model = mujoco.MjModel.from_xml_path(str(self.path))
-        except ValueError as exc:
-            raise ConfigError(f"model_path {str(self.path)!r} is not a valid MJCF: {exc}") from exc
+        self.model = load_model(self.path)
         self.data = mujoco.MjData(self.model)
-        m = self.model
-        self.dt = float(m.opt.timestep)
+        self.dt = float(self.model.opt.timestep)
 
-        self.max_hand_speed = _finite_positive("max_hand_speed", max_hand_speed)
-        self._kp = _finite_positive("position_gain", position_gain, allow_zero=True)
-        self._kr = _finite_positive("orientation_gain", orientation_gain, allow_zero=True)
-        self._lambda2 = _finite_positive("damping", damping) ** 2
-        self._margin = _finite_positive("joint_limit_margin", joint_limit_margin, allow_zero=True)
-        self._emax = _finite_positive("max_tracking_error", max_tracking_error)
+        self.max_hand_speed = finite_positive("max_hand_speed", max_hand_speed, ConfigError)
+        self._kp = finite_positive("position_gain", position_gain, ConfigError, allow_zero=True)
+        self._kr = finite_positive(
+            "orientation_gain", orientation_gain, ConfigError, allow_zero=True
+        )
+        self._lambda2 = finite_positive("damping", damping, ConfigError) ** 2
+        self._margin = finite_positive(
+            "joint_limit_margin", joint_limit_margin, ConfigError, allow_zero=True
+        )
+        self._emax = finite_positive("max_tracking_error", max_tracking_error, ConfigError)
         self._emax2 = self._emax * self._emax
         self._limit_countdown = 0
-        kv_scale = _finite_positive("kv_scale", kv_scale, allow_zero=True)
+        kv_scale = finite_positive("kv_scale", kv_scale, ConfigError, allow_zero=True)
         self.hold_orientation = bool(hold_orientation)
 
-        self.site_id = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, handle_site)
-        if self.site_id < 0:
-            raise ConfigError(f"handle_site {handle_site!r} not found in {self.path}")
+        h = ArmHandles.resolve(self.model, self.path, handle_site, joints, actuators, home_keyframe)
+        self._handles = h
+        self.site_id = h.site_id
         self.handle_site = handle_site
-
-        joint_ids = self._find_joints(joints)
-        self.joint_names = tuple(m.joint(j).name for j in joint_ids)
-        act_ids = self._find_actuators(joint_ids, actuators)
-        self.actuator_names = tuple(m.actuator(a).name for a in act_ids)
-        n = len(joint_ids)
-        self.n_joints = n
-
+        self.joint_names = h.joint_names
+        self.actuator_names = h.actuator_names
+        self.n_joints = h.n_joints
+        self._home_key = h.home_key
         # Velocity gains (kv_scale) of the actuators.
-        m.actuator_gainprm[act_ids, 0] *= kv_scale
-        m.actuator_biasprm[act_ids, 2] *= kv_scale
+        self.model.actuator_gainprm[h.act_ids, 0] *= kv_scale
+        self.model.actuator_biasprm[h.act_ids, 2] *= kv_scale
+        self._inv_qdmax = 1.0 / _joint_speed_limits(max_joint_speed, h.n_joints)
 
-        self._home_key: int | None = None
-        if home_keyframe is not None:
-            key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, home_keyframe)
-            if key < 0:
-                raise ConfigError(f"home_keyframe {home_keyframe!r} not found in {self.path}")
-            self._home_key = key
-
-        qdmax = np.broadcast_to(np.asarray(max_joint_speed, dtype=np.float64), (n,)).copy()
-        if not np.all(np.isfinite(qdmax)) or np.any(qdmax <= 0.0):
-            raise ConfigError(f"max_joint_speed must be finite and > 0, got {max_joint_speed!r}")
-        self._inv_qdmax = 1.0 / qdmax
-
-        dofs = m.jnt_dofadr[joint_ids].astype(np.intp)
-        qadr = m.jnt_qposadr[joint_ids].astype(np.intp)
-        self._dofs = dofs
-        self._qadr = qadr
-        limited = m.jnt_limited[joint_ids].astype(bool)
-        self._lo = np.where(limited, m.jnt_range[joint_ids, 0], -np.inf)
-        self._hi = np.where(limited, m.jnt_range[joint_ids, 1], np.inf)
+        self._dofs = h.dofs
+        self._qadr = h.qadr
+        self._act_ids = h.act_ids
+        self._lo = h.lower
+        self._hi = h.upper
         self._lo_m = self._lo + self._margin
         self._hi_m = self._hi - self._margin
-        self._has_limits = bool(np.any(limited))
+        self._has_limits = h.has_limits
+        self._allocate_work_arrays()
+        self._renderer: SceneRenderer | None = None
+        self.reset()
 
-        # Preallocated work arrays and views (the hot path allocates nothing).
-        nv = m.nv
-        d = self.data
+    def _allocate_work_arrays(self) -> None:
+        """Preallocate the controller's work arrays and views (the hot path allocates nothing)."""
+        m, d = self.model, self.data
+        n, nv = self.n_joints, m.nv
+        dofs, qadr, acts = self._dofs, self._qadr, self._act_ids
         self._task = 6 if self.hold_orientation else 3
         k = self._task
         self._jac = np.zeros((6, nv))
@@ -274,92 +219,8 @@ class Arm:
         if np.array_equal(qadr, np.arange(qadr[0], qadr[0] + n)):
             self._qpos_view = d.qpos[qadr[0] : qadr[0] + n]
         self._ctrl_view: NDArray[np.float64] | None = None
-        acts = np.asarray(act_ids, dtype=np.intp)
-        self._act_ids = acts
         if np.array_equal(acts, np.arange(acts[0], acts[0] + n)):
             self._ctrl_view = d.ctrl[acts[0] : acts[0] + n]
-        self._renderer: SceneRenderer | None = None
-        self.reset()
-
-    # ------------------------------------------------------------------ set-up helpers
-
-    def _find_joints(self, joints: Sequence[str] | None) -> list[int]:
-        """Joint ids of the controlled joints (by name, or the chain to the handle site)."""
-        m = self.model
-        one_dof = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
-        if joints is None:
-            chain: list[int] = []
-            body = int(m.site_bodyid[self.site_id])
-            while body > 0:
-                adr, num = int(m.body_jntadr[body]), int(m.body_jntnum[body])
-                body_joints = [j for j in range(adr, adr + num) if m.jnt_type[j] in one_dof]
-                chain = body_joints + chain
-                body = int(m.body_parentid[body])
-            if not chain:
-                raise ConfigError(
-                    f"no hinge/slide joint on the chain to handle_site {self.handle_site!r} "
-                    f"in {self.path}"
-                )
-            return chain
-        if isinstance(joints, str) or len(joints) == 0:
-            raise ConfigError(f"joints must be a non-empty sequence of names, got {joints!r}")
-        ids: list[int] = []
-        for name in joints:
-            j = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
-            if j < 0:
-                raise ConfigError(f"joint {name!r} not found in {self.path}")
-            if m.jnt_type[j] not in one_dof:
-                raise ConfigError(f"joint {name!r} in {self.path} must be a hinge or slide joint")
-            ids.append(j)
-        if len(set(ids)) != len(ids):
-            raise ConfigError(f"joints has duplicates: {list(joints)!r}")
-        return ids
-
-    def _find_actuators(self, joint_ids: list[int], actuators: Sequence[str] | None) -> list[int]:
-        """Actuator ids driving ``joint_ids`` (same order); checks they are velocity servos."""
-        m = self.model
-        is_joint_trn = m.actuator_trntype == int(mujoco.mjtTrn.mjTRN_JOINT)
-        ids: list[int] = []
-        if actuators is None:
-            for j in joint_ids:
-                found = np.flatnonzero(is_joint_trn & (m.actuator_trnid[:, 0] == j))
-                if found.size == 0:
-                    raise ConfigError(
-                        f"no actuator drives joint {m.joint(j).name!r} in {self.path}"
-                    )
-                ids.append(int(found[0]))
-        else:
-            if isinstance(actuators, str) or len(actuators) != len(joint_ids):
-                raise ConfigError(
-                    f"actuators must name one actuator per joint ({len(joint_ids)}), "
-                    f"got {actuators!r}"
-                )
-            for name, j in zip(actuators, joint_ids, strict=True):
-                a = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
-                if a < 0:
-                    raise ConfigError(f"actuator {name!r} not found in {self.path}")
-                if not is_joint_trn[a] or m.actuator_trnid[a, 0] != j:
-                    raise ConfigError(
-                        f"actuator {name!r} in {self.path} does not drive joint {m.joint(j).name!r}"
-                    )
-                ids.append(a)
-        for a in ids:
-            kv = float(m.actuator_gainprm[a, 0])
-            is_velocity = (
-                m.actuator_gaintype[a] == int(mujoco.mjtGain.mjGAIN_FIXED)
-                and m.actuator_biastype[a] == int(mujoco.mjtBias.mjBIAS_AFFINE)
-                and kv > 0.0
-                and m.actuator_biasprm[a, 0] == 0.0
-                and m.actuator_biasprm[a, 1] == 0.0
-                and math.isclose(float(m.actuator_biasprm[a, 2]), -kv)
-                and m.actuator_gear[a, 0] == 1.0
-            )
-            if not is_velocity:
-                raise ConfigError(
-                    f"actuator {m.actuator(a).name!r} in {self.path} must be a velocity actuator "
-                    "(<velocity joint=... kv=...>, gear 1)"
-                )
-        return ids
 
     # ------------------------------------------------------------------ state
 
@@ -374,10 +235,15 @@ class Arm:
         if not self._full_dofs:
             np.take(self._jac[: self._task], self._dofs, axis=1, out=self._jac_arm)
 
+    def _arm_jacobian(self) -> NDArray[np.float64]:
+        """The (k, n) site Jacobian of the controlled joints at the current kinematics."""
+        self._update_jacobian()
+        return self._jac_arm
+
     def _hold(self, rotation: NDArray[np.float64]) -> None:
         """Hold ``rotation`` (3, 3) from now on and restart the reference point at the hand."""
         self._r_held = rotation.copy()
-        self._rot_b = _rotation_error_matrix(self._r_held, self._kr)
+        self._rot_b = rotation_error_matrix(self._r_held, self._kr)
         self._x_ref[:] = self._site_xpos
 
     def reset(self, hand_position: ArrayLike | None = None) -> None:
@@ -401,8 +267,9 @@ class Arm:
         mujoco.mj_forward(m, d)
         if hand_position is not None:
             target = as_vec3(hand_position, "hand_position", ConfigError)
-            residual = self._solve_ik(target, self._site_xmat.reshape(3, 3).copy())
-            if residual > _IK_ACCEPT:
+            rotation = self._site_xmat.reshape(3, 3).copy() if self._task == 6 else None
+            residual = solve_ik(m, d, self._handles, self._arm_jacobian, target, rotation)
+            if residual > IK_ACCEPT:
                 raise ConfigError(
                     f"hand_position {target.tolist()} is out of reach of {self.path.name} with "
                     f"the home orientation (residual {residual:.3g} m)"
@@ -421,40 +288,6 @@ class Arm:
         self._limit_countdown = 0
         self._update_jacobian()
         self._hold(self._site_xmat.reshape(3, 3))
-
-    def _solve_ik(self, target: NDArray[np.float64], rotation: NDArray[np.float64]) -> float:
-        """Damped Gauss-Newton IK of the handle site from the current ``qpos``.
-
-        Args:
-            target: (3,) site position (m).
-            rotation: (3, 3) site orientation to keep (ignored without ``hold_orientation``).
-
-        Returns:
-            Final position residual (m).
-        """
-        m, d = self.model, self.data
-        k = self._task
-        err = np.zeros(k)
-        residual = math.inf
-        for _ in range(_IK_MAX_ITER):
-            mujoco.mj_kinematics(m, d)
-            mujoco.mj_comPos(m, d)
-            self._update_jacobian()
-            err[:3] = target - self._site_xpos
-            residual = float(np.linalg.norm(err[:3]))
-            step = err[:3] * min(1.0, _IK_MAX_STEP / max(residual, 1e-300))
-            err[:3] = step
-            if k == 6:
-                err[3:] = _rotation_vector(self._site_xmat.reshape(3, 3), rotation)
-            if float(np.linalg.norm(err)) < _IK_TOL:
-                break
-            jac = self._jac_arm
-            a = jac @ jac.T + 1e-8 * np.eye(k)
-            dq = jac.T @ np.linalg.solve(a, err)
-            q = d.qpos[self._qadr] + dq
-            d.qpos[self._qadr] = np.clip(q, self._lo, self._hi)
-        mujoco.mj_kinematics(m, d)
-        return float(np.linalg.norm(target - self._site_xpos))
 
     def hand_position(self) -> NDArray[np.float64]:
         """Handle site position.
@@ -482,7 +315,7 @@ class Arm:
 
     def orientation_error(self) -> float:
         """Angle (rad) between the handle orientation and the one held since :meth:`reset`."""
-        return float(np.linalg.norm(_rotation_vector(self._site_xmat.reshape(3, 3), self._r_held)))
+        return float(np.linalg.norm(rotation_vector(self._site_xmat.reshape(3, 3), self._r_held)))
 
     def joint_positions(self) -> NDArray[np.float64]:
         """Positions of the controlled joints, (n,) rad or m (a copy)."""

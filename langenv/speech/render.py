@@ -172,6 +172,24 @@ def render_history(
     """
     tt, aa, _ = _trace(t, a)
     ids = [h if isinstance(h, str) else h.phrase for h in history]
+    _check_path(graph, ids)
+    from langenv.speech.vocoder import VariableRateVocoder
+
+    sr = clips.sr
+    voc = VariableRateVocoder(sr, **(vocoder_kw or {}))
+    total = float(sum(clips.clip(graph.phrases[u]).size for u in ids)) / sr
+    total += graph.pause * max(0, len(ids) - 1)
+    # content kept pushed ahead of the vocoder's read position: its window plus two blocks
+    lookahead = 4.0 * (vocoder_kw or {}).get("n_fft", 1024) / sr + 3.0 * _BLOCK / sr
+    feeder = _Feeder(voc, _content(graph, clips, ids), sr, lookahead)
+    n_trace = round((tt[-1] - tt[0]) * sr)
+    # the speech may outlast the trace: at most its content at the last pace, plus slack
+    n_cap = n_trace + int((total / float(aa[-1]) + 1.0) * sr)
+    return _render_blocks(voc, feeder, tt, aa, n_trace, n_cap, progress)
+
+
+def _check_path(graph: PhraseGraph, ids: Sequence[str]) -> None:
+    """Raise unless ``ids`` is a path of ``graph`` from its start phrase."""
     for k, u in enumerate(ids):
         if u not in graph.phrases:
             raise ConfigError(f"history[{k}]: {u!r} is not a phrase of {graph.path}")
@@ -179,38 +197,64 @@ def render_history(
             raise ConfigError(f"history[0]: {u!r} is not the start phrase {graph.start!r}")
         if k and u not in graph.children(ids[k - 1]):
             raise ConfigError(f"history[{k}]: {u!r} does not follow {ids[k - 1]!r} in the graph")
-    from langenv.speech.vocoder import VariableRateVocoder
 
-    sr = clips.sr
-    voc = VariableRateVocoder(sr, **(vocoder_kw or {}))
-    pieces = _content(graph, clips, ids)
-    total = float(sum(clips.clip(graph.phrases[u]).size for u in ids)) / sr
-    total += graph.pause * max(0, len(ids) - 1)
-    # content kept pushed ahead of the vocoder's read position: its window plus two blocks
-    lookahead = 4.0 * (vocoder_kw or {}).get("n_fft", 1024) / sr + 3.0 * _BLOCK / sr
-    pushed = 0.0
-    finished = False
 
-    def feed(force: bool = False) -> None:
-        nonlocal pushed, finished
-        while not finished and (force or pushed - voc.content_time < lookahead):
+class _Feeder:
+    """Pushes base-pace content into a vocoder, ``lookahead`` seconds ahead of its read position,
+    and finishes it when the content runs out."""
+
+    def __init__(self, voc: Any, pieces: Iterator[np.ndarray], sr: int, lookahead: float) -> None:
+        self.voc, self.pieces, self.sr, self.lookahead = voc, pieces, sr, lookahead
+        self.pushed = 0.0
+        self.finished = False
+
+    def feed(self, force: bool = False) -> None:
+        """Push pieces until the lookahead is covered (at least one with ``force``)."""
+        voc = self.voc
+        while not self.finished and (force or self.pushed - voc.content_time < self.lookahead):
             force = False
-            y = next(pieces, None)
+            y = next(self.pieces, None)
             if y is None:
                 voc.finish()
-                finished = True
+                self.finished = True
             else:
                 voc.push(y)
-                pushed += y.size / sr
+                self.pushed += y.size / self.sr
 
-    n_trace = round((tt[-1] - tt[0]) * sr)
-    # the speech may outlast the trace: at most its content at the last pace, plus slack
-    n_cap = n_trace + int((total / float(aa[-1]) + 1.0) * sr)
+    def pull(self, n: int, pace: float) -> np.ndarray:
+        """Up to ``n`` samples at ``pace``, topping the content up if the vocoder starves while
+        content remains."""
+        self.feed()
+        y = self.voc.pull(n, pace)
+        if y.size < n and not self.finished:
+            parts = [y]
+            got = y.size
+            while got < n and not self.finished:
+                self.feed(force=True)
+                z = self.voc.pull(n - got, pace)
+                parts.append(z)
+                got += z.size
+            y = np.concatenate(parts)
+        return np.asarray(y)
+
+
+def _render_blocks(
+    voc: Any,
+    feeder: _Feeder,
+    tt: np.ndarray,
+    aa: np.ndarray,
+    n_trace: int,
+    n_cap: int,
+    progress: bool | None,
+) -> np.ndarray:
+    """Pull the vocoder block by block at the trace's pace: the trace's span, then whatever the
+    speech still holds (up to ``n_cap`` samples)."""
+    from tqdm import tqdm
+
+    sr = feeder.sr
     out = np.zeros(n_trace, np.float32)
     extra: list[np.ndarray] = []
     produced = 0
-    from tqdm import tqdm
-
     with tqdm(
         total=round(n_trace / sr, 2),
         unit="s",
@@ -221,17 +265,7 @@ def render_history(
         while not voc.done and produced < n_cap:
             n = min(_BLOCK, n_trace - produced) if produced < n_trace else _BLOCK
             pace = float(np.interp(tt[0] + (produced + 0.5 * n) / sr, tt, aa))
-            feed()
-            y = voc.pull(n, pace)
-            if y.size < n and not finished:  # starved although content remains: top up
-                parts = [y]
-                got = y.size
-                while got < n and not finished:
-                    feed(force=True)
-                    z = voc.pull(n - got, pace)
-                    parts.append(z)
-                    got += z.size
-                y = np.concatenate(parts)
+            y = feeder.pull(n, pace)
             if y.size == 0:
                 break  # finished and drained
             if produced < n_trace:
