@@ -94,6 +94,7 @@ class CompiledTick:
         self.xpos, self.xmat = arm._site_xpos, arm._site_xmat
         self.qpos, self.qvel, self.ctrl, self.qfrc = d.qpos, d.qvel, d.ctrl, d.qfrc_applied
         self.model, self.data = arm.model, d
+        self._hv: np.ndarray | None = None
 
     # ------------------------------------------------------------------ state
     def load(self) -> None:
@@ -111,6 +112,7 @@ class CompiledTick:
         ws[tk.S_HV : tk.S_HV + 3] = m._hand_velocity
         ws[tk.S_HS], ws[tk.S_DEV] = m._hand_speed, m.path_deviation
         ws[tk.S_MONCD] = m.monitor._countdown
+        self._hv = None
         ws[tk.S_TAN : tk.S_TAN + 3] = m.guide.tangent(st, arm._site_xpos.copy())
         aw[ak.A_COUNTDOWN] = arm._limit_countdown
         aw[ak.A_ROTB : ak.A_ROTB + 27] = arm._rot_b.reshape(-1)
@@ -169,6 +171,7 @@ class CompiledTick:
         if t_end == t_end:  # not NaN
             m.t_motion_end = t_end
         m._hand_speed, m.path_deviation = ws[tk.S_HS : tk.S_MONCD].tolist()
+        self._hv = None
         if stop != tk.STOP_NONE:
             self._stop(f0, f1, f2)
 
@@ -210,7 +213,10 @@ class CompiledTick:
         return self.ws[tk.S_TAN : tk.S_TAN + 3].copy()
 
     def hand_velocity(self) -> np.ndarray:
-        """The hand's velocity after the last tick, shape (3,), m/s (a new read-only array)."""
-        v = self.ws[tk.S_HV : tk.S_HV + 3].copy()
-        v.flags.writeable = False
+        """The hand's velocity after the last tick, shape (3,), m/s (read-only; one array per
+        tick, as the Python tick keeps)."""
+        v = self._hv
+        if v is None:
+            v = self._hv = self.ws[tk.S_HV : tk.S_HV + 3].copy()
+            v.flags.writeable = False
         return v
