@@ -442,7 +442,7 @@ def render_markdown(
     sim_traces: Sequence[Trace],
     synthetic: dict[str, Any] | None,
 ) -> str:
-    """The text of ``fidelity.md``."""
+    """The text of ``fidelity.md``: checks, sessions, speed bins, paces, synthetic users."""
     n_pass = sum(c.passed for c in checks)
     lines = [
         "# Fidelity: the simulation against the study's recordings",
@@ -456,95 +456,100 @@ def render_markdown(
             ("figure", "simulated vs recorded", "target", "verdict"),
             [(c.name, c.measured, c.target, "PASS" if c.passed else "FAIL") for c in checks],
         ),
-        "## Sessions",
-        "",
+        *_md_sessions(rec_traces, sim_traces),
+        *_md_speed_bins(rec, sim),
+        *_md_paces(rec, sim),
     ]
-    rec_by = {tr.name: tr for tr in rec_traces}
-    rows: list[Sequence[str]] = []
-    for tr in sim_traces:
-        r = rec_by.get(tr.name)
-        if r is None:
-            continue
-        rows.append(
-            (
-                tr.name,
-                tr.controller,
-                f"{r.length:.2f}",
-                f"{tr.length:.2f}",
-                f"{tr.length / r.length:.2f}",
-                f"{r.speech_at_start:.2f}",
-                f"{tr.speech_at_start:.2f}",
-                f"{tr.am:+.2f}",
-            )
-        )
-    lines += _md_table(
-        (
-            "session",
-            "controller",
-            "recorded length (s)",
-            "simulated (s)",
-            "ratio",
-            "speech at start, recorded (s)",
-            "simulated (s)",
-            "simulated AM (s)",
-        ),
-        rows,
-    )
-    lines += ["## Hand speed by cooperation (AC sessions, p = 1)", ""]
-    edges = COOP_BINS
-    rows = []
-    for b in range(len(edges) - 1):
-        rows.append(
-            (
-                f"[{edges[b]:.2f}, {edges[b + 1]:.2f}{']' if b == len(edges) - 2 else ')'}",
-                f"{rec.speed_bins[b]:.3f}",
-                f"{sim.speed_bins[b]:.3f}",
-                f"{rec.speed_seconds[b]:.1f}",
-                f"{sim.speed_seconds[b]:.1f}",
-            )
-        )
-    lines += _md_table(
-        ("cooperation", "recorded (m/s)", "simulated (m/s)", "recorded (s)", "simulated (s)"), rows
-    )
-    lines += ["## Paces (medians) and misalignment", ""]
-    rows = []
-    for c in CONTROLLERS.values():
-        if c not in sim.length:
-            continue
-        rows.append(
-            (
-                c,
-                f"{rec.p_median.get(c, 1.0):.3f}",
-                f"{sim.p_median.get(c, 1.0):.3f}",
-                f"{rec.a_median.get(c, 1.0):.3f}",
-                f"{sim.a_median.get(c, 1.0):.3f}",
-                f"{sim.am_median[c]:+.2f}",
-            )
-        )
-    lines += _md_table(
-        (
-            "controller",
-            "p recorded",
-            "p simulated",
-            "a recorded",
-            "a simulated",
-            "AM simulated (s)",
-        ),
-        rows,
-    )
     if synthetic is not None:
-        lines += ["## Synthetic users", ""]
-        rows = [
-            (c, f"{v['recorded']:.2f}", f"{v['synthetic']:.2f}")
-            for c, v in synthetic["motion_time"].items()
-        ]
-        lines += _md_table(("controller", "recorded median (s)", "synthetic median (s)"), rows)
-        rows = [
-            (f"q{float(k) * 100:.0f}", f"{v['recorded']:.3f}", f"{v['synthetic']:.3f}")
-            for k, v in synthetic["coop_quantiles"].items()
-        ]
-        lines += _md_table(("cooperation quantile", "recorded", "synthetic"), rows)
+        lines += _md_synthetic(synthetic)
     return "\n".join(lines)
+
+
+def _md_sessions(rec_traces: Sequence[Trace], sim_traces: Sequence[Trace]) -> list[str]:
+    """Per replayed session: lengths, speech at the start, AM."""
+    rec_by = {tr.name: tr for tr in rec_traces}
+    rows = [
+        (
+            tr.name,
+            tr.controller,
+            f"{r.length:.2f}",
+            f"{tr.length:.2f}",
+            f"{tr.length / r.length:.2f}",
+            f"{r.speech_at_start:.2f}",
+            f"{tr.speech_at_start:.2f}",
+            f"{tr.am:+.2f}",
+        )
+        for tr in sim_traces
+        if (r := rec_by.get(tr.name)) is not None
+    ]
+    header = (
+        "session",
+        "controller",
+        "recorded length (s)",
+        "simulated (s)",
+        "ratio",
+        "speech at start, recorded (s)",
+        "simulated (s)",
+        "simulated AM (s)",
+    )
+    return ["## Sessions", "", *_md_table(header, rows)]
+
+
+def _md_speed_bins(rec: Measures, sim: Measures) -> list[str]:
+    """Median hand speed per cooperation bin, recorded and simulated."""
+    edges = COOP_BINS
+    rows = [
+        (
+            f"[{edges[b]:.2f}, {edges[b + 1]:.2f}{']' if b == len(edges) - 2 else ')'}",
+            f"{rec.speed_bins[b]:.3f}",
+            f"{sim.speed_bins[b]:.3f}",
+            f"{rec.speed_seconds[b]:.1f}",
+            f"{sim.speed_seconds[b]:.1f}",
+        )
+        for b in range(len(edges) - 1)
+    ]
+    header = ("cooperation", "recorded (m/s)", "simulated (m/s)", "recorded (s)", "simulated (s)")
+    return ["## Hand speed by cooperation (AC sessions, p = 1)", "", *_md_table(header, rows)]
+
+
+def _md_paces(rec: Measures, sim: Measures) -> list[str]:
+    """Median paces per controller, recorded and simulated, and the simulated median AM."""
+    rows = [
+        (
+            c,
+            f"{rec.p_median.get(c, 1.0):.3f}",
+            f"{sim.p_median.get(c, 1.0):.3f}",
+            f"{rec.a_median.get(c, 1.0):.3f}",
+            f"{sim.a_median.get(c, 1.0):.3f}",
+            f"{sim.am_median[c]:+.2f}",
+        )
+        for c in CONTROLLERS.values()
+        if c in sim.length
+    ]
+    header = ("controller", "p recorded", "p simulated", "a recorded", "a simulated")
+    return [
+        "## Paces (medians) and misalignment",
+        "",
+        *_md_table((*header, "AM simulated (s)"), rows),
+    ]
+
+
+def _md_synthetic(synthetic: dict[str, Any]) -> list[str]:
+    """Synthetic users' median motion time per controller and cooperation quantiles."""
+    times = [
+        (c, f"{v['recorded']:.2f}", f"{v['synthetic']:.2f}")
+        for c, v in synthetic["motion_time"].items()
+    ]
+    quantiles = [
+        (f"q{float(k) * 100:.0f}", f"{v['recorded']:.3f}", f"{v['synthetic']:.3f}")
+        for k, v in synthetic["coop_quantiles"].items()
+    ]
+    return [
+        "## Synthetic users",
+        "",
+        *_md_table(("controller", "recorded median (s)", "synthetic median (s)"), times),
+        *_md_table(("cooperation quantile", "recorded", "synthetic"), quantiles),
+    ]
 
 
 def fidelity_figure(
@@ -563,7 +568,19 @@ def fidelity_figure(
 
     ctrls = [c for c in CONTROLLERS.values() if c in sim.length]
     fig, axes = plt.subplots(2, 3, figsize=(15, 8.5))
-    ax = axes[0, 0]
+    _plot_lengths(axes[0, 0], rec, sim, ctrls)
+    _plot_speed(axes[0, 1], rec, sim, rec_traces, sim_traces)
+    _plot_pace(axes[0, 2], "p", "physical pace p", rec_traces, sim_traces)
+    _plot_pace(axes[1, 0], "a", "audio pace a", rec_traces, sim_traces)
+    _plot_speech(axes[1, 1], rec_traces, sim_traces, ctrls)
+    _plot_am(axes[1, 2], sim_traces, syn_traces, ctrls)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _plot_lengths(ax: Any, rec: Measures, sim: Measures, ctrls: Sequence[str]) -> None:
+    """Per controller, each replay's simulated / recorded length, the median and the target."""
     for i, c in enumerate(ctrls):
         ratios = list(length_ratios(rec, sim, c).values())
         ax.scatter(np.full(len(ratios), i) + np.linspace(-0.15, 0.15, len(ratios)), ratios, s=18)
@@ -575,39 +592,47 @@ def fidelity_figure(
     ax.set_title("Session length (replays)")
     ax.legend(loc="upper left")
 
-    ax = axes[0, 1]
+
+def _plot_speed(
+    ax: Any, rec: Measures, sim: Measures, rec_traces: Sequence[Trace], sim_traces: Sequence[Trace]
+) -> None:
+    """AC sessions: hand speed against cooperation, samples and bin medians."""
     mids = 0.5 * (np.asarray(COOP_BINS[:-1]) + np.asarray(COOP_BINS[1:]))
     ax.plot(mids, rec.speed_bins, "o-", label="recorded")
     ax.plot(mids, sim.speed_bins, "s--", label="simulated")
-    for tr in (t for t in rec_traces if t.controller == "ac"):
-        ax.scatter(tr.cooperation[::10], tr.speed[::10], s=2, color="C0", alpha=0.15)
-    for tr in (t for t in sim_traces if t.controller == "ac"):
-        ax.scatter(tr.cooperation[::10], tr.speed[::10], s=2, color="C1", alpha=0.15)
+    for traces, color in ((rec_traces, "C0"), (sim_traces, "C1")):
+        for tr in (t for t in traces if t.controller == "ac"):
+            ax.scatter(tr.cooperation[::10], tr.speed[::10], s=2, color=color, alpha=0.15)
     ax.set_xlabel("cooperation c")
     ax.set_ylabel("hand speed (m/s)")
     ax.set_title("AC: hand speed against cooperation (bin medians)")
     ax.legend()
 
-    for ax, attr, label in (
-        (axes[0, 2], "p", "physical pace p"),
-        (axes[1, 0], "a", "audio pace a"),
-    ):
-        data, pos, colors = [], [], []
-        for i, c in enumerate(("lc-noap", "lc")):
-            for j, (traces, col) in enumerate(((rec_traces, "C0"), (sim_traces, "C1"))):
-                x = [getattr(t, attr) for t in traces if t.controller == c]
-                if x:
-                    data.append(np.concatenate(x))
-                    pos.append(2 * i + 0.8 * j)
-                    colors.append(col)
-        if data:
-            parts = ax.violinplot(data, positions=pos, showmedians=True, widths=0.7)
-            for body, col in zip(parts["bodies"], colors, strict=True):
-                body.set_facecolor(col)
-        ax.set_xticks([0.4, 2.4], ["LC-noAP", "LC"])
-        ax.set_title(f"{label}: recorded (blue) vs simulated (orange)")
 
-    ax = axes[1, 1]
+def _plot_pace(
+    ax: Any, attr: str, label: str, rec_traces: Sequence[Trace], sim_traces: Sequence[Trace]
+) -> None:
+    """Violins of one pace (``"p"`` or ``"a"``) for LC-noAP and LC, recorded beside simulated."""
+    data, pos, colors = [], [], []
+    for i, c in enumerate(("lc-noap", "lc")):
+        for j, (traces, col) in enumerate(((rec_traces, "C0"), (sim_traces, "C1"))):
+            x = [getattr(t, attr) for t in traces if t.controller == c]
+            if x:
+                data.append(np.concatenate(x))
+                pos.append(2 * i + 0.8 * j)
+                colors.append(col)
+    if data:
+        parts = ax.violinplot(data, positions=pos, showmedians=True, widths=0.7)
+        for body, col in zip(parts["bodies"], colors, strict=True):
+            body.set_facecolor(col)
+    ax.set_xticks([0.4, 2.4], ["LC-noAP", "LC"])
+    ax.set_title(f"{label}: recorded (blue) vs simulated (orange)")
+
+
+def _plot_speech(
+    ax: Any, rec_traces: Sequence[Trace], sim_traces: Sequence[Trace], ctrls: Sequence[str]
+) -> None:
+    """Median speech length at the start per controller, recorded and simulated."""
     for i, c in enumerate(ctrls):
         r = [t.speech_at_start for t in rec_traces if t.controller == c]
         s = [t.speech_at_start for t in sim_traces if t.controller == c]
@@ -618,39 +643,29 @@ def fidelity_figure(
     ax.set_title("Speech length at the start")
     ax.legend()
 
-    ax = axes[1, 2]
-    study = {"ac": -0.5, "lc-noap": 1.3, "lc": 0.35}
+
+STUDY_AM: dict[str, float] = {"ac": -0.5, "lc-noap": 1.3, "lc": 0.35}
+"""The study's median AM per controller (s), read off its summary figure (approximate)."""
+
+
+def _plot_am(
+    ax: Any, sim_traces: Sequence[Trace], syn_traces: Sequence[Trace] | None, ctrls: Sequence[str]
+) -> None:
+    """AM of the replays (and of the synthetic users) per controller, with the study's figure."""
     for i, c in enumerate(ctrls):
         am = [t.am for t in sim_traces if t.controller == c]
         ax.scatter(np.full(len(am), i) + np.linspace(-0.15, 0.15, len(am)), am, s=18, color="C1")
-        ax.scatter(
-            [i],
-            [study[c]],
-            marker="*",
-            s=160,
-            color="C0",
-            zorder=3,
-            label="study's figure (approx.)" if i == 0 else None,
-        )
-    if syn_traces:
-        for i, c in enumerate(ctrls):
-            am = [t.am for t in syn_traces if t.controller == c]
-            ax.scatter(
-                np.full(len(am), i + 0.3),
-                am,
-                s=6,
-                color="C2",
-                alpha=0.5,
-                label="synthetic users" if i == 0 else None,
-            )
+        study_label = "study's figure (approx.)" if i == 0 else None
+        ax.scatter([i], [STUDY_AM[c]], marker="*", s=160, color="C0", zorder=3, label=study_label)
+        if syn_traces:
+            syn = [t.am for t in syn_traces if t.controller == c]
+            syn_label = "synthetic users" if i == 0 else None
+            ax.scatter(np.full(len(syn), i + 0.3), syn, s=6, color="C2", alpha=0.5, label=syn_label)
     ax.axhline(0.0, color="grey", lw=0.8)
     ax.set_xticks(range(len(ctrls)), ctrls)
     ax.set_ylabel("AM = speech end - motion end (s)")
     ax.set_title("Actual misalignment (replays)")
     ax.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
 
 
 # ------------------------------------------------------------------------------------ CLI

@@ -166,48 +166,9 @@ def violin_figure(
         5,
         gridspec_kw={"wspace": 0.32, "left": 0.045, "right": 0.99, "top": 0.86, "bottom": 0.22},
     )
-    for ax, (name, title, window, unit) in zip(axes[:4], _PANELS, strict=True):
-        for k, p in enumerate(policies):
-            data = np.concatenate(
-                [time_samples(log, name, window, hz) for log in logs_by_policy[p]]
-            )
-            _violin(ax, data, pos[k], colors[k])
-        ax.set_title(title + (f" ({unit})" if unit else ""), fontsize=10)
-    c_ax, a_ax, p_ax, em_ax = axes[:4]
-    c_ax.set_ylim(-0.02, 1.05)
-    for ax in (a_ax, p_ax):
-        ax.axhline(1.0, color="0.5", linestyle="--", linewidth=0.8, zorder=0)
-        for b in PACE_BOUNDS:
-            ax.axhline(b, color="0.6", linestyle=":", linewidth=0.8, zorder=0)
-        ax.set_ylim(PACE_BOUNDS[0] - 0.05, PACE_BOUNDS[1] + 0.05)
-    a_ax.axhspan(1.0 - A_TOLERANCE, 1.0 + A_TOLERANCE, color="0.9", zorder=-1, linewidth=0)
-    em_ax.axhline(0.0, color="0.5", linestyle="--", linewidth=0.8, zorder=0)
-
-    am_ax = axes[4]
-    am_ax.axhspan(-AM_TOLERANCE, AM_TOLERANCE, color="#d8f0e4", zorder=-1, linewidth=0)
-    am_ax.axhline(0.0, color="0.5", linestyle="--", linewidth=0.8, zorder=0)
-    golden = (np.sqrt(5.0) - 1.0) / 2.0
-    for k, p in enumerate(policies):
-        am = np.array([log.am for log in logs_by_policy[p]])
-        _violin(am_ax, am, pos[k], colors[k])
-        jitter = ((np.arange(am.size) * golden) % 1.0 - 0.5) * 0.3  # deterministic spread
-        am_ax.scatter(
-            pos[k] + jitter, am, s=12, c=colors[k], edgecolors="0.2", linewidths=0.5, zorder=5
-        )
-    am_ax.set_title("actual misalignment AM (s)", fontsize=10)
-    lim = max(1.5 * AM_TOLERANCE, *(abs(log.am) for v in logs_by_policy.values() for log in v))
-    am_ax.set_ylim(-1.1 * lim, 1.1 * lim)
-
-    labels = [f"{display_name(p)}\n(n={len(logs_by_policy[p])})" for p in policies]
-    for ax in axes:
-        ax.set_xticks(pos, labels, fontsize=9)
-        for tick, color in zip(ax.get_xticklabels(), colors, strict=True):
-            tick.set_color(color)
-            tick.set_fontweight("bold")
-        ax.set_xlim(0.4, len(policies) + 0.6)
-        ax.tick_params(axis="y", labelsize=8)
-        ax.grid(axis="y", color="0.92", linewidth=0.6, zorder=-2)
-        ax.set_axisbelow(True)
+    _draw_time_panels(axes[:4], logs_by_policy, pos, colors, hz)
+    _draw_am_panel(axes[4], logs_by_policy, pos, colors)
+    _style_axes(axes, logs_by_policy, pos, colors)
     fig.suptitle("Language Controller evaluation: distributions per controller", fontsize=12)
     fig.text(
         0.5,
@@ -223,6 +184,71 @@ def violin_figure(
         linespacing=1.4,
     )
     return _save(fig, path)
+
+
+def _draw_time_panels(
+    axes: Sequence[Axes],
+    logs_by_policy: Mapping[str, Sequence[EpisodeLog]],
+    pos: np.ndarray,
+    colors: Sequence[str],
+    hz: float,
+) -> None:
+    """Violins of c, a, p and EM (pooled time samples) with their reference lines and bands."""
+    for ax, (name, title, window, unit) in zip(axes, _PANELS, strict=True):
+        for k, logs in enumerate(logs_by_policy.values()):
+            data = np.concatenate([time_samples(log, name, window, hz) for log in logs])
+            _violin(ax, data, pos[k], colors[k])
+        ax.set_title(title + (f" ({unit})" if unit else ""), fontsize=10)
+    c_ax, a_ax, p_ax, em_ax = axes
+    c_ax.set_ylim(-0.02, 1.05)
+    for ax in (a_ax, p_ax):
+        ax.axhline(1.0, color="0.5", linestyle="--", linewidth=0.8, zorder=0)
+        for b in PACE_BOUNDS:
+            ax.axhline(b, color="0.6", linestyle=":", linewidth=0.8, zorder=0)
+        ax.set_ylim(PACE_BOUNDS[0] - 0.05, PACE_BOUNDS[1] + 0.05)
+    a_ax.axhspan(1.0 - A_TOLERANCE, 1.0 + A_TOLERANCE, color="0.9", zorder=-1, linewidth=0)
+    em_ax.axhline(0.0, color="0.5", linestyle="--", linewidth=0.8, zorder=0)
+
+
+def _draw_am_panel(
+    am_ax: Axes,
+    logs_by_policy: Mapping[str, Sequence[EpisodeLog]],
+    pos: np.ndarray,
+    colors: Sequence[str],
+) -> None:
+    """AM per session: a violin and the sessions as points, the study's tolerance as a band."""
+    am_ax.axhspan(-AM_TOLERANCE, AM_TOLERANCE, color="#d8f0e4", zorder=-1, linewidth=0)
+    am_ax.axhline(0.0, color="0.5", linestyle="--", linewidth=0.8, zorder=0)
+    golden = (np.sqrt(5.0) - 1.0) / 2.0
+    for k, logs in enumerate(logs_by_policy.values()):
+        am = np.array([log.am for log in logs])
+        _violin(am_ax, am, pos[k], colors[k])
+        jitter = ((np.arange(am.size) * golden) % 1.0 - 0.5) * 0.3  # deterministic spread
+        am_ax.scatter(
+            pos[k] + jitter, am, s=12, c=colors[k], edgecolors="0.2", linewidths=0.5, zorder=5
+        )
+    am_ax.set_title("actual misalignment AM (s)", fontsize=10)
+    lim = max(1.5 * AM_TOLERANCE, *(abs(log.am) for v in logs_by_policy.values() for log in v))
+    am_ax.set_ylim(-1.1 * lim, 1.1 * lim)
+
+
+def _style_axes(
+    axes: Sequence[Axes],
+    logs_by_policy: Mapping[str, Sequence[EpisodeLog]],
+    pos: np.ndarray,
+    colors: Sequence[str],
+) -> None:
+    """Controller labels in their colours, limits and grids shared by every panel."""
+    labels = [f"{display_name(p)}\n(n={len(v)})" for p, v in logs_by_policy.items()]
+    for ax in axes:
+        ax.set_xticks(pos, labels, fontsize=9)
+        for tick, color in zip(ax.get_xticklabels(), colors, strict=True):
+            tick.set_color(color)
+            tick.set_fontweight("bold")
+        ax.set_xlim(0.4, len(labels) + 0.6)
+        ax.tick_params(axis="y", labelsize=8)
+        ax.grid(axis="y", color="0.92", linewidth=0.6, zorder=-2)
+        ax.set_axisbelow(True)
 
 
 # --------------------------------------------------------------------------- session figure

@@ -345,7 +345,6 @@ def render_summary_md(
     table: SummaryTable = summarise(
         rows, metrics, reference, rng=rng, policies=policies, stat=stat, n_boot=n_boot, level=level
     )
-    names = [display_name(p) for p in table.policies]
     users = sorted({str(r["user"]) for r in rows if str(r["policy"]) in table.policies})
     ref_name = display_name(reference)
     pct = f"{100 * level:g} %"
@@ -371,26 +370,52 @@ def render_summary_md(
     if figure:
         lines += [f"![Distributions per controller]({figure})", ""]
 
-    lines += ["## Findings of the study, checked on these sessions", ""]
+    lines += _md_findings(rows)
+    lines += _md_spread(table, metrics)
+    lines += _md_differences(table, metrics, reference, stat=stat, pct=pct, has_ref=has_ref)
+    lines += _md_how_to_read(ref_name, pct)
+    return "\n".join(lines)
+
+
+def _md_findings(rows: Sequence[Row]) -> list[str]:
+    """The study's findings, recomputed on ``rows``."""
     body = [
         [str(k), f.claim, f.measured, f"**{f.verdict}**"]
         for k, f in enumerate(study_findings(rows), start=1)
     ]
-    lines += _table(["#", "finding (paper)", "measured here", "result"], body)
-    lines.append("")
+    return [
+        "## Findings of the study, checked on these sessions",
+        "",
+        *_table(["#", "finding (paper)", "measured here", "result"], body),
+        "",
+    ]
 
-    lines += ["## Per controller: median [Q1, Q3] over sessions", ""]
+
+def _md_spread(table: SummaryTable, metrics: Sequence[str]) -> list[str]:
+    """Per controller: median [Q1, Q3] of every metric."""
+    names = [display_name(p) for p in table.policies]
     header = [
         "metric",
         *(f"{n} (n={table.n_sessions[p]})" for n, p in zip(names, table.policies, strict=True)),
     ]
     body = [[_label(m), *(_spread_cell(table[p, m]) for p in table.policies)] for m in metrics]
-    lines += _table(header, body)
-    lines.append("")
+    return ["## Per controller: median [Q1, Q3] over sessions", "", *_table(header, body), ""]
 
+
+def _md_differences(
+    table: SummaryTable,
+    metrics: Sequence[str],
+    reference: str,
+    *,
+    stat: Stat,
+    pct: str,
+    has_ref: bool,
+) -> list[str]:
+    """Every other controller minus the reference, with its bootstrap interval."""
+    ref_name = display_name(reference)
     others = [p for p in table.policies if p != reference]
     what = "median of per-user differences" if stat == "median" else "mean difference"
-    lines += [f"## Differences against {ref_name}: {what} [{pct} CI]", ""]
+    lines = [f"## Differences against {ref_name}: {what} [{pct} CI]", ""]
     if not has_ref:
         lines.append(f"No sessions of the reference {ref_name}: no differences computed.")
     elif not others:
@@ -402,9 +427,12 @@ def render_summary_md(
             header.append(f"{display_name(p)} - {ref_name} ({kind})")
         body = [[_label(m), *(_diff_cell(table[p, m]) for p in others)] for m in metrics]
         lines += _table(header, body)
-    lines.append("")
+    return [*lines, ""]
 
-    lines += [
+
+def _md_how_to_read(ref_name: str, pct: str) -> list[str]:
+    """The closing paragraph: what the metrics and cells mean."""
+    return [
         "## How to read this",
         "",
         "AM (actual misalignment) is the speech end minus the motion end of a session: positive "
@@ -421,7 +449,6 @@ def render_summary_md(
         "findings are recomputed from these sessions on every run, never copied from the paper.",
         "",
     ]
-    return "\n".join(lines)
 
 
 def write_summary_md(
