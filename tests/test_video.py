@@ -4,6 +4,7 @@ session's speech (the same rendering as its WAV) as its sound track, in sync."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -134,11 +135,10 @@ def test_session_video_has_both_streams_in_sync(tmp_path: Path, gl: None) -> Non
     assert snr > 10.0  # dB
 
 
-def test_video_of_a_log_without_scene_is_a_clear_error(tmp_path: Path) -> None:
-    from eval.video import main
-
-    t = np.linspace(0.0, 1.0, 26)
-    log = EpisodeLog(
+def _plain_log(n: int, **extra: Any) -> EpisodeLog:
+    """A 1 s episode log of ``n`` samples: cooperative, at the natural paces, aligned."""
+    t = np.linspace(0.0, 1.0, n)
+    return EpisodeLog(
         policy="lc",
         user="u1",
         t=t,
@@ -155,8 +155,14 @@ def test_video_of_a_log_without_scene_is_a_clear_error(tmp_path: Path) -> None:
         t_motion=1.0,
         t_speech=1.0,
         ret=0.0,
-        phrase_graph="lc",
+        **extra,
     )
+
+
+def test_video_of_a_log_without_scene_is_a_clear_error(tmp_path: Path) -> None:
+    from eval.video import main
+
+    log = _plain_log(26, phrase_graph="lc")
     npz = log.save_npz(tmp_path / "old.npz")
     assert main([str(npz), "--out", str(tmp_path / "x.mp4")]) == 2
     assert not (tmp_path / "x.mp4").exists()
@@ -164,37 +170,18 @@ def test_video_of_a_log_without_scene_is_a_clear_error(tmp_path: Path) -> None:
 
 
 def test_log_round_trip_keeps_scene_and_graph(tmp_path: Path) -> None:
-    t = np.linspace(0.0, 1.0, 5)
     qpos = np.arange(30, dtype=np.float64).reshape(5, 6) / 10
     force = np.tile([1.0, -2.0, 0.5], (5, 1))
-    kw = dict(
-        policy="lc",
-        user="u1",
-        t=t,
-        cooperation=np.ones_like(t),
-        hand_speed=np.zeros_like(t),
-        p=np.ones_like(t),
-        a=np.ones_like(t),
-        t_x=1.0 - t,
-        t_a=1.0 - t,
-        em=np.zeros_like(t),
-        motion_done=t >= 1.0,
-        speech_done=t >= 1.0,
-        utterances=(),
-        t_motion=1.0,
-        t_speech=1.0,
-        ret=0.0,
-    )
-    log = EpisodeLog(**kw, qpos=qpos, f_user=force, phrase_graph="lc")  # type: ignore[arg-type]
+    log = _plain_log(5, qpos=qpos, f_user=force, phrase_graph="lc")
     back = EpisodeLog.load_npz(log.save_npz(tmp_path / "x.npz"))
     assert back.has_scene and back.phrase_graph == "lc"
     assert back.qpos is not None and back.f_user is not None
     np.testing.assert_allclose(back.qpos, qpos, rtol=1e-6)
     np.testing.assert_allclose(back.f_user, force)
     with pytest.raises(ConfigError, match="f_user"):
-        EpisodeLog(**kw, f_user=force[:, :2])  # type: ignore[arg-type]
+        _plain_log(5, f_user=force[:, :2])
     with pytest.raises(ConfigError, match="qpos"):
-        EpisodeLog(**kw, qpos=qpos[:4])  # type: ignore[arg-type]
+        _plain_log(5, qpos=qpos[:4])
 
 
 def test_default_frame_rate_is_25() -> None:

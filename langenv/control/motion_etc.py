@@ -97,6 +97,20 @@ def reference_etc(
     return math.inf
 
 
+def _leg_states(
+    q: np.ndarray,
+    u: np.ndarray,
+    w: np.ndarray,
+    lateral: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
+) -> tuple[np.ndarray, ...]:
+    """``(q, u, w, y, ul, wl)`` as flat float64 copies (zero lateral state without ``lateral``)."""
+    q, u, w = (np.array(a, dtype=np.float64).ravel() for a in (q, u, w))
+    if lateral is None:
+        return q, u, w, np.zeros(q.size), np.zeros(q.size), np.zeros(q.size)
+    y, ul, wl = (np.array(a, dtype=np.float64).ravel() for a in lateral)
+    return q, u, w, y, ul, wl
+
+
 class _Law:
     """The 1-D along-path law of a leg (module docstring): admittance, command ramp, position."""
 
@@ -124,13 +138,7 @@ class _Law:
         t_max: float = 60.0,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`simulate_numpy`, compiled (:mod:`langenv.kernels.law`): the same results."""
-        q = np.array(q, dtype=np.float64).ravel()
-        u = np.array(u, dtype=np.float64).ravel()
-        w = np.array(w, dtype=np.float64).ravel()
-        if lateral is None:
-            y, ul, wl = np.zeros(q.size), np.zeros(q.size), np.zeros(q.size)
-        else:
-            y, ul, wl = (np.array(a, dtype=np.float64).ravel() for a in lateral)
+        q, u, w, y, ul, wl = _leg_states(q, u, w, lateral)
         out = np.empty((4, q.size))
         gain = (1.0 - self.decay) * self.inv_d
         n_ticks = int(t_max / self.dt) + 1
@@ -163,13 +171,7 @@ class _Law:
             ``(time, q, u, w)`` at the switch, flat arrays; for a state that has not switched
             within ``t_max``, ``inf`` time and its ``q, u, w`` then.
         """
-        q = np.array(q, dtype=np.float64).ravel()
-        u = np.array(u, dtype=np.float64).ravel()
-        w = np.array(w, dtype=np.float64).ravel()
-        if lateral is None:
-            y, ul, wl = np.zeros(q.size), np.zeros(q.size), np.zeros(q.size)
-        else:
-            y, ul, wl = (np.array(a, dtype=np.float64).ravel() for a in lateral)
+        q, u, w, y, ul, wl = _leg_states(q, u, w, lateral)
         t_out = np.full(q.size, np.inf)
         q_out, u_out, w_out = q.copy(), u.copy(), w.copy()
         idx = np.arange(q.size)
@@ -293,8 +295,12 @@ class FastETC:
         self.tab: np.ndarray = tables[1]
         """The tables, flat (read-only)."""
 
-    def _params(self, behind_shape: tuple[int, int, int], origin: tuple[float, ...],
-                steps: tuple[float, ...]) -> np.ndarray:
+    def _params(
+        self,
+        behind_shape: tuple[int, int, int],
+        origin: tuple[float, ...],
+        steps: tuple[float, ...],
+    ) -> np.ndarray:
         """``prm`` of :mod:`langenv.kernels.etc`: the law, the table grids and the legs."""
         law = self._law
         size = behind_shape[0] * behind_shape[1] * behind_shape[2]
