@@ -3,7 +3,7 @@
 Run, for instance::
 
     python -m eval.compare --policies ac,lc-noap,lc --users synthetic:12 --seed 0 --out out/compare
-    python -m eval.compare --policies lc,ppo:models/ppo_phrase_choice.zip \
+    python -m eval.compare --policies lc,ppo:models/ppo_aligner.zip \
         --sessions ../shared/sessions --pattern '*_lc.csv' --out out/replay
 
 Writes (only when every episode ran; nothing partial is left on error). The outputs are made in

@@ -32,7 +32,7 @@ def load_policy(spec: str) -> Any:
         if not path.strip():
             raise ConfigError(
                 "ppo:PATH needs the path of a model (.zip) or an ensemble manifest (.yaml), "
-                "e.g. ppo:models/ppo_phrase_choice.zip"
+                "e.g. ppo:models/ppo_aligner.zip"
             )
         if path.endswith((".yaml", ".yml")):
             from policies.ensemble import PPOEnsemble

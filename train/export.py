@@ -2,7 +2,7 @@
 
 Run::
 
-    python -m train.export runs/ppo_finetune --steps 75000 --out models/ppo_phrase_choice
+    python -m train.export runs/ppo --steps 100000 --out models/ppo_aligner
 
 copies ``RUN/checkpoints/NAME_<steps>_steps.zip`` and its ``NAME_vecnormalize_<steps>_steps.pkl``
 to ``OUT.zip`` and ``OUT_vecnormalize.pkl``, writes the run's config (``RUN/run_config.yaml``) as
