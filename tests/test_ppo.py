@@ -32,7 +32,7 @@ CONFIG = REPO / "configs" / "ppo.yaml"
 
 
 def _finetune_config(tmp: Path) -> Path:
-    """A choice-only fine-tune of the shipped recipe (pace corrections off), as a user writes one."""
+    """A choice-only fine-tune of the recipe (pace corrections off), as a user writes one."""
     path = tmp / "finetune.yaml"
     residual = (
         "{pace_scale: 0.0, audio_scale: 0.0, choice_scale: 0.5, choice_mode: target,"
