@@ -26,7 +26,7 @@ from numba.extending import intrinsic
 
 from langenv.errors import ConfigError
 
-__all__ = ["P_DATA", "P_JACP", "P_JACR", "P_JACSITE", "P_MODEL", "P_SITE", "P_STEP1", "P_STEP2"]
+__all__ = ["available", "call_jac", "call_md", "pointers"]
 
 # slots of the pointer array
 P_MODEL, P_DATA, P_STEP1, P_STEP2, P_JACSITE, P_JACP, P_JACR, P_SITE = range(8)
@@ -68,14 +68,13 @@ def pointers(model: Any, data: Any, jacp: np.ndarray, jacr: np.ndarray, site: in
     out = np.zeros(N_POINTERS, np.int64)
     out[P_MODEL], out[P_DATA] = model._address, data._address
     for slot, name in ((P_STEP1, "mj_step1"), (P_STEP2, "mj_step2"), (P_JACSITE, "mj_jacSite")):
-        out[slot] = ctypes.cast(getattr(lib, name), ctypes.c_void_p).value
+        out[slot] = int(ctypes.cast(getattr(lib, name), ctypes.c_void_p).value or 0)
     out[P_JACP], out[P_JACR] = jacp.ctypes.data, jacr.ctypes.data
     out[P_SITE] = site
     return out
 
 
-@intrinsic
-def call_md(typingctx: Any, fn: Any, m: Any, d: Any) -> Any:
+def _call_md(typingctx: Any, fn: Any, m: Any, d: Any) -> Any:
     """``fn(m, d)`` for a C function ``void fn(const mjModel*, mjData*)`` at address ``fn``."""
     sig = types.void(types.int64, types.int64, types.int64)
 
@@ -89,8 +88,10 @@ def call_md(typingctx: Any, fn: Any, m: Any, d: Any) -> Any:
     return sig, codegen
 
 
-@intrinsic
-def call_jac(typingctx: Any, fn: Any, m: Any, d: Any, jacp: Any, jacr: Any, site: Any) -> Any:
+call_md: Any = intrinsic(_call_md)
+
+
+def _call_jac(typingctx: Any, fn: Any, m: Any, d: Any, jacp: Any, jacr: Any, site: Any) -> Any:
     """``mj_jacSite(m, d, jacp, jacr, site)`` at address ``fn``."""
     sig = types.void(types.int64, types.int64, types.int64, types.int64, types.int64, types.int64)
 
@@ -113,3 +114,6 @@ def call_jac(typingctx: Any, fn: Any, m: Any, d: Any, jacp: Any, jacr: Any, site
         return context.get_dummy_value()
 
     return sig, codegen
+
+
+call_jac: Any = intrinsic(_call_jac)

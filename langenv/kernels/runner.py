@@ -5,9 +5,9 @@ cooperation filter, safety limits, arm controller, FastETC) into the float64 wor
 :mod:`langenv.kernels.tick` and :mod:`langenv.kernels.arm`, runs a tick as one compiled call
 (:func:`langenv.kernels.tick.tick`: the control law, MuJoCo's ``mj_step2``/``mj_step1``/
 ``mj_jacSite`` through :mod:`langenv.kernels.mjc`, the observation), and writes the state that
-the Python objects expose (guide state, cooperation, ``t_x``, time, ...) back after each tick. Rare paths
-(joint-limit avoidance, protective stops, bad input) are handed to the Python parts, which stay
-the reference.
+the Python objects expose (guide state, cooperation, ``t_x``, time, ...) back after each tick
+(:meth:`CompiledTick.sync`). Rare paths (joint-limit avoidance, protective stops, bad input) are
+handed to the Python parts, which stay the reference.
 """
 
 from __future__ import annotations

@@ -22,8 +22,7 @@ import numpy as np
 
 from langenv.control.guide import _TURNED_COS2, GOVERNOR_SHARE
 from langenv.kernels import arm as arm_kernel
-from langenv.kernels import jit
-from langenv.kernels import mjc
+from langenv.kernels import jit, mjc
 from langenv.kernels.etc import estimate
 from langenv.kernels.path import RADIUS, closest, frame, locate, point, tool_angle, unit_tangent
 from langenv.kernels.pymath import dist3, hypot3
