@@ -1,10 +1,13 @@
-"""MuJoCo's own C functions called from compiled code: ``mj_step2``, ``mj_step1``, ``mj_jacSite``.
+"""C functions called from compiled code: MuJoCo's ``mj_step2``, ``mj_step1``, ``mj_jacSite``;
+the C library's ``pow``.
 
 The tick calls them through their addresses in the ``libmujoco`` that the ``mujoco`` package
 loads (the same library, so the same functions on the same ``mjModel``/``mjData`` as the Python
 bindings: bit-identical results), without a return to Python between the control law and the
 physics. The addresses are arguments (an ``int64`` array, :func:`pointers`), not constants baked
-into the code, so the compiled code stays cached on disk.
+into the code, so the compiled code stays cached on disk. ``pow`` is the C library's, which
+CPython's ``x ** y`` calls: compiled code that squares as Python does (``x ** 2`` is not always
+``x * x`` in the last bit) calls it too (:func:`py_square`).
 
 A fatal MuJoCo error (``mju_error``: no memory left in ``mjData``'s arena) cannot be raised as a
 Python exception from compiled code; the bindings print it and the process ends. The arm's model
@@ -14,6 +17,7 @@ allocates enough for every contact it can have.
 from __future__ import annotations
 
 import ctypes
+import ctypes.util
 import functools
 from pathlib import Path
 from typing import Any
@@ -25,12 +29,13 @@ from numba import types
 from numba.extending import intrinsic
 
 from langenv.errors import ConfigError
+from langenv.kernels import jit
 
-__all__ = ["available", "call_jac", "call_md", "pointers"]
+__all__ = ["call_jac", "call_md", "call_pow", "pointers", "pow_address", "py_square"]
 
 # slots of the pointer array
-P_MODEL, P_DATA, P_STEP1, P_STEP2, P_JACSITE, P_JACP, P_JACR, P_SITE = range(8)
-N_POINTERS = 8
+P_MODEL, P_DATA, P_STEP1, P_STEP2, P_JACSITE, P_JACP, P_JACR, P_SITE, P_POW = range(9)
+N_POINTERS = 9
 
 
 @functools.cache
@@ -44,13 +49,11 @@ def _library() -> ctypes.CDLL:
     return ctypes.CDLL(str(found[0]))
 
 
-def available() -> bool:
-    """Whether MuJoCo's library can be called from compiled code here."""
-    try:
-        _library()
-    except (ConfigError, OSError):
-        return False
-    return True
+@functools.cache
+def _libm() -> ctypes.CDLL:
+    """The C math library (the one CPython's float ``**`` calls)."""
+    name = ctypes.util.find_library("m")
+    return ctypes.CDLL(name) if name else ctypes.CDLL(None)
 
 
 def pointers(model: Any, data: Any, jacp: np.ndarray, jacr: np.ndarray, site: int) -> np.ndarray:
@@ -71,7 +74,13 @@ def pointers(model: Any, data: Any, jacp: np.ndarray, jacr: np.ndarray, site: in
         out[slot] = int(ctypes.cast(getattr(lib, name), ctypes.c_void_p).value or 0)
     out[P_JACP], out[P_JACR] = jacp.ctypes.data, jacr.ctypes.data
     out[P_SITE] = site
+    out[P_POW] = pow_address()
     return out
+
+
+def pow_address() -> int:
+    """The address of the C library's ``pow`` (for :func:`py_square`)."""
+    return int(ctypes.cast(_libm().pow, ctypes.c_void_p).value or 0)
 
 
 def _call_md(typingctx: Any, fn: Any, m: Any, d: Any) -> Any:
@@ -117,3 +126,30 @@ def _call_jac(typingctx: Any, fn: Any, m: Any, d: Any, jacp: Any, jacr: Any, sit
 
 
 call_jac: Any = intrinsic(_call_jac)
+
+
+def _call_pow(typingctx: Any, fn: Any, x: Any, y: Any) -> Any:
+    """``pow(x, y)`` of the C library at address ``fn``."""
+    sig = types.float64(types.int64, types.float64, types.float64)
+
+    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+        dbl = ir.DoubleType()
+        fnty = ir.FunctionType(dbl, [dbl, dbl])
+        f = builder.inttoptr(args[0], fnty.as_pointer())
+        return builder.call(f, [args[1], args[2]])
+
+    return sig, codegen
+
+
+call_pow: Any = intrinsic(_call_pow)
+
+
+@jit
+def py_square(fn: int, x: float) -> float:
+    """CPython's ``x ** 2`` for a finite float ``x`` (``float_pow``: ``pow(|x|, 2.0)``)."""
+    if x == 0.0:
+        return 0.0
+    ax = -x if x < 0.0 else x
+    if ax == 1.0:
+        return 1.0
+    return float(call_pow(fn, ax, 2.0))
