@@ -31,7 +31,7 @@ from numba.extending import intrinsic
 from langenv.errors import ConfigError
 from langenv.kernels import jit
 
-__all__ = ["call_jac", "call_md", "call_pow", "pointers", "pow_address", "py_square"]
+__all__ = ["available", "call_jac", "call_md", "call_pow", "pointers", "pow_address", "py_square"]
 
 # slots of the pointer array
 P_MODEL, P_DATA, P_STEP1, P_STEP2, P_JACSITE, P_JACP, P_JACR, P_SITE, P_POW = range(9)
@@ -47,6 +47,15 @@ def _library() -> ctypes.CDLL:
     if not found:
         raise ConfigError(f"no libmujoco next to the mujoco package in {here}")
     return ctypes.CDLL(str(found[0]))
+
+
+def available() -> bool:
+    """Whether MuJoCo's library was found (else ``GuidedArm`` runs its Python tick)."""
+    try:
+        _library()
+    except (ConfigError, OSError):
+        return False
+    return True
 
 
 @functools.cache
