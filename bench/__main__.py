@@ -16,7 +16,7 @@ Figures (all measured here, on this machine, in this process):
 | ``env_step_us`` | one ``LangCtrl-v0`` step at 25 Hz (20 ticks: user, pacing, speech, the tick) with a fixed action, default env (µs) |
 | ``env_steps_per_s`` | ``1e6 / env_step_us``: env steps per second on one core |
 | ``env_step_ratio`` | ``env_step_us / (20 mj_step_us)``, with ``mj_step_us`` measured again beside it |
-| ``train_steps_per_s`` | PPO with the shipped config (``configs/ppo.yaml``: 2 envs in subprocesses, the residual LC wrappers) for 4096 steps: env steps per second of ``model.learn`` (rollouts and updates; building the envs not counted) |
+| ``train_steps_per_s`` | PPO with the shipped config (``configs/ppo.yaml``: 2 envs, in subprocesses where the machine has more cores than envs (``--vec-env auto``), the residual LC wrappers) for 4096 steps: env steps per second of ``model.learn`` (rollouts and updates; building the envs not counted) |
 | ``audio_rtf`` | seconds of speech rendered by the variable-rate phase vocoder per second of wall time |
 | ``compare_s`` | wall time of the main job: ``eval.compare`` with AC, LC-noAP and LC on 12 synthetic users (all outputs) |
 """

@@ -16,6 +16,8 @@ from langenv.control.admittance import AdmittanceParams
 from langenv.control.cooperation import CooperationFilter
 from langenv.control.trajectory import Trajectory, default_exercise
 from langenv.errors import ActionError, ConfigError
+from langenv.kernels import steps
+from langenv.kernels.steps import CompiledSteps
 from langenv.motion import GuidedArm
 from langenv.observation import T_SCALE, TREND_WINDOW, ObservationEncoder, observation_size
 from langenv.pacing import PaceActuator, PaceLimits, command_from_action
@@ -245,6 +247,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self.dt = self.motion.dt
         if not math.isclose(self.dt * PHYSICS_HZ, 1.0, rel_tol=1e-9):
             raise ConfigError(f"the arm model's timestep must be 0.002 s, got {self.dt}")
+        self._steps = CompiledSteps(self) if self.motion.compiled else None
 
         n_choice = 1 if choice_mode == "target" else self.max_children
         self.action_space = spaces.Box(-1.0, 1.0, (2 + n_choice,), np.float32)
@@ -291,13 +294,25 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
 
         em_int = pace_int = 0.0
         self._max_speed = 0.0
-        for _ in range(self.ticks_per_step):
-            if self._terminated:
-                break
+        left = self.ticks_per_step
+        while left > 0 and not self._terminated:
+            if self._steps is not None and self._steps.usable():  # the compiled ticks
+                done, answer, code, em_int, pace_int = self._steps.run(
+                    p_cmd, a_cmd, left, em_int, pace_int
+                )
+                left -= done
+                if answer == steps.R_DONE:
+                    continue
+                if answer != steps.R_PYTHON:
+                    em, pace = self._after_compiled(answer, code)
+                    em_int += em * self.dt
+                    pace_int += pace * self.dt
+                    continue
             em, pace = self._tick(p_cmd, a_cmd)
             em_int += em * self.dt
             pace_int += pace * self.dt
             self._max_speed = max(self._max_speed, self.motion.hand_speed)
+            left -= 1
 
         r_em = -self.w_em * em_int / T_SCALE
         r_pace = -self.w_pace * pace_int
@@ -363,11 +378,16 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
 
     def _tick(self, p_cmd: float, a_cmd: float) -> tuple[float, float]:
         """One 2 ms tick; returns the instantaneous misalignment and pace penalty."""
-        motion, speech = self.motion, self.speech
+        motion = self.motion
         self.paces.step(p_cmd, a_cmd, self.dt)
-        p, a = self.paces.p, self.paces.a
         f_user = self.user.force(self.time, motion.hand_velocity, motion.tangent())
-        motion.tick(f_user, p, self.paces.p_dot, self.np_random)
+        motion.tick(f_user, self.paces.p, self.paces.p_dot, self.np_random)
+        return self._after_motion()
+
+    def _after_motion(self) -> tuple[float, float]:
+        """The tick after the arm's part: stop, speech, ``t_a``, the reward integrands, the end."""
+        motion, speech = self.motion, self.speech
+        p, a = self.paces.p, self.paces.a
         if motion.stopped:  # protective stop: the episode ends here
             self.time += self.dt
             self._terminated = True
@@ -385,11 +405,35 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         em = abs(self.t_a / a - motion.t_x / p) if (motion_on or speech_on) else 0.0
         pace = ((p - 1.0) ** 2 if motion_on else 0.0) + ((a - 1.0) ** 2 if speech_on else 0.0)
         if not motion_on and not speech_on:
-            self._terminated = True
-            t_motion = motion.t_motion_end if motion.t_motion_end is not None else self.time
-            t_speech = self.t_speech_end if self.t_speech_end is not None else self.time
-            self.am = t_speech - t_motion
+            self._end_episode()
         return em, pace
+
+    def _end_episode(self) -> None:
+        """Motion and speech are over: the episode terminates with its alignment ``am``."""
+        motion = self.motion
+        self._terminated = True
+        t_motion = motion.t_motion_end if motion.t_motion_end is not None else self.time
+        t_speech = self.t_speech_end if self.t_speech_end is not None else self.time
+        self.am = t_speech - t_motion
+
+    def _after_compiled(self, answer: int, code: int) -> tuple[float, float]:
+        """Python's part of the compiled ticks' last tick (:mod:`langenv.kernels.steps`)."""
+        tick = self.motion._compiled
+        assert tick is not None
+        f_user = self.motion.f_user
+        if answer == steps.R_CONTROL:  # joint-limit avoidance or bad input, then the rest
+            p, p_dot = self.paces.p, self.paces.p_dot
+            tick._rare(code, f_user, p, p_dot)
+            tick.finish(*f_user.tolist())
+            em, pace = self._after_motion()
+            self._max_speed = max(self._max_speed, self.motion.hand_speed)
+            return em, pace
+        if answer == steps.R_STOP:
+            tick._stop(*f_user.tolist())
+            self._terminated = True
+        elif answer == steps.R_OVER:
+            self._end_episode()
+        return 0.0, 0.0
 
     def _choose(self, candidates: tuple[str, ...]) -> str:
         """Next phrase among ``candidates`` from the latest action (never an invalid child)."""

@@ -36,6 +36,7 @@ from langenv.control.cooperation import CooperationFilter
 from langenv.control.guide import Guide, GuideState
 from langenv.control.motion_etc import FastETC
 from langenv.control.trajectory import Trajectory
+from langenv.kernels import mjc
 from langenv.kernels.runner import CompiledTick
 from langenv.kernels.tick import S_FMEAS, S_VCMD, S_VREF
 from langenv.robot.arm import Arm
@@ -57,8 +58,9 @@ class GuidedArm:
         safety: Safety limits (default :class:`~langenv.safety.SafetyLimits`); its ``max_speed``
             becomes the arm's velocity command limit (``arm.max_hand_speed``).
         compiled: Run the tick as compiled code (:mod:`langenv.kernels`, the same operations in
-            the same order: bit-identical results, about 5x faster); ``False`` runs the Python
-            parts themselves, the reference.
+            the same order: bit-identical results, about 5x faster; where MuJoCo's library
+            cannot be called from compiled code, the Python parts run); ``False`` runs the
+            Python parts themselves, the reference.
     """
 
     def __init__(
@@ -101,7 +103,8 @@ class GuidedArm:
         self.time: float = 0.0
         self._hand_velocity = np.zeros(3)
         self._hand_speed = 0.0
-        self._compiled: CompiledTick | None = CompiledTick(self) if compiled else None
+        fast = compiled and mjc.available()
+        self._compiled: CompiledTick | None = CompiledTick(self) if fast else None
         if self._compiled is not None:
             self._compiled.load()
 

@@ -216,6 +216,7 @@ def test_wider_pace_limits_run_whole_episodes(
         assert limits.p_min <= min(paces) and max(paces) <= limits.p_max
 
 
+@pytest.mark.skipif(not SESSIONS.is_dir(), reason="recorded sessions not available")
 def test_replay_user_reproduces_recorded_cooperation() -> None:
     csv = SESSIONS / "u3_lc.csv"
     env = gym.make(langenv.ENV_ID, users="replay", session=csv, decision_hz=50)

@@ -25,6 +25,7 @@ from train.ppo import (
     checkpoint_files,
     load_config,
     parse_args,
+    use_subprocesses,
 )
 
 REPO = Path(__file__).resolve().parents[1]
@@ -305,6 +306,19 @@ def test_schedules_and_cli_overrides() -> None:
     assert given == {"total_timesteps", "seed", "resume"}
     with pytest.raises(ConfigError, match="vec_env"):
         TrainArgs(vec_env="threads")
+
+
+def test_auto_vec_env_uses_subprocesses_only_with_a_core_to_spare(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import train.ppo
+
+    assert TrainArgs().vec_env == "auto"
+    for cores, expected in ((2, False), (3, True), (16, True)):
+        monkeypatch.setattr(train.ppo, "_cpu_cores", lambda cores=cores: cores)
+        assert use_subprocesses("auto", 2) is expected
+        assert use_subprocesses("subproc", 2) and not use_subprocesses("dummy", 2)
+        assert not use_subprocesses("auto", 1) and not use_subprocesses("subproc", 1)
 
 
 def test_periodic_evaluation_meets_exactly_the_held_out_seeds() -> None:

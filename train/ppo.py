@@ -50,6 +50,7 @@ import argparse
 import copy
 import importlib
 import math
+import os
 import re
 import shutil
 import signal
@@ -111,7 +112,10 @@ class TrainArgs:
         eval_freq: Env steps (all envs together) between periodic evaluations.
         checkpoint_freq: Env steps between checkpoints.
         n_envs: Parallel training envs; ``None``: the YAML's ``n_envs``.
-        vec_env: ``"subproc"`` (one process per env) or ``"dummy"`` (in this process).
+        vec_env: ``"subproc"`` (one process per env), ``"dummy"`` (in this process) or
+            ``"auto"``: subprocesses only when there are more CPU cores than envs (the learner
+            needs one too; on fewer, the processes' hand-offs cost more than the parallel env
+            steps gain). Either way the same envs with the same seeds: the same run.
         resume: Continue the run in ``out`` from its resume point, with its saved settings.
         init_from: Fine-tune: start from this saved model's network weights and normalisation
             statistics instead of random weights (a model zip written by this script or by
@@ -138,7 +142,7 @@ class TrainArgs:
     eval_freq: int = 50_000
     checkpoint_freq: int = 50_000
     n_envs: int | None = None
-    vec_env: str = "subproc"
+    vec_env: str = "auto"
     resume: bool = False
     init_from: Path | None = None
     progress_bar: bool = True
@@ -159,9 +163,9 @@ class TrainArgs:
             raise ConfigError(f"TrainArgs.n_eval_episodes must be >= 0, got {self.n_eval_episodes}")
         if self.seed < 0 or self.eval_seed < 0:
             raise ConfigError("TrainArgs.seed and eval_seed must be >= 0")
-        if self.vec_env not in ("subproc", "dummy"):
+        if self.vec_env not in ("subproc", "dummy", "auto"):
             raise ConfigError(
-                f"TrainArgs.vec_env must be 'subproc' or 'dummy', got {self.vec_env!r}"
+                f"TrainArgs.vec_env must be 'subproc', 'dummy' or 'auto', got {self.vec_env!r}"
             )
         if not re.fullmatch(r"[A-Za-z0-9_.-]+", self.name):
             raise ConfigError(f"TrainArgs.name must be a plain file stem, got {self.name!r}")
@@ -183,7 +187,7 @@ def parse_args(argv: Sequence[str] | None = None) -> tuple[TrainArgs, set[str]]:
     p.add_argument("--eval-freq", type=int, default=None)
     p.add_argument("--checkpoint-freq", type=int, default=None)
     p.add_argument("--n-envs", type=int, default=None)
-    p.add_argument("--vec-env", choices=("subproc", "dummy"), default=None)
+    p.add_argument("--vec-env", choices=("subproc", "dummy", "auto"), default=None)
     p.add_argument("--resume", action="store_true", default=None)
     p.add_argument("--init-from", type=Path, default=None)
     p.add_argument("--no-progress-bar", dest="progress_bar", action="store_false", default=None)
@@ -392,6 +396,21 @@ def _ppo_kwargs(run: _Run) -> dict[str, Any]:
     return kw
 
 
+def use_subprocesses(vec_env: str, n_envs: int) -> bool:
+    """Whether ``vec_env`` (see :class:`TrainArgs`) runs ``n_envs`` envs in subprocesses."""
+    if n_envs < 2 or vec_env == "dummy":
+        return False
+    return vec_env == "subproc" or _cpu_cores() > n_envs
+
+
+def _cpu_cores() -> int:
+    """CPU cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
 def _make_envs(run: _Run) -> tuple[Any, Any]:
     """Training VecEnv (normalised) and evaluation VecEnv (normalisation in eval mode)."""
     import gymnasium as gym
@@ -403,7 +422,7 @@ def _make_envs(run: _Run) -> tuple[Any, Any]:
     from train.wrappers import SeedCycle
 
     a = run.args
-    cls = _SubprocVecEnv if (a.vec_env == "subproc" and run.n_envs > 1) else DummyVecEnv
+    cls = _SubprocVecEnv if use_subprocesses(a.vec_env, run.n_envs) else DummyVecEnv
     env = make_vec_env(
         a.env_id,
         n_envs=run.n_envs,

@@ -2,11 +2,12 @@
 
 :class:`CompiledTick` packs the settings of the guided arm's parts (guide, admittance,
 cooperation filter, safety limits, arm controller, FastETC) into the float64 work arrays of
-:mod:`langenv.kernels.tick` and :mod:`langenv.kernels.arm`, runs a tick as two compiled calls
-around MuJoCo's ``mj_step2``/``mj_step1``/``mj_jacSite``, and writes the state that the Python
-objects expose (guide state, cooperation, ``t_x``, time, ...) back after each tick. Rare paths
-(joint-limit avoidance, protective stops, bad input) are handed to the Python parts, which stay
-the reference.
+:mod:`langenv.kernels.tick` and :mod:`langenv.kernels.arm`, runs a tick as one compiled call
+(:func:`langenv.kernels.tick.tick`: the control law, MuJoCo's ``mj_step2``/``mj_step1``/
+``mj_jacSite`` through :mod:`langenv.kernels.mjc`, the observation), and writes the state that
+the Python objects expose (guide state, cooperation, ``t_x``, time, ...) back after each tick
+(:meth:`CompiledTick.sync`). Rare paths (joint-limit avoidance, protective stops, bad input) are
+handed to the Python parts, which stay the reference.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import numpy as np
 from langenv.control.guide import GuideState
 from langenv.errors import ActionError, ConfigError
 from langenv.kernels import arm as ak
+from langenv.kernels import mjc
 from langenv.kernels import tick as tk
 from langenv.kernels.path import pack as pack_path
 
@@ -94,6 +96,8 @@ class CompiledTick:
         self.xpos, self.xmat = arm._site_xpos, arm._site_xmat
         self.qpos, self.qvel, self.ctrl, self.qfrc = d.qpos, d.qvel, d.ctrl, d.qfrc_applied
         self.model, self.data = arm.model, d
+        self._full_dofs: bool = arm._full_dofs
+        self.ptr = mjc.pointers(arm.model, d, arm._jacp, arm._jacr, arm.site_id)
         self._hv: np.ndarray | None = None
 
     # ------------------------------------------------------------------ state
@@ -149,12 +153,25 @@ class CompiledTick:
             m0, m1, m2 = f0 + n0, f1 + n1, f2 + n2
         else:
             m0, m1, m2 = f0, f1, f2
-        code = tk.control(
+        code, stop = tk.tick(
             ws, self.path, self.aw, self.ai, self.jac, self.xpos, self.xmat, self.qpos,
-            self.qvel, self.ctrl, self.qfrc, f0, f1, f2, m0, m1, m2, p, p_dot,
+            self.qvel, self.ctrl, self.qfrc, self.prm, self.tab, self.ptr,
+            f0, f1, f2, m0, m1, m2, p, p_dot,
         )  # fmt: skip
         if code != tk.OK:
             self._rare(code, f_user, p, p_dot)
+            self.finish(f0, f1, f2)
+            return
+        if not self._full_dofs:
+            arm._update_jacobian()
+        self.sync()
+        if stop != tk.STOP_NONE:
+            self._stop(f0, f1, f2)
+
+    def finish(self, f0: float, f1: float, f2: float) -> None:
+        """The rest of a tick whose control part ended in :meth:`_rare`: the physics step,
+        ``observe``, the Python-visible state and the safety stop."""
+        ws, arm = self.ws, self.motion.arm
         mujoco.mj_step2(self.model, self.data)
         mujoco.mj_step1(self.model, self.data)
         arm._update_jacobian()
@@ -162,6 +179,13 @@ class CompiledTick:
             ws, self.path, self.prm, self.tab, self.ai, self.jac, self.xpos, self.qpos, self.qvel,
             math.hypot(f0, f1, f2),
         )  # fmt: skip
+        self.sync()
+        if stop != tk.STOP_NONE:
+            self._stop(f0, f1, f2)
+
+    def sync(self) -> None:
+        """Write the work arrays' state that the Python objects expose (after compiled ticks)."""
+        m, ws = self.motion, self.ws
         s, leg, done = ws[: tk.S_VREF].tolist()
         st = m.state
         st.s, st.leg, st.done = s, int(leg), done != 0.0
@@ -172,8 +196,6 @@ class CompiledTick:
             m.t_motion_end = t_end
         m._hand_speed, m.path_deviation = ws[tk.S_HS : tk.S_MONCD].tolist()
         self._hv = None
-        if stop != tk.STOP_NONE:
-            self._stop(f0, f1, f2)
 
     def _rare(self, code: int, f_user: np.ndarray, p: float, p_dot: float) -> None:
         """Bad input (the Python part raises its error) or joint-limit avoidance."""

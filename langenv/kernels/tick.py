@@ -22,13 +22,13 @@ import numpy as np
 
 from langenv.control.guide import _TURNED_COS2, GOVERNOR_SHARE
 from langenv.kernels import arm as arm_kernel
-from langenv.kernels import jit
+from langenv.kernels import jit, mjc
 from langenv.kernels.etc import estimate
 from langenv.kernels.path import RADIUS, closest, frame, locate, point, tool_angle, unit_tangent
-from langenv.kernels.pymath import dist3
+from langenv.kernels.pymath import dist3, hypot3
 from langenv.safety import HOLD_TIME, JOINT_CHECK_MAX
 
-__all__ = ["control", "observe"]
+__all__ = ["control", "observe", "physics", "tick"]
 
 # state
 S_S, S_LEG, S_DONE, S_VREF, S_VCMD, S_FMEAS = 0, 1, 2, 3, 6, 9
@@ -405,3 +405,54 @@ def observe(
             due = int(slack / ws[C_PERTICK])
             ws[S_MONCD] = float(max(1, min(JOINT_CHECK_MAX, due)))
     return STOP_NONE
+
+
+@jit
+def physics(ptr: np.ndarray) -> None:
+    """MuJoCo's ``mj_step2``, ``mj_step1`` and the handle's ``mj_jacSite`` (``ptr``:
+    :func:`langenv.kernels.mjc.pointers`), as ``GuidedArm`` calls them through the bindings."""
+    m, d = ptr[mjc.P_MODEL], ptr[mjc.P_DATA]
+    mjc.call_md(ptr[mjc.P_STEP2], m, d)
+    mjc.call_md(ptr[mjc.P_STEP1], m, d)
+    mjc.call_jac(ptr[mjc.P_JACSITE], m, d, ptr[mjc.P_JACP], ptr[mjc.P_JACR], ptr[mjc.P_SITE])
+
+
+@jit
+def tick(
+    ws: np.ndarray,
+    path: np.ndarray,
+    aw: np.ndarray,
+    ai: np.ndarray,
+    jac: np.ndarray,
+    xpos: np.ndarray,
+    xmat: np.ndarray,
+    qpos: np.ndarray,
+    qvel: np.ndarray,
+    ctrl: np.ndarray,
+    qfrc: np.ndarray,
+    prm: np.ndarray,
+    tab: np.ndarray,
+    ptr: np.ndarray,
+    f0: float,
+    f1: float,
+    f2: float,
+    m0: float,
+    m1: float,
+    m2: float,
+    p: float,
+    p_dot: float,
+) -> tuple[int, int]:
+    """A whole tick in one call: :func:`control`, :func:`physics`, :func:`observe`.
+
+    Returns:
+        ``(control's answer, observe's answer)``; when control's is not :data:`OK` the tick
+        stopped there (physics not stepped; observe's answer is :data:`STOP_NONE`) and the caller
+        finishes it (``CompiledTick.finish``).
+    """
+    code = control(
+        ws, path, aw, ai, jac, xpos, xmat, qpos, qvel, ctrl, qfrc, f0, f1, f2, m0, m1, m2, p, p_dot
+    )
+    if code != OK:
+        return code, STOP_NONE
+    physics(ptr)
+    return OK, observe(ws, path, prm, tab, ai, jac, xpos, qpos, qvel, hypot3(f0, f1, f2))

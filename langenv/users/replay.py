@@ -221,6 +221,11 @@ class ReplayUser:
         """Vectorised :meth:`magnitude`: ``t`` (...,), s, to magnitudes of the same shape, N."""
         return sample_table_array(self.f_applied, self.dt, t)
 
+    def force_table(self) -> tuple[np.ndarray, float]:
+        """The tabulated magnitudes (m,), N, and their step (s): :meth:`force` is
+        ``against_motion(sample_table(table, step, t), tangent)`` (the env's compiled ticks)."""
+        return self.f_applied, self.dt
+
     def force(self, t: float, hand_velocity: np.ndarray, tangent: np.ndarray) -> np.ndarray:
         """Force (3,), N: :meth:`magnitude` along ``-tangent``."""
         return against_motion(self.magnitude(t), tangent)
