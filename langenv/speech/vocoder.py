@@ -250,10 +250,7 @@ class VariableRateVocoder:
         k = self._synthesize_until(self._out_pos + n, a, a_q) - self._out_pos
         if k <= 0:
             return np.zeros(0, dtype=np.float32)
-        wsum = self._wsum[:k]
-        out = np.divide(
-            self._acc[:k], wsum, out=np.zeros(k, dtype=np.float64), where=wsum > 1e-12
-        ).astype(np.float32)
+        out = _kernels.emit(self._acc, self._wsum, k)
         self._acc = self._acc[k:]
         self._wsum = self._wsum[k:]
         self._out_pos += k

@@ -30,7 +30,7 @@ import numpy as np
 
 from langenv.kernels import jit
 
-__all__ = ["fft", "fft_tables", "frame_tables", "render_frames"]
+__all__ = ["emit", "fft", "fft_tables", "frame_tables", "render_frames"]
 
 #: Rows of the ``state`` array.
 S_PHASE, S_OMEGA, S_MAG, S_REGION = 0, 1, 2, 3
@@ -74,7 +74,8 @@ def frame_tables(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def fft(xr: np.ndarray, xi: np.ndarray, rev: np.ndarray, tw: np.ndarray) -> None:
     """In-place forward DFT of ``xr + i xi`` (length ``n``), tables from :func:`fft_tables`.
 
-    Radix 2 (decimation in time) for a power of two, else the direct ``O(n^2)`` sum.
+    Radix 2 (decimation in time) for a power of two, the first two stages as one radix-4 pass
+    (twiddles 1 and -i exactly), else the direct ``O(n^2)`` sum.
     """
     n = xr.size
     if rev.size == 0:
@@ -86,23 +87,56 @@ def fft(xr: np.ndarray, xi: np.ndarray, rev: np.ndarray, tw: np.ndarray) -> None
             xr[i], xr[j] = xr[j], xr[i]
             xi[i], xi[j] = xi[j], xi[i]
     half = 1
-    while half < n:
-        off = half - 1
-        for start in range(0, n, 2 * half):
+    if n >= 4:
+        for p in range(0, n, 4):
+            ar, ai = xr[p] + xr[p + 1], xi[p] + xi[p + 1]
+            br, bi = xr[p] - xr[p + 1], xi[p] - xi[p + 1]
+            cr, ci = xr[p + 2] + xr[p + 3], xi[p + 2] + xi[p + 3]
+            dr, di = xr[p + 2] - xr[p + 3], xi[p + 2] - xi[p + 3]
+            xr[p], xi[p] = ar + cr, ai + ci
+            xr[p + 2], xi[p + 2] = ar - cr, ai - ci
+            xr[p + 1], xi[p + 1] = br + di, bi - dr  # b + (-i) d
+            xr[p + 3], xi[p + 3] = br - di, bi + dr
+        half = 4
+    while 2 * half < n:  # two radix-2 stages per pass (half and 2 half): one pass over memory
+        off1 = half - 1
+        off2 = 2 * half - 1
+        for start in range(0, n, 4 * half):
             for k in range(half):
-                c = tw[0, off + k]
-                d = tw[1, off + k]
-                p = start + k
-                q = p + half
-                vr = xr[q] * c - xi[q] * d
-                vi = xr[q] * d + xi[q] * c
-                ur = xr[p]
-                ui = xi[p]
-                xr[p] = ur + vr
-                xi[p] = ui + vi
-                xr[q] = ur - vr
-                xi[q] = ui - vi
-        half *= 2
+                p0 = start + k
+                p1 = p0 + half
+                p2 = p1 + half
+                p3 = p2 + half
+                c, d = tw[0, off1 + k], tw[1, off1 + k]
+                vr = xr[p1] * c - xi[p1] * d
+                vi = xr[p1] * d + xi[p1] * c
+                ar, ai = xr[p0] + vr, xi[p0] + vi
+                br, bi = xr[p0] - vr, xi[p0] - vi
+                vr = xr[p3] * c - xi[p3] * d
+                vi = xr[p3] * d + xi[p3] * c
+                cr, ci = xr[p2] + vr, xi[p2] + vi
+                dr, di = xr[p2] - vr, xi[p2] - vi
+                c, d = tw[0, off2 + k], tw[1, off2 + k]
+                vr = cr * c - ci * d
+                vi = cr * d + ci * c
+                xr[p0], xi[p0] = ar + vr, ai + vi
+                xr[p2], xi[p2] = ar - vr, ai - vi
+                c, d = tw[0, off2 + half + k], tw[1, off2 + half + k]
+                vr = dr * c - di * d
+                vi = dr * d + di * c
+                xr[p1], xi[p1] = br + vr, bi + vi
+                xr[p3], xi[p3] = br - vr, bi - vi
+        half *= 4
+    if half < n:  # a last single stage
+        off = half - 1
+        for k in range(half):
+            c, d = tw[0, off + k], tw[1, off + k]
+            q = k + half
+            vr = xr[q] * c - xi[q] * d
+            vi = xr[q] * d + xi[q] * c
+            ur, ui = xr[k], xi[k]
+            xr[k], xi[k] = ur + vr, ui + vi
+            xr[q], xi[q] = ur - vr, ui - vi
 
 
 @jit
@@ -142,14 +176,19 @@ def _analyse(
     """
     m = wr.size  # n / 2
     size = buf.size
-    for j in range(m):
-        i = lo + 2 * j
-        wr[j] = float(buf[i]) if 0 <= i < size else 0.0
-        wi[j] = float(buf[i + 1]) if 0 <= i + 1 < size else 0.0
+    if lo >= 0 and lo + 2 * m <= size:
+        for j in range(m):
+            wr[j] = buf[lo + 2 * j]
+            wi[j] = buf[lo + 2 * j + 1]
+    else:  # the frame reaches before the start or past the end of the content: zeros there
+        for j in range(m):
+            i = lo + 2 * j
+            wr[j] = float(buf[i]) if 0 <= i < size else 0.0
+            wi[j] = float(buf[i + 1]) if 0 <= i + 1 < size else 0.0
     fft(wr, wi, rev, tw)
     for k in range(m + 1):
-        a = k % m
-        c = (m - k) % m
+        a = k if k < m else 0
+        c = m - k if k > 0 else 0
         cr, ci = wr[a], wi[a]
         dr, di = wr[c], -wi[c]  # conj(C(m - k))
         er, ei = 0.5 * (cr + dr), 0.5 * (ci + di)  # even samples' spectrum
@@ -408,3 +447,14 @@ def render_frames(
     else:
         for k in range(n_bins):
             state[S_PHASE, k] = _np_remainder(state[S_PHASE, k] + math.pi, 2.0 * math.pi) - math.pi
+
+
+@jit
+def emit(acc: np.ndarray, wsum: np.ndarray, k: int) -> np.ndarray:
+    """The first ``k`` finished output samples: ``acc / wsum`` (0 where ``wsum <= 1e-12``),
+    float32, shape (k,)."""
+    out = np.zeros(k, dtype=np.float32)
+    for j in range(k):
+        if wsum[j] > 1e-12:
+            out[j] = acc[j] / wsum[j]
+    return out
