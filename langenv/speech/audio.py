@@ -38,6 +38,7 @@ __all__ = [
     "default_cache_dir",
 ]
 
+
 class SpokenPhrase(Protocol):
     """What a clip is made from (a :class:`~langenv.speech.graph.Phrase` is one)."""
 

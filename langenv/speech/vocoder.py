@@ -22,6 +22,9 @@ time-scales mono audio with a short-time Fourier transform while keeping its pit
 * **overlap-add** with Hann analysis and synthesis windows, normalised per output sample by the
   accumulated sum of the window products (exact whatever the hops and window length).
 
+The frames a pull commits are rendered by one compiled call
+(:func:`langenv.speech.vocoder_kernels.render_frames`); this class keeps the timing.
+
 Timing. Output sample ``j`` is played at pace ``a_j`` (the pace of the :meth:`pull` that
 emitted it) and the content consumed is ``tau(j) = sum_{i<j} a_i`` samples, summed exactly
 (integers, paces rounded to multiples of 2**-40). The output ends at the first sample ``T`` with
@@ -52,6 +55,7 @@ import librosa
 import numpy as np
 
 from langenv.errors import ActionError, ConfigError
+from langenv.speech import vocoder_kernels as _kernels
 
 __all__ = ["VariableRateVocoder", "time_stretch"]
 
@@ -62,8 +66,6 @@ _MAX_ADVANCE = 2.0
 _ONSET_RATIO = 4.0
 #: Instantaneous frequencies are kept within this many bins of their bin (Hann main lobe).
 _MAX_BIN_OFFSET = 2.0
-_EMPTY = np.zeros(0)
-_ZERO = np.zeros(1)
 #: Content buffer prefix (samples) that may be dropped before it is actually trimmed.
 _TRIM_SLACK = 1 << 15
 #: Paces are rounded to multiples of 2**-_PACE_BITS so that content time is summed exactly.
@@ -140,16 +142,11 @@ class VariableRateVocoder:
         self._n_bins = n // 2 + 1
         window = np.asarray(librosa.filters.get_window("hann", n, fftbins=True), dtype=np.float64)
         self._window = window
-        # Time derivative of the periodic Hann window (per sample), for reassignment.
-        self._dwindow = (np.pi / n) * np.sin(2.0 * np.pi * np.arange(n) / n)
-        self._window_sq = window * window
-        self._windows = np.stack([window, self._dwindow])  # (2, n)
-        # Adding pi*k turns FFT phases referenced to the frame start into zero-phase ones.
-        self._bins = np.arange(self._n_bins)
-        self._center_phase = np.pi * (self._bins % 2)
-        self._flat_bins = np.arange(0)  # grown on demand: flat bin indices of (F, K) batches
-        self._omega_bin = 2.0 * np.pi * self._bins / n  # bin centre frequencies (rad/sample)
-        self._max_dw = _MAX_BIN_OFFSET * 2.0 * np.pi / n
+        self._fft = _kernels.frame_tables(n)
+        # bin centre frequencies (rad/sample)
+        self._omega_bin = 2.0 * np.pi * np.arange(self._n_bins) / n
+        max_dw = _MAX_BIN_OFFSET * 2.0 * np.pi / n
+        self._prm = np.array([self.hop, max_dw, _ONSET_RATIO], dtype=np.float64)
         # First frame whose span [m*hop - n/2, m*hop + n/2) reaches output sample 0.
         m0 = -(self._half // self.hop)
         while m0 * self.hop + self._half <= 0:
@@ -171,13 +168,11 @@ class VariableRateVocoder:
         # Overlap-add accumulators for output samples [out_pos, out_pos + len).
         self._acc = np.zeros(2 * self.n_fft, dtype=np.float64)
         self._wsum = np.zeros(2 * self.n_fft, dtype=np.float64)
-        # Phase state of the last frame (None before the first frame).
-        # Locked: phase (rad) and frequency (rad/sample) of each peak of the last frame, and the
-        # index of the peak owning each bin; free: phase and frequency of every bin.
-        self._prev_phase: np.ndarray | None = None
-        self._prev_omega: np.ndarray | None = None
-        self._prev_region: np.ndarray | None = None
-        self._prev_mag: np.ndarray | None = None  # locked: magnitude of each peak
+        # Phase state of the last frame (see langenv.speech.vocoder_kernels): locked, phase
+        # (rad), frequency (rad/sample) and magnitude of each of its peaks and the peak owning
+        # each bin; free, phase and frequency of every bin. count[0] = -1: no previous frame.
+        self._state = np.zeros((_kernels.N_STATE, self._n_bins), dtype=np.float64)
+        self._count = np.full(1, -1, dtype=np.int64)
 
     # ------------------------------------------------------------------ public API
     @property
@@ -258,10 +253,7 @@ class VariableRateVocoder:
         k = self._synthesize_until(self._out_pos + n, a, a_q) - self._out_pos
         if k <= 0:
             return np.zeros(0, dtype=np.float32)
-        wsum = self._wsum[:k]
-        out = np.divide(
-            self._acc[:k], wsum, out=np.zeros(k, dtype=np.float64), where=wsum > 1e-12
-        ).astype(np.float32)
+        out = _kernels.emit(self._acc, self._wsum, k)
         self._acc = self._acc[k:]
         self._wsum = self._wsum[k:]
         self._out_pos += k
@@ -318,20 +310,6 @@ class VariableRateVocoder:
             self._prev_center = frame_c[n_commit - 1]
         return ready
 
-    def _gather(self, centres: np.ndarray) -> np.ndarray:
-        """Content segments ``[p - n/2, p + n/2)`` for each centre ``p``, zeros outside; (F, n)."""
-        n, buf = self.n_fft, self._buf
-        seg = np.zeros((centres.size, n), dtype=np.float64)
-        for i, p in enumerate(centres.tolist()):
-            lo = p - self._half - self._buf_start
-            if lo >= 0 and lo + n <= buf.size:
-                seg[i] = buf[lo : lo + n]
-            else:  # reaches before the start or past the end of the content: zeros there
-                a, b = max(lo, 0), min(lo + n, buf.size)
-                if b > a:
-                    seg[i, a - lo : b - lo] = buf[a:b]
-        return seg
-
     def _render_frames(self, centres: np.ndarray, first_frame: int) -> None:
         """Analyse at ``centres`` (content samples), propagate phases, overlap-add the frames.
 
@@ -339,165 +317,28 @@ class VariableRateVocoder:
             centres: Content sample at the centre of each frame's analysis window, shape (F,).
             first_frame: Index ``m`` of the first frame (centred on output sample ``m * hop``).
         """
-        n, hop, half = self.n_fft, self.hop, self._half
-        n_frames = centres.size
-        seg = self._gather(centres)
-        # Rows 2i and 2i+1: frame i under the Hann window and under its time derivative.
-        spec = np.fft.rfft((seg[:, None, :] * self._windows).reshape(2 * n_frames, n), axis=1)
-        x_h = spec[0::2]
-        x_dh = spec[1::2]
-        if self.phase_lock:
-            z = self._lock_phases(x_h, x_dh)
-        else:
-            z = self._free_phases(x_h, x_dh)
-        frames = np.fft.irfft(z, n=n, axis=1)
-        frames *= self._window
-
-        # Overlap-add: frame m covers output samples [m*hop - n/2, m*hop + n/2).
-        first_start = first_frame * hop - half - self._out_pos
-        last_end = first_start + (n_frames - 1) * hop + n
+        n, hop = self.n_fft, self.hop
+        first_start = first_frame * hop - self._half - self._out_pos
+        last_end = first_start + (centres.size - 1) * hop + n
         if last_end > self._acc.size:
             grow = last_end - self._acc.size + 4 * n
             self._acc = np.concatenate([self._acc, np.zeros(grow)])
             self._wsum = np.concatenate([self._wsum, np.zeros(grow)])
-        for i in range(n_frames):
-            lo = first_start + i * hop
-            if lo >= 0:
-                self._acc[lo : lo + n] += frames[i]
-                self._wsum[lo : lo + n] += self._window_sq
-            else:  # pre-roll frame reaching back before output sample 0
-                self._acc[: lo + n] += frames[i, -lo:]
-                self._wsum[: lo + n] += self._window_sq[-lo:]
-
-    def _inst_freq(self, x_h: np.ndarray, x_dh: np.ndarray, bins: np.ndarray) -> np.ndarray:
-        """Reassigned instantaneous frequency ``omega_k - Im(X_dh / X_h)`` (rad/sample).
-
-        Args:
-            x_h: Hann-windowed spectrum values, any shape.
-            x_dh: Derivative-window spectrum values, same shape.
-            bins: Bin index of each value (broadcastable to the same shape).
-
-        Returns:
-            Frequencies, same shape, kept within ``_MAX_BIN_OFFSET`` bins of each bin.
-        """
-        power = x_h.real * x_h.real + x_h.imag * x_h.imag
-        cross = x_dh.imag * x_h.real - x_dh.real * x_h.imag  # Im(X_dh * conj(X_h))
-        offset = np.clip(cross / np.maximum(power, 1e-30), -self._max_dw, self._max_dw)
-        return self._omega_bin[bins] - offset
-
-    def _free_phases(self, x_h: np.ndarray, x_dh: np.ndarray) -> np.ndarray:
-        """Classic phase vocoder: every bin advances by ``hop`` times its mean frequency.
-
-        Args:
-            x_h: Hann-windowed spectra (phases referenced to the frame start), shape (F, K).
-            x_dh: Derivative-window spectra, shape (F, K).
-
-        Returns:
-            Synthesis spectra (phases referenced to the frame start), shape (F, K).
-        """
-        omega = self._inst_freq(x_h, x_dh, self._bins)
-        steps = np.empty_like(omega)
-        if self._prev_phase is None or self._prev_omega is None:
-            steps[0] = np.arctan2(x_h[0].imag, x_h[0].real) + self._center_phase
-        else:
-            steps[0] = self._prev_phase + 0.5 * self.hop * (self._prev_omega + omega[0])
-        steps[1:] = 0.5 * self.hop * (omega[1:] + omega[:-1])
-        phase_s = np.mod(np.cumsum(steps, axis=0) + np.pi, 2.0 * np.pi) - np.pi  # zero-phase
-        self._prev_phase = phase_s[-1].copy()
-        self._prev_omega = omega[-1].copy()
-        return np.abs(x_h) * np.exp(1j * (phase_s - self._center_phase))
-
-    def _lock_phases(self, x_h: np.ndarray, x_dh: np.ndarray) -> np.ndarray:
-        """Phase-locked synthesis spectra (Laroche & Dolson 1999) for a batch of frames.
-
-        The peaks (bins larger than their two neighbours on each side) get the phase of the
-        previous frame's peak whose region contained them, advanced by ``hop`` times the mean
-        instantaneous frequency of the two; each region of influence (bins nearest to a peak)
-        is rotated by its peak's phase rotation, which keeps the analysed phase offsets to the
-        peak (identity locking). A frame without peaks (silence) keeps its analysed phases.
-        Peak phases are zero-phase (referred to the frame centre), so that a peak moving to
-        another bin keeps its phase.
-
-        Args:
-            x_h: Hann-windowed spectra (phases referenced to the frame start), shape (F, K).
-            x_dh: Derivative-window spectra, shape (F, K).
-
-        Returns:
-            Synthesis spectra, shape (F, K): each bin of ``x_h`` times a unit rotation.
-        """
-        n_frames, n_bins = x_h.shape
-        mag = np.abs(x_h)
-        mid = mag[:, 2:-2]
-        is_peak = np.zeros((n_frames, n_bins), dtype=bool)
-        peak_mid = is_peak[:, 2:-2]
-        np.greater(mid, mag[:, 1:-3], out=peak_mid)
-        peak_mid &= mid > mag[:, :-4]
-        peak_mid &= mid >= mag[:, 3:-1]
-        peak_mid &= mid >= mag[:, 4:]
-        flat = np.flatnonzero(is_peak)  # peaks in frame order, then bin order
-        n_peaks = flat.size
-        rows = flat // n_bins
-        cols = flat - rows * n_bins
-        if self._flat_bins.size < n_frames * n_bins:
-            self._flat_bins = np.arange(2 * n_frames * n_bins)
-        # Peaks of frame i are [edges[i], edges[i + 1]).
-        edges = np.searchsorted(rows, self._flat_bins[: n_frames + 1]).tolist()
-        # Region of influence of each bin: index of the nearest peak in its frame (boundaries
-        # half-way between neighbouring peaks, and at frame starts); the bins of a frame
-        # without peaks point at a sentinel (index n_peaks) that does not rotate them.
-        bounds = np.where(rows[1:] == rows[:-1], (flat[:-1] + flat[1:] + 1) // 2, rows[1:] * n_bins)
-        region = np.searchsorted(bounds, self._flat_bins[: n_frames * n_bins], "right")
-        for i in range(n_frames):
-            if edges[i] == edges[i + 1]:
-                region[i * n_bins : (i + 1) * n_bins] = n_peaks
-
-        x_peak = x_h.ravel()[flat]
-        mag_peak = mag.ravel()[flat]
-        offset = (x_dh.ravel()[flat] / x_peak).imag  # peaks are > 0: no division by zero
-        omega = self._omega_bin[cols] - np.clip(offset, -self._max_dw, self._max_dw)
-        phase_a = np.arctan2(x_peak.imag, x_peak.real) + self._center_phase[cols]
-
-        # Extended arrays: the previous batch's last frame's peaks, this batch's peaks, and a
-        # sentinel with magnitude 0 (for peaks without a source).
-        prev_phase, prev_omega, prev_mag = self._prev_phase, self._prev_omega, self._prev_mag
-        prev_region = self._prev_region
-        if prev_phase is None or prev_omega is None or prev_mag is None or prev_region is None:
-            prev_phase, prev_omega, prev_mag = _EMPTY, _EMPTY, _EMPTY
-            prev_region = None
-        n_prev = prev_phase.size
-        ext_phase = np.concatenate([prev_phase, phase_a, _ZERO])
-        ext_omega = np.concatenate([prev_omega, omega, _ZERO])
-        ext_mag = np.concatenate([prev_mag, mag_peak, _ZERO])
-        # Source of every peak: the previous frame's peak whose region holds its bin.
-        src = region[flat - n_bins] + n_prev  # frames >= 1 (frame 0 is overwritten below)
-        first = edges[1]
-        src[:first] = n_prev + n_peaks if prev_region is None else prev_region[cols[:first]]
-        increment = (0.5 * self.hop) * (ext_omega[src] + omega)
-        # Onsets: a peak much louder than its source (or without one) restarts from its
-        # analysed phase, which keeps attacks crisp and stops onset errors from persisting.
-        born = mag_peak > _ONSET_RATIO * ext_mag[src]
-        src[born] = n_prev + np.flatnonzero(born)
-        increment[born] = 0.0
-        for i in range(n_frames):  # sequential: each frame continues the previous one
-            lo, hi = edges[i], edges[i + 1]
-            if hi > lo:
-                ext_phase[n_prev + lo : n_prev + hi] = ext_phase[src[lo:hi]] + increment[lo:hi]
-        phase_s = ext_phase[n_prev:-1]
-
-        rotation = np.empty(n_peaks + 1, dtype=np.complex128)
-        rotation[:n_peaks] = np.exp(1j * (phase_s - phase_a))
-        rotation[n_peaks] = 1.0
-        z = x_h * rotation[region].reshape(n_frames, n_bins)
-
-        lo = edges[-2]
-        if n_peaks > lo:  # the last frame has peaks: it is the next batch's source
-            self._prev_phase = np.remainder(phase_s[lo:], 2.0 * np.pi)
-            self._prev_omega = omega[lo:]
-            self._prev_mag = mag_peak[lo:]
-            self._prev_region = region[(n_frames - 1) * n_bins :] - lo
-        else:
-            self._prev_phase = self._prev_omega = self._prev_mag = self._prev_region = None
-        return z
+        _kernels.render_frames(
+            self._buf,
+            self._buf_start,
+            centres,
+            first_start,
+            self._window,
+            *self._fft,
+            self._omega_bin,
+            self._prm,
+            self.phase_lock,
+            self._state,
+            self._count,
+            self._acc,
+            self._wsum,
+        )
 
     def _trim_content(self) -> None:
         """Drop content that no future frame can read (amortised)."""
