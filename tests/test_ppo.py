@@ -619,3 +619,23 @@ def test_export_and_ensemble_never_replace_files_without_overwrite(
     assert ensemble_main([str(tmp_path / "a.zip"), "--out", str(manifest)]) == 2
     assert "e.yaml exists; give --overwrite" in capsys.readouterr().err
     assert manifest.read_text() == "mine"
+
+
+def test_subprocess_and_in_process_envs_give_the_same_rollout() -> None:
+    """--vec-env subproc and dummy hand PPO the same float32 observations and rewards."""
+    from train.ppo import _make_envs, _resolve
+
+    got = {}
+    for vec_env in ("dummy", "subproc"):
+        run = _resolve(TrainArgs(config=CONFIG, vec_env=vec_env, n_eval_episodes=0, n_envs=2))
+        env, _ = _make_envs(run)
+        venv, rng = env.venv, np.random.default_rng(0)
+        steps = [(venv.reset(), np.zeros(2, np.float32))]
+        for _ in range(40):
+            obs, rew, _, _ = venv.step(rng.uniform(-1, 1, (2, 3)).astype(np.float32))
+            steps.append((obs.copy(), rew.copy()))
+        venv.close()
+        got[vec_env] = steps
+    for (o1, r1), (o2, r2) in zip(got["dummy"], got["subproc"], strict=True):
+        assert o1.dtype == o2.dtype == np.float32 and r1.dtype == r2.dtype == np.float32
+        assert np.array_equal(o1, o2) and np.array_equal(r1, r2)

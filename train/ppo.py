@@ -843,10 +843,16 @@ class _IgnoreSigint:
 
 
 class _SubprocVecEnv(SubprocVecEnv):
-    """SubprocVecEnv whose workers ignore SIGINT (see :class:`_IgnoreSigint`)."""
+    """SubprocVecEnv whose workers ignore SIGINT (see :class:`_IgnoreSigint`) and whose rewards
+    are float32, as a DummyVecEnv stores them (SB3's SubprocVecEnv passes Python floats on as
+    float64), so that the two give the same run."""
 
     def __init__(self, env_fns: list[Any], start_method: str | None = None) -> None:
         super().__init__([_IgnoreSigint(fn) for fn in env_fns], start_method)
+
+    def step_wait(self) -> Any:
+        obs, rewards, dones, infos = super().step_wait()
+        return obs, np.asarray(rewards, dtype=np.float32), dones, infos
 
 
 def _close(env: Any) -> None:

@@ -90,11 +90,13 @@ class ResidualLCWrapper(gym.ActionWrapper[np.ndarray, np.ndarray, np.ndarray]):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
         obs, info = self.env.reset(seed=seed, options=options)
-        return self.core.start(obs), info
+        return self.core.start(obs).astype(np.float32), info
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         obs, reward, terminated, truncated, info = self.env.step(self.action(action))
-        return self.core.observe(obs), float(reward), terminated, truncated, info
+        # float32, the space's dtype: what a DummyVecEnv stores and a SubprocVecEnv passes on
+        # as is, so that both give the same run
+        return self.core.observe(obs).astype(np.float32), float(reward), terminated, truncated, info
 
     def action(self, action: np.ndarray) -> np.ndarray:
         """The env's action for the correction ``action`` (LC plus the bounded correction)."""
