@@ -168,6 +168,7 @@ class VariableRateVocoder:
         # Overlap-add accumulators for output samples [out_pos, out_pos + len).
         self._acc = np.zeros(2 * self.n_fft, dtype=np.float64)
         self._wsum = np.zeros(2 * self.n_fft, dtype=np.float64)
+        self._used = 0  # acc/wsum[used:] are zeros (no frame reached there yet)
         # Phase state of the last frame (see langenv.speech.vocoder_kernels): locked, phase
         # (rad), frequency (rad/sample) and magnitude of each of its peaks and the peak owning
         # each bin; free, phase and frequency of every bin. count[0] = -1: no previous frame.
@@ -237,12 +238,15 @@ class VariableRateVocoder:
             ActionError: If ``a`` is not a positive finite number.
             ConfigError: If ``n`` is negative or not an integer.
         """
-        a = _check_pace(a)
-        if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 0:
+        if type(a) is not float or not 0.0 < a < math.inf:  # fast path for a plain float
+            a = _check_pace(a)
+        bad_type = type(n) is not int and (
+            isinstance(n, bool) or not isinstance(n, int | np.integer)
+        )
+        if bad_type or n < 0:
             raise ConfigError(f"n must be a non-negative integer, got {n!r}")
         n = int(n)
         a_q = max(1, round(a * _PACE_ONE))  # pace on an exact binary grid
-        a = a_q / _PACE_ONE
         if self._finished:
             remaining = (self._pushed << _PACE_BITS) - self._tau
             if remaining <= 0:
@@ -250,31 +254,32 @@ class VariableRateVocoder:
             n = min(n, -(-remaining // a_q))
         if n == 0:
             return np.zeros(0, dtype=np.float32)
-        k = self._synthesize_until(self._out_pos + n, a, a_q) - self._out_pos
-        if k <= 0:
-            return np.zeros(0, dtype=np.float32)
-        out = _kernels.emit(self._acc, self._wsum, k)
-        self._acc = self._acc[k:]
-        self._wsum = self._wsum[k:]
-        self._out_pos += k
-        self._tau += a_q * k
-        self._trim_content()
+        out = self._render(self._out_pos + n, a_q)
+        k = out.size
+        if k:
+            self._out_pos += k
+            self._tau += a_q * k
+            self._trim_content()
         return out
 
     # ------------------------------------------------------------------ internals
-    def _synthesize_until(self, end: int, a: float, a_q: int) -> int:
-        """Synthesize every frame starting before output sample ``end`` that the content allows.
+    def _schedule(self, end: int, a_q: int) -> tuple[list[int], int]:
+        """Analysis positions of the frames to render now, and how far the output is complete.
 
         Args:
             end: Output sample (exclusive) the caller wants to emit up to.
-            a: Pace of the samples being emitted (on the exact grid).
-            a_q: The same pace in units of 2**-_PACE_BITS.
+            a_q: Pace of the samples being emitted, in units of 2**-_PACE_BITS.
 
         Returns:
-            The output sample up to which (exclusive) the output is complete: ``end``, or the
-            first sample of the first frame the pushed content does not cover yet.
+            ``(centres, ready)``: the content sample at the centre of each frame to commit (frames
+            ``_next_frame, _next_frame + 1, ...``), and the output sample up to which (exclusive)
+            the output is complete: ``end``, or the first sample of the first frame the pushed
+            content does not cover yet. Updates ``_prev_center``.
         """
-        hop, half = self.hop, self._half
+        hop, half, out_pos, tau = self.hop, self._half, self._out_pos, self._tau
+        a = a_q / _PACE_ONE
+        lo_step, hi_step = _MIN_ADVANCE * a * hop, _MAX_ADVANCE * a * hop
+        limit = math.inf if self._finished else self._pushed - half
         centres: list[int] = []
         frame_c: list[float] = []
         m = self._next_frame
@@ -282,16 +287,12 @@ class VariableRateVocoder:
         ready = end
         while m * hop - half < end:
             start = m * hop - half
-            target = (self._tau + a_q * (start - self._out_pos + half)) / _PACE_ONE
-            if prev_c is None:
-                c = target
-            else:
-                c = min(
-                    max(target, prev_c + _MIN_ADVANCE * a * hop), prev_c + _MAX_ADVANCE * a * hop
-                )
+            c = (tau + a_q * (start - out_pos + half)) / _PACE_ONE
+            if prev_c is not None:
+                c = min(max(c, prev_c + lo_step), prev_c + hi_step)
             p = math.floor(c + 0.5)
-            if not self._finished and p + half > self._pushed:
-                ready = max(start, self._out_pos)
+            if p > limit:
+                ready = max(start, out_pos)
                 break
             centres.append(p)
             frame_c.append(c)
@@ -300,34 +301,39 @@ class VariableRateVocoder:
         # Only frames whose first output sample is emitted now are committed: the pace of that
         # sample fixes their analysis position (pre-roll frames wait for output sample 0).
         n_commit = len(centres)
-        while (
-            n_commit and max((self._next_frame + n_commit - 1) * hop - half, self._out_pos) >= ready
-        ):
+        while n_commit and max((self._next_frame + n_commit - 1) * hop - half, out_pos) >= ready:
             n_commit -= 1
         if n_commit:
-            self._render_frames(np.asarray(centres[:n_commit], dtype=np.int64), self._next_frame)
-            self._next_frame += n_commit
             self._prev_center = frame_c[n_commit - 1]
-        return ready
+        return centres[:n_commit], ready
 
-    def _render_frames(self, centres: np.ndarray, first_frame: int) -> None:
-        """Analyse at ``centres`` (content samples), propagate phases, overlap-add the frames.
+    def _render(self, end: int, a_q: int) -> np.ndarray:
+        """Render every frame starting before output sample ``end`` that the content allows, and
+        emit the output samples that are complete (one compiled call).
 
         Args:
-            centres: Content sample at the centre of each frame's analysis window, shape (F,).
-            first_frame: Index ``m`` of the first frame (centred on output sample ``m * hop``).
+            end: Output sample (exclusive) the caller wants to emit up to.
+            a_q: Pace of the samples being emitted, in units of 2**-_PACE_BITS.
+
+        Returns:
+            The emitted samples (float32), from output sample ``_out_pos`` on.
         """
+        centres, ready = self._schedule(end, a_q)
         n, hop = self.n_fft, self.hop
-        first_start = first_frame * hop - self._half - self._out_pos
-        last_end = first_start + (centres.size - 1) * hop + n
-        if last_end > self._acc.size:
-            grow = last_end - self._acc.size + 4 * n
+        first = self._next_frame
+        k = max(ready - self._out_pos, 0)
+        first_start = first * hop - self._half - self._out_pos
+        used = max(self._used, first_start + (len(centres) - 1) * hop + n, k)
+        if used > self._acc.size:
+            grow = used - self._acc.size + 4 * n
             self._acc = np.concatenate([self._acc, np.zeros(grow)])
             self._wsum = np.concatenate([self._wsum, np.zeros(grow)])
-        _kernels.render_frames(
+        self._next_frame += len(centres)
+        self._used = used - k
+        return _kernels.render_pull(
             self._buf,
             self._buf_start,
-            centres,
+            np.array(centres, dtype=np.int64),
             first_start,
             self._window,
             *self._fft,
@@ -338,6 +344,8 @@ class VariableRateVocoder:
             self._count,
             self._acc,
             self._wsum,
+            k,
+            used,
         )
 
     def _trim_content(self) -> None:

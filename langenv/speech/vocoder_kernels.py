@@ -30,7 +30,7 @@ import numpy as np
 
 from langenv.kernels import jit
 
-__all__ = ["emit", "fft", "fft_tables", "frame_tables", "render_frames"]
+__all__ = ["emit", "fft", "fft_tables", "frame_tables", "render_frames", "render_pull"]
 
 #: Rows of the ``state`` array.
 S_PHASE, S_OMEGA, S_MAG, S_REGION = 0, 1, 2, 3
@@ -77,15 +77,22 @@ def fft(xr: np.ndarray, xi: np.ndarray, rev: np.ndarray, tw: np.ndarray) -> None
     Radix 2 (decimation in time) for a power of two, the first two stages as one radix-4 pass
     (twiddles 1 and -i exactly), else the direct ``O(n^2)`` sum.
     """
-    n = xr.size
     if rev.size == 0:
         _dft(xr, xi, tw)
         return
-    for i in range(n):
+    for i in range(xr.size):
         j = rev[i]
         if j > i:
             xr[i], xr[j] = xr[j], xr[i]
             xi[i], xi[j] = xi[j], xi[i]
+    _butterflies(xr, xi, tw)
+
+
+@jit
+def _butterflies(xr: np.ndarray, xi: np.ndarray, tw: np.ndarray) -> None:
+    """The butterfly stages of :func:`fft` on input already in bit-reversed order (power of two
+    lengths only)."""
+    n = xr.size
     half = 1
     if n >= 4:
         for p in range(0, n, 4):
@@ -176,16 +183,22 @@ def _analyse(
     """
     m = wr.size  # n / 2
     size = buf.size
+    radix2 = rev.size > 0  # filled in bit-reversed order then: the FFT's first step
     if lo >= 0 and lo + 2 * m <= size:
         for j in range(m):
-            wr[j] = buf[lo + 2 * j]
-            wi[j] = buf[lo + 2 * j + 1]
+            r = rev[j] if radix2 else j
+            wr[r] = buf[lo + 2 * j]
+            wi[r] = buf[lo + 2 * j + 1]
     else:  # the frame reaches before the start or past the end of the content: zeros there
         for j in range(m):
             i = lo + 2 * j
-            wr[j] = float(buf[i]) if 0 <= i < size else 0.0
-            wi[j] = float(buf[i + 1]) if 0 <= i + 1 < size else 0.0
-    fft(wr, wi, rev, tw)
+            r = rev[j] if radix2 else j
+            wr[r] = float(buf[i]) if 0 <= i < size else 0.0
+            wi[r] = float(buf[i + 1]) if 0 <= i + 1 < size else 0.0
+    if radix2:
+        _butterflies(wr, wi, tw)
+    else:
+        _dft(wr, wi, tw)
     for k in range(m + 1):
         a = k if k < m else 0
         c = m - k if k > 0 else 0
@@ -249,16 +262,20 @@ def _lock_frame(
     state: np.ndarray,
     count: np.ndarray,
     peaks: np.ndarray,
+    work: np.ndarray,
+    rot: np.ndarray,
     z: np.ndarray,
 ) -> None:
     """Phase-locked synthesis spectrum of one frame into ``z``; updates the peak state.
+
+    ``peaks`` (int), ``work`` (4 rows) and ``rot`` (complex): scratch, at least ``x_h.size`` long.
 
     The sources' phases are those of the previous frame's peaks, wrapped to ``[0, 2 pi)`` at the
     end of a batch and not within one (as the NumPy implementation this repeats did).
     """
     hop, max_dw, onset = prm[0], prm[1], prm[2]
     n_bins = x_h.size
-    power = np.empty(n_bins)  # peaks are found on the power (|X|^2, monotonic in |X|)
+    power = work[0]  # peaks are found on the power (|X|^2, monotonic in |X|)
     for k in range(n_bins):
         xk = x_h[k]
         power[k] = xk.real * xk.real + xk.imag * xk.imag
@@ -273,29 +290,29 @@ def _lock_frame(
         z[:] = x_h
         count[0] = -1
         return
-    new_phase = np.empty(n_peaks)
-    new_omega = np.empty(n_peaks)
-    new_mag = np.empty(n_peaks)
-    rot = np.empty(n_peaks, dtype=np.complex128)
+    new_phase = work[1]
+    new_omega = work[2]
+    new_mag = work[3]
     for j in range(n_peaks):
         k = peaks[j]
         xk = x_h[k]
         dk = x_dh[k]
         offset = _np_div_imag(dk.real, dk.imag, xk.real, xk.imag)
         omega = omega_bin[k] - _clip(offset, max_dw)
-        phase_a = math.atan2(xk.imag, xk.real) + math.pi * (k % 2)
         src = -1 if n_prev < 0 else int(state[S_REGION, k])
         src_mag = 0.0 if src < 0 else state[S_MAG, src]
         mag = abs(xk)
         if mag > onset * src_mag:  # an onset, or no source: restart from the analysed phase
-            phase = phase_a + 0.0
-        else:
+            phase = math.atan2(xk.imag, xk.real) + math.pi * (k % 2)
+            rot[j] = 1.0
+        else:  # rot = exp(i (phase - analysed phase)) = exp(i phase) conj(X) / |X| (-1)^k
             phase = state[S_PHASE, src] + (0.5 * hop) * (state[S_OMEGA, src] + omega)
+            c, s = math.cos(phase), math.sin(phase)
+            u = (1.0 if k % 2 == 0 else -1.0) / mag
+            rot[j] = complex((c * xk.real + s * xk.imag) * u, (s * xk.real - c * xk.imag) * u)
         new_phase[j] = phase
         new_omega[j] = omega
         new_mag[j] = mag
-        d = phase - phase_a
-        rot[j] = complex(math.cos(d), math.sin(d))
     # Region of influence: bins up to half-way (rounded up) to the next peak.
     j = 0
     for k in range(n_bins):
@@ -362,6 +379,7 @@ def _synthesize(
     ``twn``: ``exp(-2 pi i k / n)``, ``k <= n/2``, rows (real, imaginary).
     """
     m = wr.size  # n / 2
+    radix2 = rev.size > 0
     for k in range(m):
         a = z[k]
         b = z[m - k]
@@ -371,10 +389,15 @@ def _synthesize(
         dr, di = ar - br, ai - bi  # 2 * odd part / twiddle
         orr = dr * twn[0, k] + di * twn[1, k]  # times exp(2 pi i k / n)
         oi = di * twn[0, k] - dr * twn[1, k]
-        # C = E + i O, conjugated (the inverse through the forward transform)
-        wr[k] = er - oi
-        wi[k] = -(ei + orr)
-    fft(wr, wi, rev, tw)
+        # C = E + i O, conjugated (the inverse through the forward transform), stored in
+        # bit-reversed order (the FFT's first step)
+        r = rev[k] if radix2 else k
+        wr[r] = er - oi
+        wi[r] = -(ei + orr)
+    if radix2:
+        _butterflies(wr, wi, tw)
+    else:
+        _dft(wr, wi, tw)
     scale = 1.0 / (2 * m)
     for j in range(m):
         frame[2 * j] = wr[j] * scale
@@ -427,11 +450,13 @@ def render_frames(
     z = np.empty(n_bins, dtype=np.complex128)
     frame = np.empty(n)
     peaks = np.empty(n_bins, dtype=np.int64)
+    work = np.empty((4, n_bins))
+    rot = np.empty(n_bins, dtype=np.complex128)
     half = n // 2
     for i in range(centres.size):
         _analyse(buf, centres[i] - half - buf_start, rev, tw, twn, wr, wi, spec, x_h, x_dh)
         if lock:
-            _lock_frame(x_h, x_dh, prm, omega_bin, state, count, peaks, z)
+            _lock_frame(x_h, x_dh, prm, omega_bin, state, count, peaks, work, rot, z)
         else:
             _free_frame(x_h, x_dh, prm, omega_bin, state, count, z)
         _synthesize(z, frame, rev, tw, twn, wr, wi)
@@ -447,6 +472,61 @@ def render_frames(
     else:
         for k in range(n_bins):
             state[S_PHASE, k] = _np_remainder(state[S_PHASE, k] + math.pi, 2.0 * math.pi) - math.pi
+
+
+@jit
+def render_pull(
+    buf: np.ndarray,
+    buf_start: int,
+    centres: np.ndarray,
+    first_start: int,
+    window: np.ndarray,
+    rev: np.ndarray,
+    tw: np.ndarray,
+    twn: np.ndarray,
+    omega_bin: np.ndarray,
+    prm: np.ndarray,
+    lock: bool,
+    state: np.ndarray,
+    count: np.ndarray,
+    acc: np.ndarray,
+    wsum: np.ndarray,
+    k: int,
+    used: int,
+) -> np.ndarray:
+    """One pull in one call: :func:`render_frames`, then the first ``k`` output samples
+    (:func:`emit`), then ``acc[:used]`` and ``wsum[:used]`` shifted left by ``k`` (zeros enter
+    behind), so that index 0 is again the first sample not emitted yet. ``used``: the end of the
+    samples any frame has touched (``k <= used <= acc.size``; zeros beyond).
+
+    Returns:
+        The emitted samples, float32, shape (k,).
+    """
+    render_frames(
+        buf,
+        buf_start,
+        centres,
+        first_start,
+        window,
+        rev,
+        tw,
+        twn,
+        omega_bin,
+        prm,
+        lock,
+        state,
+        count,
+        acc,
+        wsum,
+    )
+    out = emit(acc, wsum, k)
+    for j in range(used - k):
+        acc[j] = acc[j + k]
+        wsum[j] = wsum[j + k]
+    for j in range(max(used - k, 0), used):
+        acc[j] = 0.0
+        wsum[j] = 0.0
+    return out
 
 
 @jit
