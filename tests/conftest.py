@@ -42,8 +42,7 @@ def tiny_ppo_models(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, ...
     config = root / "tiny.yaml"
     recipe = Path(__file__).resolve().parents[1] / "configs" / "ppo.yaml"
     config.write_text(
-        f"inherit: {recipe}\n"
-        "LangCtrl-v0: {n_steps: 64, batch_size: 32, n_epochs: 1}\n"
+        f"inherit: {recipe}\nLangCtrl-v0: {{n_steps: 64, batch_size: 32, n_epochs: 1}}\n"
     )
     models = []
     for seed in (1_000_000, 2_000_000):

@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from langenv.control import etc_cache
 from langenv.control.admittance import VariableAdmittance
 from langenv.control.command import follow
 from langenv.control.guide import Guide, GuideState
@@ -287,8 +288,12 @@ class FastETC:
         self.path: np.ndarray = pack_path(traj)
         """The trajectory packed for the compiled kernels (:func:`langenv.kernels.path.pack`)."""
         tables = _TABLES.get(key)
-        if tables is None:
-            tables = _TABLES[key] = self._build(u_step, overshoot, q_step, behind_u_step)
+        if tables is None:  # built once per machine (etc_cache), then once per process at most
+            tables = etc_cache.load_tables(key)
+            if tables is None:
+                tables = self._build(u_step, overshoot, q_step, behind_u_step)
+                etc_cache.store_tables(key, *tables)
+            _TABLES[key] = tables
         self.prm: np.ndarray = tables[0]
         """The law, the table grids and the legs, packed for :func:`langenv.kernels.etc.estimate`
         (read-only)."""

@@ -1,0 +1,104 @@
+"""FastETC's tables on disk: built once per machine instead of once per process.
+
+:class:`~langenv.control.motion_etc.FastETC` tabulates the motion law of a trajectory and its
+admittance parameters (about 3 s of CPU for the UR5 exercise). Every process that makes the env
+built them again: each ``eval.compare`` worker, each training subprocess, each test process. This
+module keeps them in ``$LANGCTRL_ETC_CACHE`` (default ``~/.cache/langctrl/etc``; ``off`` turns the
+disk cache off) as ``<digest>.npz``. The digest hashes the tables' key (geometry, parameters,
+table settings) *and the source of the code that builds them* (``motion_etc``, the law and ETC
+kernels), so an edit of that code, or another version of the package, never reads stale tables.
+A file that cannot be read or does not match is ignored (and replaced); a directory that cannot
+be written leaves the tables in memory only (one warning per process).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import tempfile
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["etc_cache_dir", "load_tables", "store_tables", "tables_digest"]
+
+_FORMAT = 1  # bump when the stored arrays' meaning changes
+_SOURCES = ("control/motion_etc.py", "kernels/law.py", "kernels/etc.py")
+_code_digest: str | None = None
+_warned = False
+
+
+def etc_cache_dir() -> Path | None:
+    """Directory of the cache: ``$LANGCTRL_ETC_CACHE`` or ``~/.cache/langctrl/etc``; ``None`` when
+    ``LANGCTRL_ETC_CACHE`` is ``off``."""
+    env = os.environ.get("LANGCTRL_ETC_CACHE")
+    if env is not None and env.strip().lower() == "off":
+        return None
+    if env:
+        return Path(env).expanduser()
+    return Path.home() / ".cache" / "langctrl" / "etc"
+
+
+def _code() -> str:
+    """SHA-256 of the source files that build the tables (read once per process)."""
+    global _code_digest
+    if _code_digest is None:
+        root = Path(__file__).resolve().parent.parent
+        h = hashlib.sha256()
+        for name in _SOURCES:
+            h.update(name.encode())
+            h.update((root / name).read_bytes())
+        _code_digest = h.hexdigest()
+    return _code_digest
+
+
+def tables_digest(key: tuple[object, ...]) -> str:
+    """File stem of the tables of ``key`` (FastETC's in-memory key: floats' ``repr`` is exact)."""
+    h = hashlib.sha256(f"{_FORMAT}|{_code()}|{key!r}".encode())
+    return h.hexdigest()[:32]
+
+
+def load_tables(key: tuple[object, ...]) -> tuple[np.ndarray, np.ndarray] | None:
+    """The stored ``(prm, tab)`` of ``key`` (read-only float64 vectors), or ``None``."""
+    root = etc_cache_dir()
+    if root is None:
+        return None
+    path = root / f"{tables_digest(key)}.npz"
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            prm, tab = data["prm"], data["tab"]
+    except (OSError, ValueError, KeyError, EOFError):
+        return None
+    for arr in (prm, tab):
+        if arr.ndim != 1 or arr.dtype != np.float64 or arr.size == 0:
+            return None
+        arr.setflags(write=False)
+    return prm, tab
+
+
+def store_tables(key: tuple[object, ...], prm: np.ndarray, tab: np.ndarray) -> None:
+    """Write ``(prm, tab)`` of ``key`` atomically (no partial file is ever read)."""
+    global _warned
+    root = etc_cache_dir()
+    if root is None:
+        return
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=root, suffix=".npz.part")
+        try:
+            with os.fdopen(fd, "wb") as f:
+                np.savez(f, prm=prm, tab=tab)
+            os.replace(tmp, root / f"{tables_digest(key)}.npz")
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+    except OSError as exc:
+        if not _warned:
+            _warned = True
+            warnings.warn(
+                f"FastETC table cache {root} is not writable ({exc}); tables are kept in memory "
+                "only (set LANGCTRL_ETC_CACHE to a writable directory, or to 'off')",
+                RuntimeWarning,
+                stacklevel=2,
+            )
