@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 import shutil
 import subprocess
@@ -112,6 +113,28 @@ def test_run_writes_model_checkpoints_logs_and_config(smoke_run: SmokeRun) -> No
     cfg = yaml.safe_load(cfg_path.read_text())
     assert cfg["train"]["seed"] >= 1_000_000
     assert cfg["residual"]["choice_mode"] == cfg["env_kwargs"]["choice_mode"]
+
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("ppo_smoke_run")
+def test_periodic_evaluation_records_the_metrics_and_best_exports_it(
+    smoke_run: SmokeRun, tmp_path: Path
+) -> None:
+    """evaluations.npz holds each user's |AM|, |EM| and |a-1|; --best exports that checkpoint."""
+    from train.export import main as export_main
+    from train.ppo import EVAL_METRICS
+
+    with np.load(smoke_run.out / "eval" / "evaluations.npz") as data:
+        assert list(data["timesteps"]) == [2048]
+        for key in EVAL_METRICS:
+            assert data[key].shape == (1, 1)
+        assert 0.0 <= data["em_mean_abs"][0, 0] < 60.0
+    assert export_main([str(smoke_run.out), "--best", "--out", str(tmp_path / "b")]) == 0
+    config = yaml.safe_load(model_files(tmp_path / "b")[2].read_text())
+    assert config["num_timesteps"] == 2048
+    assert config["selected_by"]["steps"] == 2048
+    assert config["selected_by"]["n_users"] == 1
+    assert isinstance(PPOPolicy.load(tmp_path / "b.zip"), PPOPolicy)
 
 
 @pytest.mark.slow
@@ -613,6 +636,18 @@ def test_restore_history_keeps_what_the_resume_point_saw(tmp_path: Path) -> None
     assert cb.best_mean_reward == pytest.approx(-0.15)
 
 
+def test_restore_history_keeps_the_recorded_metrics(tmp_path: Path) -> None:
+    from train.ppo import EVAL_METRICS, _MetricsEvalCallback, _restore_history
+
+    run = _scored_run(tmp_path, [[0.1, 0.2], [0.3, 0.4]], [[0.5, 0.6], [0.7, 0.8]])
+    _model, env = _fresh_model(1)
+    cb = _MetricsEvalCallback(env, n_eval_episodes=2)
+    assert _restore_history(cb, run / "eval", tmp_path / "none.yaml", 10) == 1
+    assert cb.evaluations_metrics["abs_am"] == [[0.1, 0.2]]
+    assert cb.evaluations_metrics["em_mean_abs"] == [[0.5, 0.6]]
+    assert set(cb.evaluations_metrics) == set(EVAL_METRICS)
+
+
 def test_fresh_run_refuses_a_non_empty_out(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -622,6 +657,61 @@ def test_fresh_run_refuses_a_non_empty_out(
     assert train_main(["--config", str(CONFIG), "--out", str(tmp_path)]) == 2
     assert "already holds files" in capsys.readouterr().err
     assert [p.name for p in tmp_path.iterdir()] == ["notes.txt"]
+
+
+def _scored_run(tmp_path: Path, am: list[list[float]], em: list[list[float]]) -> Path:
+    """A run directory with recorded evaluations at 10, 20, ... steps and their checkpoints."""
+    (tmp_path / "eval").mkdir()
+    (tmp_path / "checkpoints").mkdir()
+    (tmp_path / "run_config.yaml").write_text("train: {name: m, eval_seed: 900000}\n")
+    steps = [10 * (i + 1) for i in range(len(am))]
+    np.savez(
+        tmp_path / "eval" / "evaluations.npz",
+        timesteps=steps,
+        results=np.zeros((len(am), 2)),
+        ep_lengths=np.ones((len(am), 2)),
+        abs_am=am,
+        em_mean_abs=em,
+        a_dev=np.full((len(am), 2), 0.2),
+    )
+    for n in steps:
+        for f in checkpoint_files(tmp_path / "checkpoints", "m", n):
+            f.write_bytes(b"checkpoint")
+    return tmp_path
+
+
+def test_best_steps_takes_the_lowest_score_earliest_on_a_tie(tmp_path: Path) -> None:
+    from train.export import best_steps, eval_scores
+
+    am = [[0.4, 0.2], [0.1, 0.1], [0.0, 0.2], [math.nan, 0.0]]
+    em = [[0.3, 0.3], [0.3, 0.3], [0.3, 0.3], [0.0, 0.0]]
+    run = _scored_run(tmp_path, am, em)
+    scores = eval_scores(run)
+    assert [e.steps for e in scores] == [10, 20, 30]  # 40: a session did not end (NaN)
+    assert scores[0].score == pytest.approx(0.6)
+    chosen = best_steps(run, "m")
+    assert (chosen.steps, chosen.score) == (20, pytest.approx(0.4))  # 30 ties, 20 is earlier
+    checkpoint_files(run / "checkpoints", "m", 20)[0].unlink()
+    assert best_steps(run, "m").steps == 30  # only steps with a checkpoint are eligible
+
+
+def test_best_names_what_is_missing(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from train.export import main as export_main
+
+    (tmp_path / "run_config.yaml").write_text("train: {name: m}\n")
+    assert export_main([str(tmp_path), "--best", "--out", str(tmp_path / "x")]) == 2
+    assert "evaluations.npz" in capsys.readouterr().err
+    (tmp_path / "eval").mkdir()
+    np.savez(tmp_path / "eval" / "evaluations.npz", timesteps=[5], results=[[0.0]])
+    assert export_main([str(tmp_path), "--best", "--out", str(tmp_path / "x")]) == 2
+    assert "no abs_am" in capsys.readouterr().err
+    (tmp_path / "r").mkdir()
+    run = _scored_run(tmp_path / "r", [[0.1]], [[0.2]])
+    for f in checkpoint_files(run / "checkpoints", "m", 10):
+        f.unlink()
+    assert export_main([str(run), "--best", "--out", str(tmp_path / "x")]) == 2
+    assert "multiple of checkpoint_freq" in capsys.readouterr().err
+    assert not (tmp_path / "x.zip").exists()
 
 
 def test_export_and_ensemble_never_replace_files_without_overwrite(

@@ -3,6 +3,7 @@
 Run::
 
     python -m train.export runs/ppo --steps 100000 --out models/ppo_aligner
+    python -m train.export runs/ppo --best --out models/ppo_aligner   # chosen on validation
 
 copies ``RUN/checkpoints/NAME_<steps>_steps.zip`` and its ``NAME_vecnormalize_<steps>_steps.pkl``
 to ``OUT.zip`` and ``OUT_vecnormalize.pkl``, writes the run's config (``RUN/run_config.yaml``) as
@@ -11,6 +12,14 @@ paths as :func:`train.ppo.recorded_path` records them), and loads the result onc
 :meth:`policies.learned.PPOPolicy.load` so that a broken export fails here, not in an evaluation.
 Nothing is written when an input is missing, nor over an existing ``OUT.*`` without
 ``--overwrite``.
+
+``--best`` exports the checkpoint with the best periodic-evaluation *score* instead: the lowest
+mean ``|AM|`` + mean ``|EM|`` of the held-out users (``train.ppo``'s ``eval_seed`` onwards,
+recorded in ``RUN/eval/evaluations.npz``) among the evaluations made at a checkpoint's step count
+(``eval_freq`` a multiple of ``checkpoint_freq``), the earliest on a tie; so the choice is
+deterministic and uses no test user. A session that did not end by itself (``|AM|`` NaN) makes
+its evaluation ineligible. The exported config records the choice (``selected_by``) and
+``--best`` prints every eligible evaluation's figures on stderr (see :func:`eval_scores`).
 
 ``--choice-only`` exports only the phrase-choice part of the learned correction: the exported
 config's residual gets ``pace_scale = audio_scale = 0``, so the paces are the base controller's
@@ -26,10 +35,11 @@ import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import yaml
 
-__all__ = ["ExportArgs", "export", "main", "parse_args"]
+__all__ = ["EvalScore", "ExportArgs", "best_steps", "eval_scores", "export", "main", "parse_args"]
 
 
 @dataclass(frozen=True)
@@ -38,7 +48,8 @@ class ExportArgs:
 
     Attributes:
         run: Output directory of a ``python -m train.ppo`` run.
-        steps: Step count of the checkpoint to export (``checkpoints/NAME_<steps>_steps.zip``).
+        steps: Step count of the checkpoint to export (``checkpoints/NAME_<steps>_steps.zip``);
+            None: the one :func:`best_steps` picks (``--best``).
         out: Stem of the exported model (``OUT.zip``, ``OUT_vecnormalize.pkl``,
             ``OUT_config.yaml``).
         name: The run's model name; None: ``train.name`` of ``RUN/run_config.yaml``.
@@ -47,7 +58,7 @@ class ExportArgs:
     """
 
     run: Path
-    steps: int
+    steps: int | None
     out: Path
     name: str | None = None
     choice_only: bool = False
@@ -58,7 +69,13 @@ def parse_args(argv: Sequence[str] | None = None) -> ExportArgs:
     """Parse the command line into :class:`ExportArgs`."""
     p = argparse.ArgumentParser(prog="python -m train.export", description=__doc__.split("\n")[0])
     p.add_argument("run", type=Path, help="output directory of a python -m train.ppo run")
-    p.add_argument("--steps", type=int, required=True, help="step count of the checkpoint")
+    which = p.add_mutually_exclusive_group(required=True)
+    which.add_argument("--steps", type=int, help="step count of the checkpoint")
+    which.add_argument(
+        "--best",
+        action="store_true",
+        help="the checkpoint with the lowest held-out mean |AM| + mean |EM| (periodic evaluation)",
+    )
     p.add_argument("--out", type=Path, required=True, help="stem of the exported model")
     p.add_argument(
         "--name", default=None, help="the run's model name (default: train.name of its config)"
@@ -103,11 +120,17 @@ def export(args: ExportArgs) -> Path:
         name = train.get("name") if isinstance(train, dict) else None
         if not isinstance(name, str) or not name:
             raise ValueError(f"{run_config}: no train.name (pass --name)")
-    sources = (*checkpoint_files(args.run / "checkpoints", name, args.steps), run_config)
+    steps, chosen = args.steps, None
+    if steps is None:
+        chosen = best_steps(args.run, name)
+        steps = chosen.steps
+    sources = (*checkpoint_files(args.run / "checkpoints", name, steps), run_config)
     for f in sources:
         if not f.is_file():
             raise FileNotFoundError(f"train.export: not found: {f}")
-    config["num_timesteps"] = args.steps
+    config["num_timesteps"] = steps
+    if chosen is not None:
+        config["selected_by"] = chosen.record(config)
     if args.choice_only:
         residual = config.get("residual")
         if not isinstance(residual, dict):
@@ -128,6 +151,118 @@ def export(args: ExportArgs) -> Path:
     targets[2].write_text(yaml.safe_dump(config, sort_keys=False))
     PPOPolicy.load(targets[0])
     return targets[0]
+
+
+@dataclass(frozen=True)
+class EvalScore:
+    """One periodic evaluation of a run, summarised: means over its held-out users.
+
+    Attributes:
+        steps: Step count of the evaluation (the checkpoint of that step has its weights).
+        abs_am: Mean ``|AM|`` (s).
+        em_mean_abs: Mean over users of the mean ``|EM|`` (s).
+        a_dev: Mean over users of the mean ``|a - 1|`` while speaking.
+        n_users: Held-out users evaluated.
+    """
+
+    steps: int
+    abs_am: float
+    em_mean_abs: float
+    a_dev: float
+    n_users: int
+
+    @property
+    def score(self) -> float:
+        """Mean ``|AM|`` + mean ``|EM|`` (s): the selection score (lower is better)."""
+        return self.abs_am + self.em_mean_abs
+
+    def record(self, run_config: dict[str, Any]) -> dict[str, Any]:
+        """What an exported config records of the choice."""
+        train = run_config.get("train")
+        train = train if isinstance(train, dict) else {}
+        return {
+            "rule": "lowest periodic-evaluation mean |AM| + mean |EM| among checkpoints",
+            "eval_seed": train.get("eval_seed"),
+            "n_users": self.n_users,
+            "steps": self.steps,
+            "score": round(self.score, 6),
+            "abs_am": round(self.abs_am, 6),
+            "em_mean_abs": round(self.em_mean_abs, 6),
+            "a_dev": round(self.a_dev, 6),
+        }
+
+
+def eval_scores(run: Path) -> list[EvalScore]:
+    """The periodic evaluations recorded in ``RUN/eval/evaluations.npz``, in step order.
+
+    An evaluation in which a session did not end by itself (``|AM|`` NaN) is left out.
+
+    Raises:
+        FileNotFoundError: naming the file, if the run has no evaluations.
+        ValueError: naming the file, if it lacks the metrics (a run made before ``train.ppo``
+            recorded them, or without periodic evaluation).
+    """
+    import numpy as np
+
+    from train.ppo import EVAL_METRICS
+
+    path = run / "eval" / "evaluations.npz"
+    if not path.is_file():
+        raise FileNotFoundError(f"train.export: not found: {path} (a run with periodic evaluation)")
+    with np.load(path) as data:
+        missing = [k for k in ("timesteps", *EVAL_METRICS) if k not in data]
+        if missing:
+            raise ValueError(
+                f"{path}: no {', '.join(missing)} (recorded by train.ppo's periodic evaluation "
+                "since v0.3.1; retrain, or export with --steps)"
+            )
+        steps = np.asarray(data["timesteps"], dtype=int)
+        am, em, a_dev = (np.asarray(data[k], dtype=float) for k in EVAL_METRICS)
+    out = []
+    for i, n in enumerate(steps):
+        if am[i].size == 0 or not np.isfinite(am[i]).all():
+            continue
+        out.append(
+            EvalScore(
+                int(n),
+                float(am[i].mean()),
+                float(em[i].mean()),
+                float(np.nanmean(a_dev[i])),
+                int(am[i].size),
+            )
+        )
+    return sorted(out, key=lambda e: e.steps)
+
+
+def best_steps(run: Path, name: str) -> EvalScore:
+    """The evaluation with the lowest score (:attr:`EvalScore.score`; the earliest on a tie)
+    among those made at a step count that has a checkpoint in ``RUN/checkpoints``.
+
+    Raises:
+        FileNotFoundError: no evaluations (see :func:`eval_scores`).
+        ValueError: naming the run, if no evaluation has a checkpoint of its step count.
+    """
+    from train.ppo import checkpoint_files
+
+    eligible = [
+        e
+        for e in eval_scores(run)
+        if all(f.is_file() for f in checkpoint_files(run / "checkpoints", name, e.steps))
+    ]
+    if not eligible:
+        raise ValueError(
+            f"{run}: no periodic evaluation at the step count of a checkpoint {name}_<steps>_steps"
+            ".zip (make eval_freq a multiple of checkpoint_freq)"
+        )
+    for e in eligible:
+        print(
+            f"{e.steps:>9} steps: mean |AM| {e.abs_am:.3f} s + mean |EM| {e.em_mean_abs:.3f} s "
+            f"= {e.score:.3f} s (|a-1| {e.a_dev:.3f}, {e.n_users} users)",
+            file=sys.stderr,
+        )
+    best = min(eligible, key=lambda e: (e.score, e.steps))
+    print(f"chosen: {best.steps} steps (score {best.score:.3f} s)", file=sys.stderr)
+    return best
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -795,6 +795,11 @@ def _restore_history(eval_cb: EvalCallback, eval_dir: Path, best_cfg: Path, step
             eval_cb.evaluations_timesteps = [int(t) for t in np.asarray(data["timesteps"])[keep]]
             eval_cb.evaluations_results = [list(r) for r in np.asarray(data["results"])[keep]]
             eval_cb.evaluations_length = [list(r) for r in np.asarray(data["ep_lengths"])[keep]]
+            if isinstance(eval_cb, _MetricsEvalCallback):
+                for key in EVAL_METRICS:  # NaN for a run recorded before they were
+                    rows = np.asarray(data[key]) if key in data else np.full(keep.shape, np.nan)
+                    kept = rows[keep]
+                    eval_cb.evaluations_metrics[key] = [np.atleast_1d(r).tolist() for r in kept]
     means = [float(np.mean(r)) for r in eval_cb.evaluations_results]
     best = max(means, default=-np.inf)
     if best_cfg.is_file():
@@ -1025,40 +1030,75 @@ def _learn(
     return final.with_suffix(".zip")
 
 
+#: Per-episode metrics the periodic evaluation records in ``eval/evaluations.npz`` beside SB3's
+#: ``timesteps``, ``results`` and ``ep_lengths`` (one row per evaluation, one column per user):
+#: ``|AM|`` at the end (s; NaN when a session did not end by itself), mean ``|EM|`` over its
+#: decisions (s) and mean ``|a - 1|`` over its decisions while speech goes on.
+EVAL_METRICS: tuple[str, ...] = ("abs_am", "em_mean_abs", "a_dev")
+
+
 class _MetricsEvalCallback(EvalCallback):
-    """EvalCallback that also logs the held-out users' mean ``|AM|`` and mean ``|EM|``."""
+    """EvalCallback that also logs and records the held-out users' ``|AM|``, ``|EM|`` and
+    ``|a - 1|`` (:data:`EVAL_METRICS`), so that a checkpoint can be chosen by them
+    (``python -m train.export RUN --best``)."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self._am: list[float] = []
-        self._em: list[float] = []
+        self._episode: dict[str, list[float]] = {k: [] for k in EVAL_METRICS}
         self._em_steps: list[float] = []
+        self._a_steps: list[float] = []
+        self.evaluations_metrics: dict[str, list[list[float]]] = {k: [] for k in EVAL_METRICS}
 
     def _on_step(self) -> bool:
-        self._am, self._em, self._em_steps = [], [], []
+        self._episode = {k: [] for k in EVAL_METRICS}
+        self._em_steps, self._a_steps = [], []
         ok = bool(super()._on_step())
-        if self._am:
-            am, em = float(np.nanmean(self._am)), float(np.mean(self._em))
+        if self._episode["abs_am"]:
+            for key in EVAL_METRICS:
+                self.evaluations_metrics[key].append(list(self._episode[key]))
+            self._save_metrics()
+            am = float(np.nanmean(self._episode["abs_am"]))
+            em = float(np.mean(self._episode["em_mean_abs"]))
+            a_dev = float(np.nanmean(self._episode["a_dev"]))
             self.logger.record("eval/abs_am", am)
-            self.logger.record("eval/abs_am_median", float(np.nanmedian(self._am)))
+            self.logger.record("eval/abs_am_median", float(np.nanmedian(self._episode["abs_am"])))
             self.logger.record("eval/em_mean_abs", em)
+            self.logger.record("eval/a_dev", a_dev)
             print(
                 f"[eval @ {self.num_timesteps} steps] held-out users: mean |AM| {am:.3f} s, "
-                f"median |AM| {np.nanmedian(self._am):.3f} s, mean |EM| {em:.3f} s, "
-                f"return {self.last_mean_reward:.2f}",
+                f"median |AM| {np.nanmedian(self._episode['abs_am']):.3f} s, mean |EM| "
+                f"{em:.3f} s, mean |a-1| {a_dev:.3f}, return {self.last_mean_reward:.2f}",
                 file=sys.stderr,
             )
         return ok
+
+    def _save_metrics(self) -> None:
+        """Rewrite ``evaluations.npz`` with SB3's arrays and :data:`EVAL_METRICS`."""
+        if self.log_path is None or len(self.evaluations_timesteps) != len(
+            self.evaluations_metrics["abs_am"]
+        ):
+            return
+        arrays: dict[str, Any] = {
+            "timesteps": self.evaluations_timesteps,
+            "results": self.evaluations_results,
+            "ep_lengths": self.evaluations_length,
+        }
+        arrays.update({k: np.asarray(v, dtype=float) for k, v in self.evaluations_metrics.items()})
+        np.savez(self.log_path, **arrays)
 
     def _log_success_callback(self, locals_: dict[str, Any], globals_: dict[str, Any]) -> None:
         super()._log_success_callback(locals_, globals_)
         info = locals_["info"]
         self._em_steps.append(abs(float(info.get("em", 0.0))))
+        if not info.get("speech_done", False):
+            self._a_steps.append(abs(float(info.get("a", 1.0)) - 1.0))
         if locals_["done"]:
             am = info.get("am")
-            self._am.append(abs(float(am)) if am is not None else math.nan)
-            self._em.append(float(np.mean(self._em_steps)))
-            self._em_steps = []
+            self._episode["abs_am"].append(abs(float(am)) if am is not None else math.nan)
+            self._episode["em_mean_abs"].append(float(np.mean(self._em_steps)))
+            a_dev = float(np.mean(self._a_steps)) if self._a_steps else math.nan
+            self._episode["a_dev"].append(a_dev)
+            self._em_steps, self._a_steps = [], []
 
 
 def main(argv: Sequence[str] | None = None) -> int:
