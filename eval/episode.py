@@ -41,6 +41,10 @@ FLAG_TRACES: tuple[str, ...] = ("motion_done", "speech_done")
 SCENE_TRACES: tuple[str, ...] = ("qpos", "f_user")
 """Names of the optional per-step arrays that replay the scene (:mod:`eval.video`)."""
 
+_TRACES = (*FLOAT_TRACES, *FLAG_TRACES)
+_TRACE_KEYS = _TRACES  # the info keys EpisodeRecorder.append reads, in _TRACES' order
+_TRACE_KEYS_TIME = tuple("time" if name == "t" else name for name in _TRACES)  # no "t" key
+
 _NPZ_FORMAT = 2
 _NPZ_FORMATS = (1, 2)  # format 1: no scene traces, no phrase graph
 
@@ -394,14 +398,17 @@ class EpisodeRecorder:
         Raises:
             ConfigError: naming the key, if a required key is missing.
         """
-        row: dict[str, float] = {}
-        for name in (*FLOAT_TRACES, *FLAG_TRACES):
-            key = "time" if name == "t" and "t" not in info else name
-            if key not in info:
-                raise ConfigError(f"EpisodeRecorder.append: info lacks key {key!r}")
-            row[name] = float(info[key])
-        for name, value in row.items():
-            self._values.setdefault(name, []).append(value)
+        keys = _TRACE_KEYS if "t" in info else _TRACE_KEYS_TIME
+        try:
+            row = [float(info[key]) for key in keys]
+        except KeyError:
+            missing = next(key for key in keys if key not in info)
+            raise ConfigError(f"EpisodeRecorder.append: info lacks key {missing!r}") from None
+        values = self._values
+        if not values:
+            values.update((name, []) for name in _TRACES)
+        for name, value in zip(_TRACES, row, strict=True):
+            values[name].append(value)
         for name in SCENE_TRACES:
             if name in info:
                 self._scene.setdefault(name, []).append(np.array(info[name], np.float32))

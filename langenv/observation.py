@@ -213,10 +213,23 @@ class ObservationEncoder:
         self.max_children = max_children
         self.size = observation_size(max_children)
         self._blocks = {
-            pid: (1.0, encode_seconds(t_min), encode_seconds(t_max))
+            pid: (1.0, _clip(encode_seconds(t_min)), _clip(encode_seconds(t_max)))
             for pid, (t_min, t_max) in durations.items()
         }
         self._empty = (-1.0, 0.0, 0.0)
+        self._tails: dict[tuple[str, ...], tuple[float, ...]] = {}
+
+    def _tail(self, children: Sequence[str]) -> tuple[float, ...]:
+        """The child blocks of ``children`` (then empty ones), flattened; cached per tuple."""
+        key = tuple(children)
+        tail = self._tails.get(key)
+        if tail is None:
+            n = len(key)
+            blocks = [
+                self._blocks[key[k]] if k < n else self._empty for k in range(self.max_children)
+            ]
+            tail = self._tails[key] = tuple(v for block in blocks for v in block)
+        return tail
 
     def encode(
         self,
@@ -241,31 +254,34 @@ class ObservationEncoder:
     ) -> np.ndarray:
         """Fill ``out`` (shape ``(size,)``) with the observation, clipped to [-1, 1]; returns it.
 
+        Every entry is clipped in float64 before ``out``'s float32 rounding, which is the same
+        as clipping after it (rounding is monotone and +-1 are exact); NaN stays NaN.
+
         Args:
             children: Ids of the current phrase's children (at most ``max_children``).
         """
-        out[:FIRST_CHILD] = (
-            encode_seconds(t_x),
-            encode_seconds(t_a),
-            encode_seconds(t_a / a - t_x / p),
-            encode_pace(p),
-            encode_pace(a),
-            encode_fraction(cooperation),
-            cooperation_trend,
-            encode_fraction(progress),
-            encode_speed(hand_speed),
-            encode_fraction(phrase_said),
-            encode_seconds(phrase_left),
+        out[:] = (
+            _clip(encode_seconds(t_x)),
+            _clip(encode_seconds(t_a)),
+            _clip(encode_seconds(t_a / a - t_x / p)),
+            _clip(encode_pace(p)),
+            _clip(encode_pace(a)),
+            _clip(encode_fraction(cooperation)),
+            _clip(cooperation_trend),
+            _clip(encode_fraction(progress)),
+            _clip(encode_speed(hand_speed)),
+            _clip(encode_fraction(phrase_said)),
+            _clip(encode_seconds(phrase_left)),
             encode_flag(in_pause),
             encode_flag(speech_done),
             encode_flag(motion_done),
             encode_flag(boundary_due),
-            encode_elapsed(elapsed),
+            _clip(encode_elapsed(elapsed)),
+            *self._tail(children),
         )
-        blocks, empty = self._blocks, self._empty
-        n = len(children)
-        for k in range(self.max_children):
-            base = FIRST_CHILD + CHILD_FIELDS * k
-            out[base : base + CHILD_FIELDS] = blocks[children[k]] if k < n else empty
-        np.clip(out, -1.0, 1.0, out=out)
         return out
+
+
+def _clip(v: float) -> float:
+    """``v`` clipped to [-1, 1] (NaN stays NaN, as with ``np.clip``)."""
+    return v if -1.0 <= v <= 1.0 else (1.0 if v > 1.0 else (-1.0 if v < -1.0 else v))

@@ -74,6 +74,76 @@ def test_encoder_clips_and_marks_missing_children() -> None:
     assert ob.flag(out, Obs.BOUNDARY_DUE)
 
 
+def _reference_encode(enc: ObservationEncoder, fields: dict[str, object]) -> np.ndarray:
+    """The encoder's definition, written plainly: every entry in float32, then ``np.clip``."""
+    f = fields
+    header = [
+        ob.encode_seconds(f["t_x"]),
+        ob.encode_seconds(f["t_a"]),
+        ob.encode_seconds(f["t_a"] / f["a"] - f["t_x"] / f["p"]),
+        ob.encode_pace(f["p"]),
+        ob.encode_pace(f["a"]),
+        ob.encode_fraction(f["cooperation"]),
+        f["cooperation_trend"],
+        ob.encode_fraction(f["progress"]),
+        ob.encode_speed(f["hand_speed"]),
+        ob.encode_fraction(f["phrase_said"]),
+        ob.encode_seconds(f["phrase_left"]),
+        *(ob.encode_flag(f[k]) for k in ("in_pause", "speech_done", "motion_done", "boundary_due")),
+        ob.encode_elapsed(f["elapsed"]),
+    ]
+    out = np.zeros(enc.size, np.float32)
+    out[: ob.FIRST_CHILD] = header
+    for k, c in enumerate(f["children"]):  # type: ignore[call-overload]
+        t_min, t_max = _DURATIONS[c]
+        out[ob.child_index(k) : ob.child_index(k) + 3] = (
+            1.0,
+            ob.encode_seconds(t_min),
+            ob.encode_seconds(t_max),
+        )
+    for k in range(len(f["children"]), enc.max_children):  # type: ignore[arg-type]
+        out[ob.child_index(k)] = -1.0
+    return np.clip(out, -1.0, 1.0)
+
+
+_DURATIONS = {"x": (2.0, 80.0), "y": (0.5, 3.0), "z": (39.99999, 40.00001)}
+_anything = st.floats(allow_nan=True, allow_infinity=True, width=64)
+_positive = st.floats(1e-3, 1e3)
+
+
+@given(
+    st.fixed_dictionaries(
+        {
+            "t_x": _anything,
+            "t_a": _anything,
+            "p": _positive,
+            "a": _positive,
+            "cooperation": _anything,
+            "cooperation_trend": _anything,
+            "progress": _anything,
+            "hand_speed": _anything,
+            "phrase_said": _anything,
+            "phrase_left": _anything,
+            "in_pause": st.booleans(),
+            "speech_done": st.booleans(),
+            "motion_done": st.booleans(),
+            "boundary_due": st.booleans(),
+            "elapsed": _anything,
+            "children": st.lists(st.sampled_from(sorted(_DURATIONS)), max_size=3).map(tuple),
+        }
+    )
+)
+def test_encoder_equals_its_plain_definition(fields: dict[str, object]) -> None:
+    """The fast encoder (clipping in float64 before the float32 rounding, cached child blocks)
+    writes exactly what casting to float32 and then clipping writes, NaN included."""
+    enc = ObservationEncoder(3, _DURATIONS)
+    out = np.full(enc.size, 7.0, np.float32)
+    with np.errstate(all="ignore"):
+        enc.encode(out, **fields)  # type: ignore[arg-type]
+        ref = _reference_encode(enc, fields)
+    np.testing.assert_array_equal(out, ref)
+
+
 def test_env_writes_what_its_info_reports() -> None:
     """Decoding the env's observation gives the values of its ``info``, step by step, and the
     child blocks hold the current phrase's children's durations."""

@@ -14,7 +14,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.signal import savgol_filter
 
 from langenv.errors import ConfigError
 
@@ -161,6 +160,8 @@ def force_for_cooperation(
         window = round(smooth / step) | 1  # odd
         if window >= 5:
             window = min(window, t.size if t.size % 2 else t.size - 1)
+            from scipy.signal import savgol_filter  # here: importing scipy.signal takes ~1 s
+
             r = savgol_filter(r, window, 2, mode="interp")
     dr = np.gradient(r, t)
     force = f_max * (r + dr / -math.log(alpha))

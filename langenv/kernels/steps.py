@@ -242,11 +242,12 @@ class CompiledSteps:
         paces, speech, motion = env.paces, env.speech, env.motion
         table, step = env.user.force_table()
         u = speech._phrase
-        es[E_P], es[E_A], es[E_PDOT] = paces.p, paces.a, paces.p_dot
-        es[E_TIME], es[E_TA], es[E_EM], es[E_PACE] = env.time, env.t_a, em_int, pace_int
-        es[E_VMAX], es[E_COOPI], es[E_USTEP] = env._max_speed, env._coop_i, step
-        es[E_POS], es[E_ST], es[E_SA], es[E_MARK] = speech._pos, speech._t, speech._a, speech._mark
-        es[E_U] = -1.0 if u is None else self.index[u]
+        es[E_P : E_COOPI + 1] = (  # one slice assignment: the layout is E_P .. E_COOPI in order
+            paces.p, paces.a, paces.p_dot, env.time, env.t_a, em_int, pace_int, env._max_speed,
+            speech._pos, speech._t, speech._a, speech._mark,
+            -1.0 if u is None else self.index[u], env._coop_i,
+        )  # fmt: skip
+        es[E_USTEP] = step
         t = motion._compiled
         done, answer, code = run(
             t.ws, t.path, t.aw, t.ai, t.jac, t.xpos, t.xmat, t.qpos, t.qvel, t.ctrl, t.qfrc,
@@ -254,10 +255,11 @@ class CompiledSteps:
             self.kids, p_cmd, a_cmd, n,
         )  # fmt: skip
         if done:
-            paces.p, paces.a, paces.p_dot = es[E_P : E_PDOT + 1].tolist()
-            env.time, env.t_a, em_int, pace_int, env._max_speed = es[E_TIME : E_VMAX + 1].tolist()
-            speech._pos, speech._t, speech._a = es[E_POS : E_SA + 1].tolist()
-            env._coop_i = int(es[E_COOPI])
+            (
+                paces.p, paces.a, paces.p_dot, env.time, env.t_a, em_int, pace_int,
+                env._max_speed, speech._pos, speech._t, speech._a, _, _, coop_i,
+            ) = es[E_P : E_COOPI + 1].tolist()  # fmt: skip
+            env._coop_i = int(coop_i)
             motion.f_user = es[E_F : E_F + 3].copy()
             t.sync()
         return done, answer, code, em_int, pace_int

@@ -15,7 +15,6 @@ import math
 from pathlib import Path
 
 import numpy as np
-from scipy.interpolate import make_smoothing_spline
 
 from langenv.errors import ConfigError
 from langenv.users.base import (
@@ -115,7 +114,10 @@ def invert_cooperation(
     inside = grid >= t[0]
     tg = grid[inside]
     if t.size >= _MIN_SPLINE_POINTS:
+        from scipy.interpolate import make_smoothing_spline  # here: a slow import
+
         lam = smoothing**4 / float(np.mean(np.diff(t)))
+
         spline = make_smoothing_spline(t, r, lam=lam)
         r_s = spline(tg)
         dr = spline.derivative()(tg)
