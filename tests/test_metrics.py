@@ -213,6 +213,22 @@ def test_recorder_takes_exact_utterances_and_skips_unknown_end_times() -> None:
         EpisodeRecorder("lc", "u").build(0.0)
 
 
+def test_recorder_names_a_missing_key_and_keeps_its_samples() -> None:
+    info = {
+        "time": 0.0, "cooperation": 1.0, "hand_speed": 0.0, "p": 1.0, "a": 1.0, "t_x": 5.0,
+        "t_a": 5.0, "em": 0.0, "motion_done": False, "speech_done": False,
+    }  # fmt: skip
+    rec = EpisodeRecorder("lc", "u")
+    rec.append(info)
+    for key in ("time", "em", "speech_done"):
+        with pytest.raises(ConfigError, match=repr(key)):
+            rec.append({k: v for k, v in info.items() if k != key})
+    rec.append({**info, "t": 0.5, "time": 9.0})  # "t" wins over "time"
+    assert len(rec) == 2
+    log = rec.build(0.0, t_motion=1.0, t_speech=1.0)
+    assert log.t.tolist() == [0.0, 0.5] and log.p.tolist() == [1.0, 1.0]
+
+
 # ------------------------------------------------------------------ metrics
 
 
