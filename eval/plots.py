@@ -1,7 +1,9 @@
 """The paper's two figures: distributions per controller (violins) and the close-up of one session.
 
-Both draw on a fresh :class:`matplotlib.figure.Figure` with the Agg canvas (no pyplot, no global
-state, no layout engine: the margins are fixed) at :data:`DPI`, and are written atomically.
+Both draw on a :class:`matplotlib.figure.Figure` with the Agg canvas (no pyplot, no layout
+engine: the margins are fixed) at :data:`DPI`, and are written atomically. The violins get a fresh
+figure; the session figure's fixed part is built once per process and reused (about 40 % of its
+drawing time), its session's artists replaced on every call.
 
 * :func:`violin_figure`: cooperation ``c``, audio pace ``a``, physical pace ``p``, estimated
   misalignment EM and actual misalignment AM per controller. ``c``, ``a``, ``p`` and EM are time
@@ -20,6 +22,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
+from matplotlib.artist import Artist
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import PolyCollection
@@ -255,11 +258,16 @@ def _style_axes(
 
 
 def _phrase_labels(
-    ax: Axes, log: EpisodeLog, x_range: tuple[float, float], width_px: float
+    ax: Axes,
+    log: EpisodeLog,
+    x_range: tuple[float, float],
+    width_px: float,
+    added: list[Artist],
 ) -> None:
+    """The phrases said as labelled spans on ``ax``; the artists drawn are appended to ``added``."""
     colors: dict[str, str] = {}
     if not log.utterances:
-        ax.text(
+        note = ax.text(
             0.5,
             0.5,
             "no phrase recorded",
@@ -269,6 +277,7 @@ def _phrase_labels(
             color="0.4",
             transform=ax.transAxes,
         )
+        added.append(note)
         return
     px_per_s = width_px / (x_range[1] - x_range[0])
     char_px = 7.5 * DPI / 72.0 * 0.58  # mean glyph width of a 7.5 pt sans font
@@ -282,7 +291,7 @@ def _phrase_labels(
             edgecolor="0.35",
             linewidth=0.6,
         )
-        ax.add_patch(rect)
+        added.append(ax.add_patch(rect))
         fit = int((u.duration * px_per_s - 4.0) / char_px)
         if fit < 2:
             continue
@@ -300,7 +309,7 @@ def _phrase_labels(
             linespacing=1.15,
         )
         label.set_clip_path(rect)
-    ax.set_ylim(0.0, 1.0)
+        added.append(label)
 
 
 def _clip(text: str, n: int) -> str:
@@ -309,6 +318,10 @@ def _clip(text: str, n: int) -> str:
 
 def session_figure(log: EpisodeLog, path: str | Path) -> Path:
     """Draw the close-up figure of one session (the paper's single-session analysis).
+
+    The figure's fixed part (panels, reference lines, legends, ticks) is built once per process
+    and reused (:class:`_SessionCanvas`); what belongs to a session is replaced on each call, so
+    a figure does not depend on the ones drawn before it.
 
     Args:
         log: The session.
@@ -320,113 +333,159 @@ def session_figure(log: EpisodeLog, path: str | Path) -> Path:
     Raises:
         FileNotFoundError: if the directory of ``path`` does not exist (checked before drawing).
     """
+    global _CANVAS
     _check_dir(path)
-    left, right = 0.085, 0.985
-    fig = Figure(figsize=SESSION_SIZE, dpi=DPI)
-    axes = fig.subplots(
-        6,
-        1,
-        gridspec_kw={
-            "height_ratios": [1.0, 1.0, 1.2, 1.2, 1.0, 0.9],
-            "hspace": 0.14,
-            "left": left,
-            "right": right,
-            "top": 0.935,
-            "bottom": 0.055,
-        },
-    )
-    say_ax = axes[-1]
-    t = log.t
-    t_hi = max(float(t[-1]), log.t_motion, log.t_speech)
-    x_range = (float(t[0]), t_hi + 0.02 * (t_hi - float(t[0])))
-    _plot_session_signals(axes[:5], log)
-    say_ax.set_ylabel("phrase said")
-    say_ax.set_xlabel("time (s)")
-    width_px = SESSION_SIZE[0] * DPI * (right - left)
-    _phrase_labels(say_ax, log, x_range, width_px)
-    _share_time_axis(axes, log, x_range)
-    _mark_session_ends(fig, say_ax, log, x_range, width_px, right)
-    _session_title(fig, log, left)
-    return _save(fig, path)
+    if _CANVAS is None:
+        _CANVAS = _SessionCanvas()
+    return _CANVAS.draw(log, path)
 
 
-def _plot_session_signals(axes: Sequence[Axes], log: EpisodeLog) -> None:
-    """The five signal panels: cooperation, hand speed, paces, ETCs, EM."""
-    c_ax, v_ax, pace_ax, etc_ax, em_ax = axes
-    t = log.t
-    motion = ~log.motion_done
-    speech = ~log.speech_done
-
-    c_ax.plot(t, log.cooperation, color="#6A3D9A", linewidth=1.2)
-    c_ax.set_ylim(-0.03, 1.05)
-    c_ax.set_ylabel("cooperation c")
-
-    v_ax.plot(t, log.hand_speed, color="0.2", linewidth=1.2)
-    v_ax.set_ylim(bottom=0.0)
-    v_ax.set_ylabel("hand speed (m/s)")
-
-    for b in PACE_BOUNDS:
-        pace_ax.axhline(b, color="0.6", linestyle=":", linewidth=0.8)
-    pace_ax.axhline(1.0, color="0.5", linestyle="--", linewidth=0.8)
-    pace_ax.plot(
-        t, np.where(motion, log.p, np.nan), color="#0072B2", linewidth=1.4, label="physical pace p"
-    )
-    pace_ax.plot(
-        t, np.where(speech, log.a, np.nan), color="#D55E00", linewidth=1.4, label="audio pace a"
-    )
-    pace_ax.set_ylim(PACE_BOUNDS[0] - 0.07, PACE_BOUNDS[1] + 0.07)
-    pace_ax.set_ylabel("pace")
-    pace_ax.legend(loc="lower left", fontsize=8, ncol=2, frameon=False)
-
-    etc_ax.plot(t, log.t_x, color="#0072B2", linewidth=1.4, label="motion ETC $\\hat t_x$")
-    etc_ax.plot(t, log.t_a, color="#D55E00", linewidth=1.4, label="speech ETC $\\hat t_a$")
-    etc_ax.set_ylim(bottom=0.0)
-    etc_ax.set_ylabel("ETC (s)")
-    etc_ax.legend(loc="upper right", fontsize=8, ncol=2, frameon=False)
-
-    em_ax.axhline(0.0, color="0.5", linestyle="--", linewidth=0.8)
-    em_ax.fill_between(
-        t,
-        log.em,
-        0.0,
-        where=log.em >= 0,
-        color="#D55E00",
-        alpha=0.25,
-        linewidth=0,
-        interpolate=True,
-    )
-    em_ax.fill_between(
-        t, log.em, 0.0, where=log.em < 0, color="#0072B2", alpha=0.25, linewidth=0, interpolate=True
-    )
-    em_ax.plot(t, log.em, color="0.15", linewidth=1.2)
-    lim = max(0.5, float(np.abs(log.em).max()) * 1.1)
-    em_ax.set_ylim(-lim, lim)
-    em_ax.set_ylabel("EM (s)")
+_LEFT, _RIGHT = 0.085, 0.985  # the session figure's margins (figure fraction)
+_WIDTH_PX = SESSION_SIZE[0] * DPI * (_RIGHT - _LEFT)  # width of its panels (pixels)
 
 
-def _share_time_axis(axes: Sequence[Axes], log: EpisodeLog, x_range: tuple[float, float]) -> None:
-    """One time axis for all panels, with the ends of motion and speech marked on each."""
-    say_ax = axes[-1]
-    # One time axis for all panels. Tick labels only at the bottom; the other panels get no
-    # ticks at all (tick objects dominate matplotlib's drawing time), only their grid lines.
-    candidates = np.asarray(MaxNLocator(nbins=10, steps=[1, 2, 2.5, 5, 10]).tick_values(*x_range))
-    x_ticks = candidates[(candidates >= x_range[0]) & (candidates <= x_range[1])]
-    for ax in axes:
-        ax.set_xlim(*x_range)
-        ax.axvline(log.t_motion, color=_MOTION_END, linewidth=1.1, zorder=5)
-        ax.axvline(log.t_speech, color=_SPEECH_END, linewidth=1.1, linestyle="--", zorder=5)
-        ax.tick_params(labelsize=8)
-        ax.yaxis.label.set_fontsize(9)
-        ax.set_axisbelow(True)
-        if ax is say_ax:
-            ax.xaxis.set_major_locator(FixedLocator(x_ticks.tolist()))
-            ax.yaxis.set_major_locator(NullLocator())
-            ax.grid(color="0.93", linewidth=0.6, axis="x")
-        else:
-            ax.xaxis.set_major_locator(NullLocator())
-            ax.yaxis.set_major_locator(MaxNLocator(nbins=4))
-            ax.grid(color="0.93", linewidth=0.6, axis="y")
-            ax.vlines(
+class _SessionCanvas:
+    """The session figure: its fixed artists, built once, and the session's, replaced per draw.
+
+    Fixed: six stacked panels (``c``; hand speed; ``p`` and ``a``; the ETCs; EM; the phrases
+    said), their reference lines, labels and legends, the signal lines (their data replaced), the
+    end markers (moved), the legend of the ends and the title (their texts replaced). Per
+    session: the EM areas, the time grid, the phrase spans and the AM arrow (removed after the
+    draw).
+    """
+
+    def __init__(self) -> None:
+        self.fig = fig = Figure(figsize=SESSION_SIZE, dpi=DPI)
+        FigureCanvasAgg(fig)
+        axes = fig.subplots(
+            6,
+            1,
+            gridspec_kw={
+                "height_ratios": [1.0, 1.0, 1.2, 1.2, 1.0, 0.9],
+                "hspace": 0.14,
+                "left": _LEFT,
+                "right": _RIGHT,
+                "top": 0.935,
+                "bottom": 0.055,
+            },
+        )
+        self.axes: list[Axes] = list(axes)
+        c_ax, v_ax, pace_ax, etc_ax, em_ax, say_ax = self.axes
+        self.c = c_ax.plot([], [], color="#6A3D9A", linewidth=1.2)[0]
+        c_ax.set_ylabel("cooperation c")
+        self.v = v_ax.plot([], [], color="0.2", linewidth=1.2)[0]
+        v_ax.set_ylabel("hand speed (m/s)")
+        for b in PACE_BOUNDS:
+            pace_ax.axhline(b, color="0.6", linestyle=":", linewidth=0.8)
+        pace_ax.axhline(1.0, color="0.5", linestyle="--", linewidth=0.8)
+        self.p = pace_ax.plot([], [], color="#0072B2", linewidth=1.4, label="physical pace p")[0]
+        self.a = pace_ax.plot([], [], color="#D55E00", linewidth=1.4, label="audio pace a")[0]
+        pace_ax.set_ylim(PACE_BOUNDS[0] - 0.07, PACE_BOUNDS[1] + 0.07)
+        pace_ax.set_ylabel("pace")
+        pace_ax.legend(loc="lower left", fontsize=8, ncol=2, frameon=False)
+        self.t_x = etc_ax.plot(
+            [], [], color="#0072B2", linewidth=1.4, label="motion ETC $\\hat t_x$"
+        )[0]
+        self.t_a = etc_ax.plot(
+            [], [], color="#D55E00", linewidth=1.4, label="speech ETC $\\hat t_a$"
+        )[0]
+        etc_ax.set_ylabel("ETC (s)")
+        etc_ax.legend(loc="upper right", fontsize=8, ncol=2, frameon=False)
+        em_ax.axhline(0.0, color="0.5", linestyle="--", linewidth=0.8)
+        self.em = em_ax.plot([], [], color="0.15", linewidth=1.2, zorder=2.5)[0]
+        em_ax.set_ylabel("EM (s)")
+        say_ax.set_ylabel("phrase said")
+        say_ax.set_xlabel("time (s)")
+        say_ax.set_ylim(0.0, 1.0)
+        self.ends = [
+            (
+                ax.axvline(0.0, color=_MOTION_END, linewidth=1.1, zorder=5),
+                ax.axvline(0.0, color=_SPEECH_END, linewidth=1.1, linestyle="--", zorder=5),
+            )
+            for ax in self.axes
+        ]
+        self._style_axes()
+        handles = [
+            Line2D([], [], color=_MOTION_END, linewidth=1.1, label="motion end"),
+            Line2D([], [], color=_SPEECH_END, linewidth=1.1, linestyle="--", label="speech end"),
+        ]
+        legend = fig.legend(
+            handles=handles,
+            loc="upper right",
+            ncol=2,
+            fontsize=8,
+            frameon=False,
+            bbox_to_anchor=(_RIGHT, 0.965),
+        )
+        self.end_labels = legend.get_texts()
+        self.title = fig.suptitle("", fontsize=12, fontweight="bold", x=_LEFT, ha="left")
+        self.session: list[Artist] = []
+
+    def _style_axes(self) -> None:
+        """Fonts, grids and locators of every panel (the time ticks are set per session)."""
+        for ax in self.axes:
+            ax.tick_params(labelsize=8)
+            ax.yaxis.label.set_fontsize(9)
+            ax.set_axisbelow(True)
+            if ax is self.axes[-1]:
+                ax.yaxis.set_major_locator(NullLocator())
+                ax.grid(color="0.93", linewidth=0.6, axis="x")
+            else:  # no time ticks (tick objects dominate drawing time), only their grid lines
+                ax.xaxis.set_major_locator(NullLocator())
+                ax.yaxis.set_major_locator(MaxNLocator(nbins=4))
+                ax.grid(color="0.93", linewidth=0.6, axis="y")
+
+    def draw(self, log: EpisodeLog, path: str | Path) -> Path:
+        """Draw ``log`` and write it to ``path``; the session's artists are removed afterwards."""
+        t = log.t
+        t_hi = max(float(t[-1]), log.t_motion, log.t_speech)
+        x_range = (float(t[0]), t_hi + 0.02 * (t_hi - float(t[0])))
+        try:
+            self._signals(log)
+            self._time_axis(log, x_range)
+            _phrase_labels(self.axes[-1], log, x_range, _WIDTH_PX, self.session)
+            self._ends(log, x_range)
+            return _save(self.fig, path)
+        finally:
+            for artist in self.session:
+                artist.remove()
+            self.session.clear()
+
+    def _signals(self, log: EpisodeLog) -> None:
+        """The five signal panels' data and value ranges."""
+        c_ax, v_ax, _, etc_ax, em_ax, _ = self.axes
+        t = log.t
+        self.c.set_data(t, log.cooperation)
+        c_ax.set_ylim(-0.03, 1.05)
+        self.v.set_data(t, log.hand_speed)
+        v_ax.set_ylim(0.0, _autoscaled_top(log.hand_speed))
+        self.p.set_data(t, np.where(~log.motion_done, log.p, np.nan))
+        self.a.set_data(t, np.where(~log.speech_done, log.a, np.nan))
+        self.t_x.set_data(t, log.t_x)
+        self.t_a.set_data(t, log.t_a)
+        etc_ax.set_ylim(0.0, _autoscaled_top(np.concatenate([log.t_x, log.t_a])))
+        for where, color in ((log.em >= 0, "#D55E00"), (log.em < 0, "#0072B2")):
+            area = em_ax.fill_between(
+                t, log.em, 0.0, where=where, color=color, alpha=0.25, linewidth=0, interpolate=True
+            )
+            self.session.append(area)
+        self.em.set_data(t, log.em)
+        lim = max(0.5, float(np.abs(log.em).max()) * 1.1)
+        em_ax.set_ylim(-lim, lim)
+
+    def _time_axis(self, log: EpisodeLog, x_range: tuple[float, float]) -> None:
+        """One time axis for all panels: limits, the bottom's ticks, the others' grid lines."""
+        locator = MaxNLocator(nbins=10, steps=[1, 2, 2.5, 5, 10])
+        candidates = np.asarray(locator.tick_values(*x_range))
+        x_ticks = candidates[(candidates >= x_range[0]) & (candidates <= x_range[1])]
+        for ax, (motion_end, speech_end) in zip(self.axes, self.ends, strict=True):
+            ax.set_xlim(*x_range)
+            motion_end.set_xdata([log.t_motion, log.t_motion])
+            speech_end.set_xdata([log.t_speech, log.t_speech])
+            if ax is self.axes[-1]:
+                ax.xaxis.set_major_locator(FixedLocator(x_ticks.tolist()))
+                continue
+            grid = ax.vlines(
                 x_ticks,
                 0.0,
                 1.0,
@@ -435,69 +494,52 @@ def _share_time_axis(axes: Sequence[Axes], log: EpisodeLog, x_range: tuple[float
                 linewidth=0.6,
                 zorder=0.5,
             )
+            self.session.append(grid)
 
-
-def _mark_session_ends(
-    fig: Figure,
-    say_ax: Axes,
-    log: EpisodeLog,
-    x_range: tuple[float, float],
-    width_px: float,
-    right: float,
-) -> None:
-    """The legend of the two ends and the AM arrow (labelled where there is room)."""
-    ends = [
-        Line2D([], [], color=_MOTION_END, linewidth=1.1, label=f"motion end {log.t_motion:.2f} s"),
-        Line2D(
-            [],
-            [],
-            color=_SPEECH_END,
-            linewidth=1.1,
-            linestyle="--",
-            label=f"speech end {log.t_speech:.2f} s",
-        ),
-    ]
-    fig.legend(
-        handles=ends,
-        loc="upper right",
-        ncol=2,
-        fontsize=8,
-        frameon=False,
-        bbox_to_anchor=(right, 0.965),
-    )
-    am = log.am
-    if abs(am) > 1e-3:
-        say_ax.annotate(
-            "",
-            xy=(log.t_speech, 0.5),
-            xytext=(log.t_motion, 0.5),
-            xycoords=say_ax.get_xaxis_transform(),
-            arrowprops={"arrowstyle": "<->", "color": "0.1", "linewidth": 1.0},
-            zorder=6,
-        )
-        if abs(am) * width_px / (x_range[1] - x_range[0]) > 70.0:  # room for a label
-            say_ax.text(
-                (log.t_motion + log.t_speech) / 2.0,
-                0.62,
-                f"AM {am:+.2f} s",
-                transform=say_ax.get_xaxis_transform(),
-                ha="center",
-                va="bottom",
-                fontsize=8,
+    def _ends(self, log: EpisodeLog, x_range: tuple[float, float]) -> None:
+        """The legend of the two ends, the AM arrow (labelled where there is room), the title."""
+        say_ax = self.axes[-1]
+        self.end_labels[0].set_text(f"motion end {log.t_motion:.2f} s")
+        self.end_labels[1].set_text(f"speech end {log.t_speech:.2f} s")
+        am = log.am
+        if abs(am) > 1e-3:
+            arrow = say_ax.annotate(
+                "",
+                xy=(log.t_speech, 0.5),
+                xytext=(log.t_motion, 0.5),
+                xycoords=say_ax.get_xaxis_transform(),
+                arrowprops={"arrowstyle": "<->", "color": "0.1", "linewidth": 1.0},
                 zorder=6,
             )
+            self.session.append(arrow)
+            if abs(am) * _WIDTH_PX / (x_range[1] - x_range[0]) > 70.0:  # room for a label
+                label = say_ax.text(
+                    (log.t_motion + log.t_speech) / 2.0,
+                    0.62,
+                    f"AM {am:+.2f} s",
+                    transform=say_ax.get_xaxis_transform(),
+                    ha="center",
+                    va="bottom",
+                    fontsize=8,
+                    zorder=6,
+                )
+                self.session.append(label)
+        first = "motion ended first" if am > 0 else ("speech ended first" if am < 0 else "together")
+        self.title.set_text(
+            f"{display_name(log.policy)} · user {log.user} · AM = {am:+.2f} s ({first}) · "
+            f"return {log.ret:.2f}"
+        )
+        self.title.set_color(policy_color(log.policy))
 
 
-def _session_title(fig: Figure, log: EpisodeLog, left: float) -> None:
-    """The title: policy, user, AM (which ended first) and return, in the policy's colour."""
-    am = log.am
-    first = "motion ended first" if am > 0 else ("speech ended first" if am < 0 else "together")
-    fig.suptitle(
-        f"{display_name(log.policy)} · user {log.user} · AM = {am:+.2f} s ({first}) · "
-        f"return {log.ret:.2f}",
-        fontsize=12,
-        color=policy_color(log.policy),
-        fontweight="bold",
-        x=left,
-        ha="left",
-    )
+_CANVAS: _SessionCanvas | None = None
+
+
+def _autoscaled_top(values: np.ndarray) -> float:
+    """The top of an axis from 0 that autoscaling would give ``values`` (5 % margins)."""
+    finite = values[np.isfinite(values)]
+    if finite.size == 0:
+        return 1.0
+    lo, hi = float(finite.min()), float(finite.max())
+    top = hi + 0.05 * (hi - lo)
+    return top if top > 0.0 else 1.0

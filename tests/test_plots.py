@@ -112,6 +112,18 @@ def test_session_figure(tmp_path: Path, case: str, am: float, speak: bool, hz: f
     assert has_colour(path, policy_color("lc"))  # the title
 
 
+def test_session_figure_keeps_nothing_of_the_previous_session(tmp_path: Path) -> None:
+    """The reused figure draws a session the same whatever was drawn before it."""
+    rng = np.random.default_rng(5)
+    first = make_log("lc", "a", rng, hz=100.0, am=1.5, speak=True)
+    other = make_log("ac", "b", rng, hz=500.0, am=-3.0, speak=False)
+    before = session_figure(first, tmp_path / "before.png").read_bytes()
+    session_figure(other, tmp_path / "other.png")
+    after = session_figure(first, tmp_path / "after.png").read_bytes()
+    assert after == before
+    assert (tmp_path / "other.png").read_bytes() != before
+
+
 def test_violin_figure(tmp_path: Path) -> None:
     rng = np.random.default_rng(0)
     logs = {p: [make_log(p, f"s{k}", rng) for k in range(6)] for p in ("ac", "lc-noap", "lc")}
