@@ -26,7 +26,7 @@ from langenv.users import (
     invert_cooperation,
     load_sessions,
 )
-from langenv.users.synthetic import CALIBRATED_YAML, Episode
+from langenv.users.synthetic import CALIBRATED_YAML, Episode, ar1_filter
 
 CALIBRATED_PARAMS = SyntheticUserParams.calibrated()
 
@@ -443,3 +443,16 @@ def test_replay_grid_is_bounded() -> None:
         invert_cooperation(np.array([0.0, 1e7]), np.array([1.0, 0.5]))
     with pytest.raises(ConfigError, match="grid points"):
         invert_cooperation(np.array([0.0, 10.0]), np.array([1.0, 0.5]), dt=1e-9)
+
+
+@settings(deadline=None)  # the first example imports scipy.signal
+@given(
+    st.lists(st.floats(-1e6, 1e6), min_size=1, max_size=200),
+    st.floats(0.0, 0.9999),
+)
+def test_ar1_filter_is_scipys_lfilter_to_the_bit(x: list[float], a: float) -> None:
+    """The OU noise's filter gives scipy.signal.lfilter's samples exactly (episodes unchanged)."""
+    from scipy.signal import lfilter
+
+    arr = np.array(x)
+    np.testing.assert_array_equal(ar1_filter(arr, a), lfilter([1.0], [1.0, -a], arr))

@@ -45,7 +45,14 @@ from langenv.users.base import (
     sample_table_array,
 )
 
-__all__ = ["CALIBRATED_YAML", "Episode", "LogNormal", "SyntheticUser", "SyntheticUserParams"]
+__all__ = [
+    "CALIBRATED_YAML",
+    "Episode",
+    "LogNormal",
+    "SyntheticUser",
+    "SyntheticUserParams",
+    "ar1_filter",
+]
 
 CALIBRATED_YAML = Path(__file__).resolve().parents[1] / "assets" / "users" / "synthetic.yaml"
 """The calibrated parameters shipped with the package (written by ``python -m eval.calibrate``)."""
@@ -435,12 +442,10 @@ class SyntheticUser:
 
     def _ou_noise(self, rng: np.random.Generator, n: int) -> np.ndarray:
         """Unit-variance Ornstein–Uhlenbeck samples (n,) at :attr:`grid` (exact discretisation)."""
-        from scipy.signal import lfilter
-
         a = math.exp(-self.params.resolution / self.params.noise_tau)
         z = rng.standard_normal(n)
         z[1:] *= math.sqrt(1.0 - a * a)
-        return np.asarray(lfilter([1.0], [1.0, -a], z), dtype=np.float64)
+        return ar1_filter(z, a)
 
     def magnitude(self, t: float) -> float:
         """Force magnitude (N) the person applies at time ``t`` (s)."""
@@ -461,3 +466,15 @@ class SyntheticUser:
 
     def __repr__(self) -> str:
         return f"SyntheticUser({len(self.episodes)} episodes)"
+
+
+def ar1_filter(x: np.ndarray, a: float) -> np.ndarray:
+    """``y[0] = x[0]``, ``y[n] = x[n] + a y[n-1]``: ``scipy.signal.lfilter([1], [1, -a], x)``
+    to the bit (the same operations in the same order), without importing ``scipy.signal``
+    (about a second per process). ``x``: (n,); returns a new float64 array (n,)."""
+    out = []
+    y = 0.0
+    for v in np.asarray(x, dtype=np.float64).tolist():
+        y = v + a * y
+        out.append(y)
+    return np.array(out, dtype=np.float64)
