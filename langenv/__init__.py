@@ -11,11 +11,16 @@ Importing the package registers the Gymnasium environment ``LangCtrl-v0``
 
 from __future__ import annotations
 
+from importlib.metadata import PackageNotFoundError, version
+
 from gymnasium.envs.registration import register, registry
 
 __all__ = ["ENV_ID", "__version__"]
 
-__version__ = "0.1.0"
+try:  # one source: pyproject.toml's version, as installed
+    __version__ = version("langctrl")
+except PackageNotFoundError:  # a source tree that was never installed
+    __version__ = "unknown"
 ENV_ID = "LangCtrl-v0"
 
 if ENV_ID not in registry:

@@ -16,6 +16,7 @@ from __future__ import annotations
 import itertools
 from collections import Counter
 from functools import cache
+from pathlib import Path
 
 import grimp
 import pytest
@@ -113,3 +114,13 @@ if __name__ == "__main__":
             chain = g.find_shortest_chain(importer=package, imported=other, as_packages=True)
             print(f"  {package} -> {other}: {'none' if chain is None else ' -> '.join(chain)}")
     print(f"import cycles: {import_cycles(g) or 'none'}")
+
+
+def test_version_has_one_source() -> None:
+    """``langenv.__version__`` is the installed distribution's, i.e. pyproject.toml's."""
+    import tomllib
+
+    import langenv
+
+    pyproject = tomllib.loads((Path(__file__).resolve().parents[1] / "pyproject.toml").read_text())
+    assert langenv.__version__ == pyproject["project"]["version"]
