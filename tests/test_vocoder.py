@@ -19,7 +19,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from langenv.errors import ActionError, ConfigError
-from langenv.speech.vocoder import VariableRateVocoder, time_stretch
+from langenv.speech.vocoder import VariableRateVocoder, periodic_hann, time_stretch
 
 SR = 22050
 FADE_S = 0.02
@@ -492,3 +492,9 @@ def test_any_even_frame_length(n_fft: int) -> None:
     assert out.size == y.size
     inner = slice(n_fft, y.size - n_fft)
     np.testing.assert_allclose(out[inner], y[inner], atol=2e-3)
+
+
+@given(st.integers(2, 4096))
+def test_periodic_hann_is_scipys_to_the_bit(n: int) -> None:
+    """The vocoder's window without importing scipy.signal: scipy's (librosa's) exactly."""
+    np.testing.assert_array_equal(periodic_hann(n), scipy.signal.get_window("hann", n))

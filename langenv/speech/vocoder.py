@@ -51,13 +51,12 @@ from __future__ import annotations
 import math
 from typing import Literal
 
-import librosa
 import numpy as np
 
 from langenv.errors import ActionError, ConfigError
 from langenv.speech import vocoder_kernels as _kernels
 
-__all__ = ["VariableRateVocoder", "time_stretch"]
+__all__ = ["VariableRateVocoder", "periodic_hann", "time_stretch"]
 
 #: Per-frame content advance is clamped to ``[_MIN_ADVANCE, _MAX_ADVANCE] * a * hop``.
 _MIN_ADVANCE = 0.5
@@ -140,8 +139,7 @@ class VariableRateVocoder:
         n = self.n_fft
         self._half = n // 2
         self._n_bins = n // 2 + 1
-        window = np.asarray(librosa.filters.get_window("hann", n, fftbins=True), dtype=np.float64)
-        self._window = window
+        self._window = periodic_hann(n)
         self._fft = _kernels.frame_tables(n)
         # bin centre frequencies (rad/sample)
         self._omega_bin = 2.0 * np.pi * np.arange(self._n_bins) / n
@@ -444,3 +442,17 @@ def time_stretch(
         chunks.append(chunk)
         pos += chunk.size
     return np.concatenate(chunks) if chunks else np.zeros(0, dtype=np.float32)
+
+
+def periodic_hann(n: int) -> np.ndarray:
+    """The periodic ("DFT-even") Hann window of ``n`` samples, float64 ``(n,)``.
+
+    ``scipy.signal.get_window("hann", n)`` (and so librosa's) to the bit: the same operations in
+    the same order (a generalised cosine window over ``n + 1`` points, the last dropped), without
+    importing ``scipy.signal`` or ``librosa.filters`` (seconds per process).
+    """
+    fac = np.linspace(-np.pi, np.pi, n + 1, dtype=np.float64)
+    w = np.zeros(n + 1, dtype=np.float64)
+    for k, a in enumerate(np.asarray([0.5, 0.5])):
+        w += a * np.cos(k * fac)
+    return w[:-1]
