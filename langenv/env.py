@@ -256,7 +256,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         size = observation_size(self.max_children)
         self.observation_space = spaces.Box(-1.0, 1.0, (size,), np.float32)
         self._obs = np.zeros(size, np.float32)
-        self._choice_u = np.zeros(n_choice)
+        self._choice_u: list[float] = [0.0] * n_choice
         self._renderer: Any = None
         self.time = 0.0
         self.t_a = 0.0
@@ -282,15 +282,14 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         return self._observation(), self._info()
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        act = self._parse_action(action)
-        values = act.tolist()
+        values = self._parse_action(action)
         for v in values:
             if not -1.000001 <= v <= 1.000001:  # also rejects NaN
                 raise ActionError(f"action must be finite and lie in [-1, 1], got {values}")
         lim = self.paces.limits
-        p_cmd = command_from_action(float(act[0]), lim.p_max)
-        a_cmd = command_from_action(float(act[1]), lim.a_max)
-        self._choice_u = act[2:]
+        p_cmd = command_from_action(values[0], lim.p_max)
+        a_cmd = command_from_action(values[1], lim.a_max)
+        self._choice_u = values[2:]
 
         em_int = pace_int = 0.0
         self._max_speed = 0.0
@@ -341,9 +340,11 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         super().close()
 
     # ------------------------------------------------------------------ internals
-    def _parse_action(self, action: Any) -> np.ndarray:
-        """``action`` as a float64 array of the action space's shape, or :class:`ActionError`."""
+    def _parse_action(self, action: Any) -> list[float]:
+        """``action``'s values (of the action space's shape) as floats, or :class:`ActionError`."""
         shape = self.action_space.shape
+        if type(action) is np.ndarray and action.dtype in _FLOAT_DTYPES and action.shape == shape:
+            return action.tolist()  # the common case, without a float64 copy
         if action is None:
             raise ActionError(
                 f"action is None; pass an array of shape {shape} with values in [-1, 1] "
@@ -363,7 +364,8 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             ) from None
         if act.shape != shape:
             raise ActionError(f"action must have shape {shape}, got shape {act.shape}")
-        return act
+        values: list[float] = act.tolist()
+        return values
 
     def _reset_episode_state(self) -> None:
         self.time = 0.0
@@ -503,6 +505,8 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             "safety_message": stop.message if stop is not None else "",
         }
 
+
+_FLOAT_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))  # actions taken as they are
 
 def make_env(**kwargs: Any) -> LangCtrlEnv:
     """Entry point of ``LangCtrl-v0``: ``LangCtrlEnv(**kwargs)``.

@@ -47,6 +47,7 @@ __all__ = [
     "T_SCALE",
     "ChildField",
     "Obs",
+    "ObsValues",
     "ObservationEncoder",
     "child",
     "child_index",
@@ -155,46 +156,51 @@ def encode_elapsed(t: float) -> float:
 
 
 # ---------------------------------------------------------------------------------- decoders
-def seconds(obs: np.ndarray, field: int) -> float:
+ObsValues = np.ndarray | Sequence[float]
+"""What the decoders read: an observation, or its values as a list (``obs.tolist()``, which is
+cheaper to read many fields from: a list item is a Python float, an array item a NumPy scalar)."""
+
+
+def seconds(obs: ObsValues, field: int) -> float:
     """A time field (``T_X``, ``T_A``, ``MISALIGNMENT``, ``PHRASE_LEFT``) in s."""
     return float(obs[field]) * T_SCALE
 
 
-def pace(obs: np.ndarray, field: int) -> float:
+def pace(obs: ObsValues, field: int) -> float:
     """A pace field (``P``, ``A``)."""
     return 1.0 + PACE_SCALE * float(obs[field])
 
 
-def fraction(obs: np.ndarray, field: int) -> float:
+def fraction(obs: ObsValues, field: int) -> float:
     """A share in [0, 1] (``COOPERATION``, ``PROGRESS``, ``PHRASE_SAID``)."""
     return 0.5 * (float(obs[field]) + 1.0)
 
 
-def flag(obs: np.ndarray, field: int) -> bool:
+def flag(obs: ObsValues, field: int) -> bool:
     """A yes/no field (``IN_PAUSE``, ``SPEECH_DONE``, ``MOTION_DONE``, ``BOUNDARY_DUE``)."""
     return bool(obs[field] > 0.0)
 
 
-def value(obs: np.ndarray, field: int) -> float:
+def value(obs: ObsValues, field: int) -> float:
     """A field stored as is (``COOPERATION_TREND``, 1/s)."""
     return float(obs[field])
 
 
-def hand_speed(obs: np.ndarray) -> float:
+def hand_speed(obs: ObsValues) -> float:
     """The hand speed (m/s)."""
     return float(obs[Obs.HAND_SPEED]) * SPEED_SCALE
 
 
-def elapsed(obs: np.ndarray) -> float:
+def elapsed(obs: ObsValues) -> float:
     """Time since the episode began (s)."""
     return float(obs[Obs.ELAPSED]) * ELAPSED_SCALE
 
 
-def child(obs: np.ndarray, k: int) -> tuple[bool, float, float] | None:
+def child(obs: ObsValues, k: int) -> tuple[bool, float, float] | None:
     """Child ``k`` of the current phrase: ``(valid, t_min, t_max)`` (s), or None past the end of
     the observation."""
     base = child_index(k)
-    if base + CHILD_FIELDS > obs.shape[0]:
+    if base + CHILD_FIELDS > len(obs):
         return None
     valid = bool(obs[base] > 0.0)
     return valid, float(obs[base + 1]) * T_SCALE, float(obs[base + 2]) * T_SCALE

@@ -108,7 +108,7 @@ class LanguageController:
         """The terminal phase's estimate of the motion's actual rate ``-dt_x/dt`` (1 at rest)."""
         return self._rate
 
-    def phase(self, observation: np.ndarray) -> Phase:
+    def phase(self, observation: ob.ObsValues) -> Phase:
         """Which law acts on this observation.
 
         Returns:
@@ -128,7 +128,7 @@ class LanguageController:
         t_x = ob.seconds(observation, Obs.T_X)
         return "terminal" if t_x < self.terminal else "aligning"
 
-    def _update_rate(self, observation: np.ndarray) -> None:
+    def _update_rate(self, observation: ob.ObsValues) -> None:
         """Average ``-dt_x/dt`` over ``RATE_TAU``; idempotent for a repeated observation."""
         t_x = ob.seconds(observation, Obs.T_X)
         now = ob.elapsed(observation)
@@ -145,17 +145,18 @@ class LanguageController:
 
     def act(self, observation: np.ndarray) -> np.ndarray:
         """Pace commands from the ETCs and cooperation; the paper's phrase rule."""
+        values = np.asarray(observation).tolist()  # the same values as floats: cheaper to read
         if self.terminal > 0.0:
-            self._update_rate(observation)
-        t_x = max(0.0, ob.seconds(observation, Obs.T_X))
-        t_a = max(0.0, ob.seconds(observation, Obs.T_A))
-        c = ob.fraction(observation, Obs.COOPERATION)
+            self._update_rate(values)
+        t_x = max(0.0, ob.seconds(values, Obs.T_X))
+        t_a = max(0.0, ob.seconds(values, Obs.T_A))
+        c = ob.fraction(values, Obs.COOPERATION)
         p_star, a_star = optimal_paces(t_x, t_a)
         a_cmd = audio_command(a_star, c, self.gains)
-        motion_done = ob.flag(observation, Obs.MOTION_DONE)
+        motion_done = ob.flag(values, Obs.MOTION_DONE)
         if self.k_em > 0.0 and not motion_done:
             p_star -= min(self.em_clip, max(-self.em_clip, self.k_em * (t_a - t_x)))
-        phase = self.phase(observation)
+        phase = self.phase(values)
         if phase == "terminal":
             p_star = 1.0
             a_cmd = t_a * max(self._rate, RATE_FLOOR) / max(t_x, 1e-6)
