@@ -508,6 +508,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
 
 _FLOAT_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))  # actions taken as they are
 
+
 def make_env(**kwargs: Any) -> LangCtrlEnv:
     """Entry point of ``LangCtrl-v0``: ``LangCtrlEnv(**kwargs)``.
 
