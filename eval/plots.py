@@ -18,6 +18,7 @@ drawing time), its session's artists replaced on every call.
 from __future__ import annotations
 
 import io
+import threading
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -335,9 +336,10 @@ def session_figure(log: EpisodeLog, path: str | Path) -> Path:
     """
     global _CANVAS
     _check_dir(path)
-    if _CANVAS is None:
-        _CANVAS = _SessionCanvas()
-    return _CANVAS.draw(log, path)
+    with _CANVAS_LOCK:  # one figure per process: threads draw one after the other
+        if _CANVAS is None:
+            _CANVAS = _SessionCanvas()
+        return _CANVAS.draw(log, path)
 
 
 _LEFT, _RIGHT = 0.085, 0.985  # the session figure's margins (figure fraction)
@@ -458,12 +460,12 @@ class _SessionCanvas:
         self.c.set_data(t, log.cooperation)
         c_ax.set_ylim(-0.03, 1.05)
         self.v.set_data(t, log.hand_speed)
-        v_ax.set_ylim(0.0, _autoscaled_top(log.hand_speed))
+        _autoscale_from_zero(v_ax)
         self.p.set_data(t, np.where(~log.motion_done, log.p, np.nan))
         self.a.set_data(t, np.where(~log.speech_done, log.a, np.nan))
         self.t_x.set_data(t, log.t_x)
         self.t_a.set_data(t, log.t_a)
-        etc_ax.set_ylim(0.0, _autoscaled_top(np.concatenate([log.t_x, log.t_a])))
+        _autoscale_from_zero(etc_ax)
         for where, color in ((log.em >= 0, "#D55E00"), (log.em < 0, "#0072B2")):
             area = em_ax.fill_between(
                 t, log.em, 0.0, where=where, color=color, alpha=0.25, linewidth=0, interpolate=True
@@ -533,13 +535,12 @@ class _SessionCanvas:
 
 
 _CANVAS: _SessionCanvas | None = None
+_CANVAS_LOCK = threading.Lock()
 
 
-def _autoscaled_top(values: np.ndarray) -> float:
-    """The top of an axis from 0 that autoscaling would give ``values`` (5 % margins)."""
-    finite = values[np.isfinite(values)]
-    if finite.size == 0:
-        return 1.0
-    lo, hi = float(finite.min()), float(finite.max())
-    top = hi + 0.05 * (hi - lo)
-    return top if top > 0.0 else 1.0
+def _autoscale_from_zero(ax: Axes) -> None:
+    """The y range matplotlib's autoscaling gives the axes' current data, from 0 up."""
+    ax.set_autoscaley_on(True)
+    ax.relim()
+    ax.autoscale_view(scalex=False)
+    ax.set_ylim(bottom=0.0)

@@ -17,6 +17,14 @@ if os.environ.get("CI"):
     settings.load_profile("ci")
 
 
+@pytest.fixture(scope="session", autouse=True)
+def fresh_etc_cache(tmp_path_factory: pytest.TempPathFactory) -> None:
+    """FastETC's disk cache in a directory of this test session (inherited by the scripts the
+    tests start): the tests build the tables themselves instead of reading tables a user's runs
+    left in ``~/.cache``."""
+    os.environ["LANGCTRL_ETC_CACHE"] = str(tmp_path_factory.mktemp("etc-cache"))
+
+
 @pytest.fixture(scope="session")
 def offscreen_gl() -> None:
     """Skip when no off-screen OpenGL context can be made here (checked on an empty model, so a

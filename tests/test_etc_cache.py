@@ -61,6 +61,39 @@ def test_a_damaged_file_is_rebuilt(cache_dir: Path) -> None:
         np.testing.assert_array_equal(data["tab"], built.tab)
 
 
+def test_a_truncated_file_is_rebuilt(cache_dir: Path) -> None:
+    built = _fast()
+    (path,) = cache_dir.glob("*.npz")
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])  # a write cut short, a disk error
+    again = _fast()
+    np.testing.assert_array_equal(again.tab, built.tab)
+    assert path.read_bytes() == data
+
+
+def test_other_guide_parameters_get_other_tables(cache_dir: Path) -> None:
+    """The key holds the guide's parameters and what it derives, not only the admittance's."""
+    tr = Trajectory([LineSegment(np.zeros(3), np.array([0.2, 0.0, 0.0]), waypoint=True)])
+    params = AdmittanceParams()
+    me._TABLES.clear()
+    me.FastETC(Guide(tr, params), VariableAdmittance(params), u_step=0.05)
+    other = AdmittanceParams(propel_force=2.0 * params.propel_force)
+    me.FastETC(Guide(tr, other), VariableAdmittance(params), u_step=0.05)
+    assert len(list(cache_dir.glob("*.npz"))) == 2
+
+
+def test_unreadable_sources_keep_the_tables_in_memory(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("LANGCTRL_ETC_CACHE", str(tmp_path / "etc"))
+    monkeypatch.setattr(etc_cache, "_code_digest", None)
+    monkeypatch.setattr(etc_cache, "_SOURCE_DIRS", ("no-such-package",))
+    monkeypatch.setattr(etc_cache, "_warned", False)
+    with pytest.warns(RuntimeWarning, match="cannot be used"):
+        fast = _fast()
+    assert fast.tab.size > 0 and not (tmp_path / "etc").exists()
+
+
 def test_the_digest_depends_on_the_code(monkeypatch: pytest.MonkeyPatch) -> None:
     key = ("k", 1.0)
     before = etc_cache.tables_digest(key)
@@ -76,7 +109,7 @@ def test_off_and_unwritable(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> 
     blocker.write_text("a file where the directory should be")
     monkeypatch.setenv("LANGCTRL_ETC_CACHE", str(blocker / "etc"))
     monkeypatch.setattr(etc_cache, "_warned", False)
-    with pytest.warns(RuntimeWarning, match="not writable"):
+    with pytest.warns(RuntimeWarning, match="cannot be used"):
         again = _fast()
     np.testing.assert_array_equal(again.tab, ref.tab)
     assert os.listdir(tmp_path) == ["file"]

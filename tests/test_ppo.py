@@ -648,6 +648,32 @@ def test_restore_history_keeps_the_recorded_metrics(tmp_path: Path) -> None:
     assert set(cb.evaluations_metrics) == set(EVAL_METRICS)
 
 
+def test_resume_of_a_run_recorded_before_the_metrics_keeps_saving(tmp_path: Path) -> None:
+    """An evaluations.npz without the metrics (an older run): the restored rows are NaN per user,
+    so the next evaluation's rows stack with them and the file is written again."""
+    from train.ppo import _MetricsEvalCallback, _restore_history
+
+    (tmp_path / "eval").mkdir()
+    np.savez(
+        tmp_path / "eval" / "evaluations.npz",
+        timesteps=[10, 20],
+        results=[[-1.0, -2.0], [-0.5, -0.7]],
+        ep_lengths=[[10, 10], [10, 10]],
+    )
+    _model, env = _fresh_model(1)
+    cb = _MetricsEvalCallback(env, n_eval_episodes=2, log_path=str(tmp_path / "eval"))
+    assert _restore_history(cb, tmp_path / "eval", tmp_path / "none.yaml", 20) == 2
+    cb.evaluations_timesteps.append(30)
+    cb.evaluations_results.append([-0.1, -0.2])
+    cb.evaluations_length.append([10, 10])
+    for key, row in (("abs_am", [0.1, 0.2]), ("em_mean_abs", [0.3, 0.4]), ("a_dev", [0.2, 0.2])):
+        cb.evaluations_metrics[key].append(row)
+    cb._save_metrics()
+    with np.load(tmp_path / "eval" / "evaluations.npz") as data:
+        assert data["abs_am"].shape == (3, 2)
+        assert np.isnan(data["abs_am"][:2]).all() and data["abs_am"][2].tolist() == [0.1, 0.2]
+
+
 def test_fresh_run_refuses_a_non_empty_out(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

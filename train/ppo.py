@@ -796,8 +796,10 @@ def _restore_history(eval_cb: EvalCallback, eval_dir: Path, best_cfg: Path, step
             eval_cb.evaluations_results = [list(r) for r in np.asarray(data["results"])[keep]]
             eval_cb.evaluations_length = [list(r) for r in np.asarray(data["ep_lengths"])[keep]]
             if isinstance(eval_cb, _MetricsEvalCallback):
-                for key in EVAL_METRICS:  # NaN for a run recorded before they were
-                    rows = np.asarray(data[key]) if key in data else np.full(keep.shape, np.nan)
+                width = np.asarray(data["results"]).reshape(keep.size, -1).shape[1]
+                for key in EVAL_METRICS:  # NaN (one per user) for a run recorded before they were
+                    missing = np.full((keep.size, width), np.nan)
+                    rows = np.asarray(data[key]) if key in data else missing
                     kept = rows[keep]
                     eval_cb.evaluations_metrics[key] = [np.atleast_1d(r).tolist() for r in kept]
     means = [float(np.mean(r)) for r in eval_cb.evaluations_results]

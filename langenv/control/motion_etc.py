@@ -275,9 +275,13 @@ class FastETC:
         self._inv_acc = 1.0 / law.acc
         n_u = math.ceil((u_range[1] - u_range[0]) / u_step) + 1
         self._u0, self._du, self._nu = float(u_range[0]), float(u_step), n_u
-        key = (
+        key = (  # everything the tables depend on, derived values included (etc_cache's key)
             traj.fingerprint(),
             admittance.params,
+            guide.params,
+            tuple(self._lengths),
+            tuple(self._q_sw),
+            tuple(self._cos),
             dt,
             u_range,
             u_step,

@@ -451,6 +451,8 @@ def periodic_hann(n: int) -> np.ndarray:
     the same order (a generalised cosine window over ``n + 1`` points, the last dropped), without
     importing ``scipy.signal`` or ``librosa.filters`` (seconds per process).
     """
+    if n <= 1:  # scipy's guard: no taper on 0 or 1 samples
+        return np.ones(max(n, 0), dtype=np.float64)
     fac = np.linspace(-np.pi, np.pi, n + 1, dtype=np.float64)
     w = np.zeros(n + 1, dtype=np.float64)
     for k, a in enumerate(np.asarray([0.5, 0.5])):
