@@ -41,9 +41,8 @@ FLAG_TRACES: tuple[str, ...] = ("motion_done", "speech_done")
 SCENE_TRACES: tuple[str, ...] = ("qpos", "f_user")
 """Names of the optional per-step arrays that replay the scene (:mod:`eval.video`)."""
 
-_TRACES = (*FLOAT_TRACES, *FLAG_TRACES)
-_TRACE_KEYS = _TRACES  # the info keys EpisodeRecorder.append reads, in _TRACES' order
-_TRACE_KEYS_TIME = tuple("time" if name == "t" else name for name in _TRACES)  # no "t" key
+_TRACES = (*FLOAT_TRACES, *FLAG_TRACES)  # what EpisodeRecorder.append reads from info, in order
+_TRACE_KEYS_TIME = tuple("time" if name == "t" else name for name in _TRACES)  # info has no "t"
 
 _NPZ_FORMAT = 2
 _NPZ_FORMATS = (1, 2)  # format 1: no scene traces, no phrase graph
@@ -398,7 +397,7 @@ class EpisodeRecorder:
         Raises:
             ConfigError: naming the key, if a required key is missing.
         """
-        keys = _TRACE_KEYS if "t" in info else _TRACE_KEYS_TIME
+        keys = _TRACES if "t" in info else _TRACE_KEYS_TIME
         try:
             row = [float(info[key]) for key in keys]
         except KeyError:

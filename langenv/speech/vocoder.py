@@ -23,7 +23,7 @@ time-scales mono audio with a short-time Fourier transform while keeping its pit
   accumulated sum of the window products (exact whatever the hops and window length).
 
 The frames a pull commits are rendered by one compiled call
-(:func:`langenv.speech.vocoder_kernels.render_frames`); this class keeps the timing.
+(:func:`langenv.speech.vocoder_kernels.render_pull`); this class keeps the timing.
 
 Timing. Output sample ``j`` is played at pace ``a_j`` (the pace of the :meth:`pull` that
 emitted it) and the content consumed is ``tau(j) = sum_{i<j} a_i`` samples, summed exactly

@@ -77,15 +77,23 @@ def fft(xr: np.ndarray, xi: np.ndarray, rev: np.ndarray, tw: np.ndarray) -> None
     Radix 2 (decimation in time) for a power of two, the first two stages as one radix-4 pass
     (twiddles 1 and -i exactly), else the direct ``O(n^2)`` sum.
     """
-    if rev.size == 0:
+    if rev.size > 0:  # radix 2: into bit-reversed order first
+        for i in range(xr.size):
+            j = rev[i]
+            if j > i:
+                xr[i], xr[j] = xr[j], xr[i]
+                xi[i], xi[j] = xi[j], xi[i]
+    _transform_placed(xr, xi, rev, tw)
+
+
+@jit
+def _transform_placed(xr: np.ndarray, xi: np.ndarray, rev: np.ndarray, tw: np.ndarray) -> None:
+    """The rest of :func:`fft` on input already placed: in bit-reversed order for a radix-2
+    length (non-empty ``rev``), in natural order for the direct sum."""
+    if rev.size > 0:
+        _butterflies(xr, xi, tw)
+    else:
         _dft(xr, xi, tw)
-        return
-    for i in range(xr.size):
-        j = rev[i]
-        if j > i:
-            xr[i], xr[j] = xr[j], xr[i]
-            xi[i], xi[j] = xi[j], xi[i]
-    _butterflies(xr, xi, tw)
 
 
 @jit
@@ -183,7 +191,7 @@ def _analyse(
     """
     m = wr.size  # n / 2
     size = buf.size
-    radix2 = rev.size > 0  # filled in bit-reversed order then: the FFT's first step
+    radix2 = rev.size > 0  # filled in bit-reversed order then (see _transform_placed)
     if lo >= 0 and lo + 2 * m <= size:
         for j in range(m):
             r = rev[j] if radix2 else j
@@ -195,10 +203,7 @@ def _analyse(
             r = rev[j] if radix2 else j
             wr[r] = float(buf[i]) if 0 <= i < size else 0.0
             wi[r] = float(buf[i + 1]) if 0 <= i + 1 < size else 0.0
-    if radix2:
-        _butterflies(wr, wi, tw)
-    else:
-        _dft(wr, wi, tw)
+    _transform_placed(wr, wi, rev, tw)
     for k in range(m + 1):
         a = k if k < m else 0
         c = m - k if k > 0 else 0
@@ -394,10 +399,7 @@ def _synthesize(
         r = rev[k] if radix2 else k
         wr[r] = er - oi
         wi[r] = -(ei + orr)
-    if radix2:
-        _butterflies(wr, wi, tw)
-    else:
-        _dft(wr, wi, tw)
+    _transform_placed(wr, wi, rev, tw)
     scale = 1.0 / (2 * m)
     for j in range(m):
         frame[2 * j] = wr[j] * scale
