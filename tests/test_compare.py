@@ -187,3 +187,18 @@ def test_out_under_a_file_is_named(tmp_path: Path, capsys: pytest.CaptureFixture
 def test_unwritable_out_is_named(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["--users", "synthetic:1", "--out", "/sys/langctrl-test/out"]) == 2
     assert "cannot write there" in capsys.readouterr().err
+
+
+def test_parallel_jobs_run_longest_first_and_return_rows_in_job_order(tmp_path: Path) -> None:
+    from eval.compare import Job, decision_rate, run_jobs
+
+    def job(policy: str, user: int, hz: int | None) -> Job:
+        return Job(policy, f"s{user}", user, None, str(tmp_path), False, False, hz)
+
+    jobs = [job("ac", 0, None), job("ac", 1, None), job("lc", 0, 50), job("lc", 1, 50)]
+    assert [decision_rate(j) for j in jobs] == [25, 25, 50, 50]
+    serial = run_jobs(jobs, 1)
+    parallel = run_jobs(jobs, 2)
+    order = [(r["policy"], r["user"]) for r in parallel]
+    assert order == [("ac", "s0"), ("ac", "s1"), ("lc", "s0"), ("lc", "s1")]
+    assert parallel == serial

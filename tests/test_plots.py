@@ -124,6 +124,32 @@ def test_session_figure_keeps_nothing_of_the_previous_session(tmp_path: Path) ->
     assert (tmp_path / "other.png").read_bytes() != before
 
 
+@pytest.mark.parametrize("policy", ["lc", "ac"])
+def test_session_figure_is_the_full_draw(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, policy: str
+) -> None:
+    """Rendering only the animated artists over the stored background gives, pixel for pixel,
+    the figure a full draw of every artist gives."""
+    from eval import plots
+
+    def full_draw(self: plots._SessionCanvas) -> None:
+        animated = self.fig.findobj(lambda a: a.get_animated())
+        assert len(animated) > 20  # the fast path has something to leave out
+        for artist in animated:
+            artist.set_animated(False)
+        try:
+            self.canvas.draw()
+        finally:
+            for artist in animated:
+                artist.set_animated(True)
+
+    log = make_log(policy, "u", np.random.default_rng(8), hz=500.0, am=1.2, speak=True)
+    fast = imread(session_figure(log, tmp_path / "fast.png"))
+    monkeypatch.setattr(plots._SessionCanvas, "_render", full_draw)
+    full = imread(session_figure(log, tmp_path / "full.png"))
+    assert fast.shape == full.shape and np.array_equal(fast, full)
+
+
 def test_violin_figure(tmp_path: Path) -> None:
     rng = np.random.default_rng(0)
     logs = {p: [make_log(p, f"s{k}", rng) for k in range(6)] for p in ("ac", "lc-noap", "lc")}
