@@ -220,7 +220,7 @@ def _draw_time_panels(
         for k, logs in enumerate(logs_by_policy.values()):
             data = np.concatenate([time_samples(log, name, window, hz) for log in logs])
             _violin(ax, data, pos[k], colors[k])
-        ax.set_title(title + (f" ({unit})" if unit else ""), fontsize=10)
+        ax.set_title(title + (f" ({unit})" if unit else ""), fontsize=10, y=1.0)
     c_ax, a_ax, p_ax, em_ax = axes
     c_ax.set_ylim(-0.02, 1.05)
     for ax in (a_ax, p_ax):
@@ -249,7 +249,7 @@ def _draw_am_panel(
         am_ax.scatter(
             pos[k] + jitter, am, s=12, c=colors[k], edgecolors="0.2", linewidths=0.5, zorder=5
         )
-    am_ax.set_title("actual misalignment AM (s)", fontsize=10)
+    am_ax.set_title("actual misalignment AM (s)", fontsize=10, y=1.0)
     lim = max(1.5 * AM_TOLERANCE, *(abs(log.am) for v in logs_by_policy.values() for log in v))
     am_ax.set_ylim(-1.1 * lim, 1.1 * lim)
 
