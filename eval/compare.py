@@ -376,9 +376,10 @@ def run_episode(job: Job) -> dict[str, Any]:
 
 
 def _with_scene(info: dict[str, Any], base: Any) -> dict[str, Any]:
-    """``info`` with the state that replays the scene: joint positions and the person's force."""
-    info["qpos"] = base.motion.arm.data.qpos.astype(np.float32)  # a copy, as the log keeps it
-    info["f_user"] = base.motion.f_user.astype(np.float32)
+    """``info`` with the state that replays the scene: joint positions and the person's force,
+    as the env holds them (for :meth:`EpisodeRecorder.append`, which copies them at once)."""
+    info["qpos"] = base.motion.arm.data.qpos
+    info["f_user"] = base.motion.f_user
     return info
 
 

@@ -455,9 +455,10 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         """The observation (layout and scales: :mod:`langenv.observation`)."""
         m, sp = self.motion, self.speech
         a = self.paces.a
-        n = self._coop_hist.size
-        newest = self._coop_hist[(self._coop_i - 1) % n]
-        oldest = self._coop_hist[self._coop_i % n] if self._coop_i >= n else 1.0
+        hist, i = self._coop_hist, self._coop_i
+        n = hist.size
+        newest = hist.item((i - 1) % n)  # Python floats: cheaper arithmetic than NumPy scalars
+        oldest = hist.item(i % n) if i >= n else 1.0
         self._encoder.encode(
             self._obs,
             t_x=m.t_x,

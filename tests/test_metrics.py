@@ -229,6 +229,27 @@ def test_recorder_names_a_missing_key_and_keeps_its_samples() -> None:
     assert log.t.tolist() == [0.0, 0.5] and log.p.tolist() == [1.0, 1.0]
 
 
+def test_recorder_copies_the_scene_arrays_it_is_given() -> None:
+    """The scene keys may be live views of the simulation (``eval.compare`` passes MuJoCo's
+    ``qpos``): each sample keeps the values of its own step."""
+    qpos, force = np.zeros(6), np.zeros(3)
+    rec = EpisodeRecorder("lc", "u")
+    for k in range(3):
+        qpos[:] = k
+        force[:] = -k
+        rec.append(
+            {
+                "time": 0.1 * k, "cooperation": 1.0, "hand_speed": 0.0, "p": 1.0, "a": 1.0,
+                "t_x": 1.0, "t_a": 1.0, "em": 0.0, "motion_done": False, "speech_done": False,
+                "qpos": qpos, "f_user": force,
+            }
+        )  # fmt: skip
+    log = rec.build(0.0, t_motion=1.0, t_speech=1.0)
+    assert log.qpos is not None and log.f_user is not None
+    assert log.qpos.dtype == np.float32 and log.qpos[:, 0].tolist() == [0.0, 1.0, 2.0]
+    assert log.f_user[:, 2].tolist() == [0.0, -1.0, -2.0]
+
+
 # ------------------------------------------------------------------ metrics
 
 
