@@ -109,11 +109,9 @@ def _write_png(canvas: FigureCanvasAgg, path: str | Path) -> Path:
     Pillow encodes it at zlib level 1: about 3x faster than the default level 6, files ~20 %
     larger; without the alpha channel of an opaque figure, a third less to encode.
     """
-    rgb = np.asarray(canvas.buffer_rgba())[..., :3]
+    rgba = Image.frombuffer("RGBA", canvas.get_width_height(), canvas.buffer_rgba(), "raw")
     buf = io.BytesIO()
-    Image.fromarray(np.ascontiguousarray(rgb)).save(
-        buf, format="png", compress_level=1, pnginfo=_PNG_INFO
-    )
+    rgba.convert("RGB").save(buf, format="png", compress_level=1, pnginfo=_PNG_INFO)
     return atomic_write(path, buf.getvalue())
 
 
