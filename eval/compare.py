@@ -490,9 +490,8 @@ def run_jobs(jobs: list[Job], workers: int) -> list[dict[str, Any]]:
                     for future in as_completed(futures):
                         rows[futures[future]] = future.result()
                         bar.update()
-                except BaseException:  # the queued episodes are not run
-                    for future in futures:
-                        future.cancel()
+                except BaseException:  # episodes not yet handed to a worker are not run
+                    pool.shutdown(wait=False, cancel_futures=True)
                     raise
     finally:
         bar.close()
@@ -502,7 +501,11 @@ def run_jobs(jobs: list[Job], workers: int) -> list[dict[str, Any]]:
 
 
 def decision_rate(job: Job) -> int:
-    """Decisions per second of ``job``'s policy (its episode's steps per simulated second)."""
+    """Decisions per second of ``job``'s policy (its episode's steps per simulated second).
+
+    Loads the policy once per spec in this process (as :func:`main` does to check the specs
+    before any worker is forked).
+    """
     return job.decision_hz or _policy_rate(job.policy)
 
 

@@ -202,3 +202,13 @@ def test_parallel_jobs_run_longest_first_and_return_rows_in_job_order(tmp_path: 
     order = [(r["policy"], r["user"]) for r in parallel]
     assert order == [("ac", "s0"), ("ac", "s1"), ("lc", "s0"), ("lc", "s1")]
     assert parallel == serial
+
+
+def test_a_failing_parallel_episode_raises_its_error(tmp_path: Path) -> None:
+    from eval.compare import Job, run_jobs
+
+    missing = str(tmp_path / "no_such_session.csv")
+    jobs = [Job("ac", f"s{k}", k, None, str(tmp_path), False, False, None) for k in range(3)]
+    jobs.insert(1, Job("lc", "ghost", 9, missing, str(tmp_path), False, False, 50))
+    with pytest.raises(Exception, match="no_such_session"):
+        run_jobs(jobs, 2)

@@ -88,8 +88,12 @@ def has_colour(path: Path, hex_colour: str, min_pixels: int = 40, tol: float = 0
 
 
 def check_png(path: Path, size: tuple[float, float]) -> None:
+    from PIL import Image
+
     assert path.is_file()
     assert png_size(path) == (round(size[0] * DPI), round(size[1] * DPI))
+    with Image.open(path) as img:  # tagged with its resolution, for documents that place it
+        assert tuple(round(v) for v in img.info["dpi"]) == (DPI, DPI)
     assert 20_000 < path.stat().st_size < 2_000_000
     assert [p.name for p in path.parent.iterdir() if p.name.endswith(".tmp")] == []
 
