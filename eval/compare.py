@@ -336,12 +336,16 @@ def run_episode(job: Job) -> dict[str, Any]:
     base: Any = env.unwrapped
     rec = EpisodeRecorder(policy=policy.name, user=job.user)
     rec.append(_with_scene(info, base))
-    ret, done = 0.0, False
-    while not done:
-        obs, reward, terminated, truncated, info = env.step(policy.act(obs))
-        ret += float(reward)
-        rec.append(_with_scene(info, base))
-        done = terminated or truncated
+    law = policy.pace_law() if hz == 500 and hasattr(policy, "pace_law") else None
+    if law is not None:
+        ret, terminated, info = _run_law(base, policy, law, int(60 * hz), rec)
+    else:
+        ret, done = 0.0, False
+        while not done:
+            obs, reward, terminated, truncated, info = env.step(policy.act(obs))
+            ret += float(reward)
+            rec.append(_with_scene(info, base))
+            done = terminated or truncated
     graph_ref = _graph_ref(graph)
     graph = base.graph
     texts = {u: (ph.text or u) for u, ph in graph.phrases.items()}
@@ -373,6 +377,32 @@ def run_episode(job: Job) -> dict[str, Any]:
     row["protective_stop"] = float(info.get("safety_stop") is not None)
     row["stop_limit"] = info.get("safety_stop") or ""
     return row
+
+
+def _run_law(
+    base: Any, policy: Any, law: Any, limit: int, rec: Any
+) -> tuple[float, bool, dict[str, Any]]:
+    """The episode of a policy that is a pace law, at 500 Hz: the env applies the law in
+    compiled code (:meth:`LangCtrlEnv.run_law <langenv.env.LangCtrlEnv.run_law>`) and the policy
+    takes the steps that need Python; the same episode, bit for bit, as the policy taking every
+    step. Returns the return, whether the episode terminated (else the ``limit`` of steps cut it)
+    and the last step's info."""
+    ret, steps, terminated = 0.0, 0, False
+    info: dict[str, Any] = {}
+    while not terminated and steps < limit:
+        run = base.run_law(law, limit - steps - 1)  # the last step is Python's: its info
+        rec.extend(run.info, run.phrase, run.in_pause)
+        for reward in run.rewards.tolist():
+            ret += reward
+        steps += run.steps
+        if run.last is not None:
+            _, reward, terminated, _, info = run.last
+        else:
+            _, reward, terminated, _, info = base.step(policy.act(base.observation()))
+        steps += 1
+        ret += float(reward)
+        rec.append(_with_scene(info, base))
+    return ret, terminated, info
 
 
 def _with_scene(info: dict[str, Any], base: Any) -> dict[str, Any]:

@@ -420,6 +420,40 @@ class EpisodeRecorder:
         self._phrases.append(str(phrase) if phrase else None)
         self._last = dict(info)
 
+    def extend(
+        self, info: Mapping[str, np.ndarray], phrase: str | None, in_pause: bool = False
+    ) -> None:
+        """Record several samples at once: ``info`` maps each key :meth:`append` reads (and
+        optionally the scene keys) to one value per sample (a column, or rows for the scene
+        keys), all with the same phrase (e.g. :attr:`langenv.env.LawSteps.info`).
+
+        Raises:
+            ConfigError: naming the key, if a required key is missing or the lengths differ.
+        """
+        keys = _TRACES if "t" in info else _TRACE_KEYS_TIME
+        missing = [key for key in keys if key not in info]
+        if missing:
+            raise ConfigError(f"EpisodeRecorder.extend: info lacks key {missing[0]!r}")
+        columns = [np.asarray(info[key], dtype=np.float64) for key in keys]
+        n = len(columns[0])
+        if any(c.shape != (n,) for c in columns):
+            raise ConfigError("EpisodeRecorder.extend: every column must have shape (n,)")
+        if n == 0:
+            return
+        self._rows.extend(np.stack(columns, axis=1).tolist())
+        for name in SCENE_TRACES:
+            if name in info:
+                scene = np.array(info[name], np.float32)
+                if scene.shape[0] != n:
+                    raise ConfigError(
+                        f"EpisodeRecorder.extend: {name} has {len(scene)} rows, not {n}"
+                    )
+                self._scene.setdefault(name, []).extend(scene)
+        said = None if in_pause else phrase
+        self._phrases.extend([str(said) if said else None] * n)
+        self._last = {key: float(c[-1]) for key, c in zip(keys, columns, strict=True)}
+        self._last.update(phrase=phrase, in_pause=in_pause)
+
     def __len__(self) -> int:
         return len(self._phrases)
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import numbers
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
@@ -16,11 +17,11 @@ from langenv.control.admittance import AdmittanceParams
 from langenv.control.cooperation import CooperationFilter
 from langenv.control.trajectory import Trajectory, default_exercise
 from langenv.errors import ActionError, ConfigError
-from langenv.kernels import steps
+from langenv.kernels import pacer, steps
 from langenv.kernels.steps import CompiledSteps
 from langenv.motion import GuidedArm
 from langenv.observation import T_SCALE, TREND_WINDOW, ObservationEncoder, observation_size
-from langenv.pacing import PaceActuator, PaceLimits, command_from_action
+from langenv.pacing import COMMAND_MIN, PaceActuator, PaceLaw, PaceLimits, command_from_action
 from langenv.robot.arm import Arm
 from langenv.robot.force_sensor import ForceSensor
 from langenv.safety import SafetyLimits
@@ -313,6 +314,68 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             self._max_speed = max(self._max_speed, self.motion.hand_speed)
             left -= 1
 
+        return self._step_result(em_int, pace_int)
+
+    def run_law(self, law: PaceLaw, max_steps: int) -> LawSteps:
+        """Take up to ``max_steps`` steps whose actions are ``law``'s, in compiled code.
+
+        The same episode, step for step and bit for bit, as a policy that is ``law`` stepping
+        the env (``env.step(policy.act(obs))``), without returning to Python between steps:
+        for analytic aligners at 500 Hz, whose steps cost several times their tick in Python.
+        It stops early where a step needs Python (a phrase's clip or slot ends, the end of the
+        episode, a protective stop, joint-limit avoidance): take one ``env.step`` with the
+        policy's action on :meth:`observation`, then call it again.
+
+        Args:
+            law: The law (``policies``' LC and LC-noAP give theirs with ``pace_law()``).
+            max_steps: Most steps to take (a time limit's steps left), >= 0.
+
+        Returns:
+            The steps taken (:class:`LawSteps`): their info values and rewards, and the last
+            one's full result where the law's step ended the run in Python.
+
+        Raises:
+            ConfigError: if the env does not step one tick at a time (``decision_hz=500``), or for
+                a bad ``law`` or ``max_steps``.
+        """
+        if self.ticks_per_step != 1:
+            raise ConfigError(
+                f"run_law needs decision_hz=500 (one tick per step), got {self.decision_hz}"
+            )
+        if not isinstance(law, PaceLaw):
+            raise ConfigError(f"law must be a PaceLaw, got {type(law).__name__}")
+        if isinstance(max_steps, bool) or not isinstance(max_steps, int | np.integer):
+            raise ConfigError(f"max_steps must be an integer, got {max_steps!r}")
+        if max_steps < 0:
+            raise ConfigError(f"max_steps must be >= 0, got {max_steps}")
+        n_q = self.motion.arm.data.qpos.shape[0]
+        rows = np.zeros((int(max_steps), len(pacer.ROW_FIELDS) + n_q + 3))
+        rewards = np.zeros(int(max_steps))
+        phrase, in_pause = self.speech.phrase, self.speech.in_pause
+        done, last = 0, None
+        if max_steps and not self._terminated and self._steps and self._steps.usable():
+            self._choice_u = [0.0] * len(self._choice_u)  # the law's phrase rule
+            done, answer, code, em_int, pace_int = pacer.run(
+                self._steps, self._law_array(law), rows, rewards
+            )
+            if answer not in (steps.R_DONE, steps.R_PYTHON):  # a tick ended as only Python can
+                em, pace = self._after_compiled(answer, code)
+                last = self._step_result(em_int + em * self.dt, pace_int + pace * self.dt)
+        k = len(pacer.ROW_FIELDS)
+        info = {name: rows[:done, j] for j, name in enumerate(pacer.ROW_FIELDS)}
+        info["qpos"], info["f_user"] = rows[:done, k : k + n_q], rows[:done, k + n_q :]
+        return LawSteps(done, info, rewards[:done], phrase, in_pause, last)
+
+    def observation(self) -> np.ndarray:
+        """The current observation (as ``reset`` and ``step`` return it), e.g. after
+        :meth:`run_law`."""
+        return self._observation()
+
+    def _step_result(
+        self, em_int: float, pace_int: float
+    ) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """The step's return value: its reward terms from the integrals, the info, the
+        observation."""
         r_em = -self.w_em * em_int / T_SCALE
         r_pace = -self.w_pace * pace_int
         r_am = 0.0
@@ -324,6 +387,17 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         info = self._info()
         info.update(reward_em=r_em, reward_pace=r_pace, reward_am=r_am)
         return self._observation(), float(reward), self._terminated, False, info
+
+    def _law_array(self, law: PaceLaw) -> np.ndarray:
+        """``law`` and the reward weights as :func:`langenv.kernels.pacer.run_law` reads them."""
+        lim = law.limits
+        values = [0.0] * pacer.N_LAW
+        values[pacer.L_KCA] = law.k_c / law.k_a
+        values[pacer.L_KEM], values[pacer.L_EMCLIP] = law.k_em, law.em_clip
+        values[pacer.L_PMAX], values[pacer.L_AMAX] = lim.p_max, lim.a_max
+        values[pacer.L_WEM], values[pacer.L_WPACE] = self.w_em, self.w_pace
+        values[pacer.L_TSCALE], values[pacer.L_CMIN] = T_SCALE, COMMAND_MIN
+        return np.array(values)
 
     def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array":
@@ -505,6 +579,32 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             "safety_stop": stop.limit if stop is not None else None,
             "safety_message": stop.message if stop is not None else "",
         }
+
+
+@dataclass(frozen=True)
+class LawSteps:
+    """Steps taken by :meth:`LangCtrlEnv.run_law`.
+
+    Attributes:
+        steps: Steps finished in compiled code (not counting ``last``'s).
+        info: Per step (``steps`` rows) the info values ``time``, ``cooperation``,
+            ``hand_speed``, ``p``, ``a``, ``t_x``, ``t_a``, ``em``, ``motion_done``,
+            ``speech_done`` (as 0/1), the joint positions ``qpos`` (rad, shape ``(steps, nq)``) and
+            the person's force ``f_user`` (N, shape ``(steps, 3)``).
+        rewards: Each step's reward, shape ``(steps,)``.
+        phrase: The phrase (``info["phrase"]``) during these steps (they never cross a boundary).
+        in_pause: Whether these steps lie in the pause after it.
+        last: ``(observation, reward, terminated, truncated, info)`` of one more step the law
+            took and Python finished (the episode's end, a protective stop, joint-limit
+            avoidance), or None.
+    """
+
+    steps: int
+    info: dict[str, np.ndarray]
+    rewards: np.ndarray
+    phrase: str | None
+    in_pause: bool
+    last: tuple[np.ndarray, float, bool, bool, dict[str, Any]] | None
 
 
 _FLOAT_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))  # actions taken as they are

@@ -19,7 +19,13 @@ from dataclasses import dataclass
 
 from langenv.errors import ConfigError
 
-__all__ = ["PaceActuator", "PaceLimits", "action_from_command", "command_from_action"]
+__all__ = [
+    "PaceActuator",
+    "PaceLaw",
+    "PaceLimits",
+    "action_from_command",
+    "command_from_action",
+]
 
 #: Pace command at u = -1 (lowest value the paper's law can ask for).
 COMMAND_MIN = -1.5
@@ -58,6 +64,45 @@ class PaceLimits:
             raise ConfigError(
                 f"PaceLimits needs a_min < 1 < a_max, got [{self.a_min}, {self.a_max}]"
             )
+
+
+@dataclass(frozen=True)
+class PaceLaw:
+    """The paper's aligner as a law the env can apply itself at every tick
+    (:meth:`LangCtrlEnv.run_law <langenv.env.LangCtrlEnv.run_law>`).
+
+    What a policy deciding at 500 Hz does with the observation, exactly: ``p* , a*`` the optimal
+    paces of the observed ``t_x``, ``t_a`` (negative readings as 0), ``p_cmd = p* - clip(k_em
+    (t_a - t_x), +-em_clip)`` while the motion goes on (``k_em = 0``: the paper's ``p* ``),
+    ``a_cmd = a* - (k_c / k_a)(1 - c)``, sent as the action :func:`action_from_command` gives
+    under ``limits`` with a next-phrase value of 0 (the paper's phrase rule). ``policies``' LC
+    and LC-noAP are this law (their ``pace_law()``).
+
+    Attributes:
+        k_c: Cooperation gain (1/s), >= 0.
+        k_a: Audio pace gain (1/s), > 0 (the env's own ``PaceLimits.k_a`` for the paper's law).
+        k_em: Feedback of the misalignment ``t_a - t_x`` on the physical pace command (1/s), >= 0.
+        em_clip: Bound of that feedback (pace units), >= 0.
+        limits: The pace limits the policy maps its commands to actions with.
+    """
+
+    k_c: float
+    k_a: float
+    k_em: float = 0.0
+    em_clip: float = 0.5
+    limits: PaceLimits = PaceLimits()
+
+    def __post_init__(self) -> None:
+        for name in ("k_c", "k_a", "k_em", "em_clip"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise ConfigError(f"PaceLaw.{name} must be a number, got {value!r}")
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ConfigError(f"PaceLaw.{name} must be finite and >= 0, got {value!r}")
+        if not self.k_a > 0.0:
+            raise ConfigError(f"PaceLaw.k_a must be > 0, got {self.k_a!r}")
+        if not isinstance(self.limits, PaceLimits):
+            raise ConfigError(f"PaceLaw.limits must be PaceLimits, got {self.limits!r}")
 
 
 def command_from_action(u: float, upper: float) -> float:

@@ -1,0 +1,168 @@
+"""``LangCtrlEnv.run_law``: a pace law applied in compiled code gives, bit for bit, the episode of
+the policy that is the law stepping the env; its commands equal the policy's through the
+observation and the action (float32 roundings included); bad calls are named."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import langenv
+from langenv.errors import ConfigError
+from langenv.kernels import pacer
+from langenv.kernels import steps as sk
+from langenv.observation import Obs, encode_flag, encode_fraction, encode_seconds
+from langenv.pacing import PaceLaw, PaceLimits, command_from_action
+from policies.analytic import LanguageController, make_analytic
+
+FIELDS = (*pacer.ROW_FIELDS, "qpos", "f_user")
+
+
+def _make(policy: LanguageController, **kwargs: Any) -> Any:
+    return gym.make(
+        langenv.ENV_ID, phrase_graph=policy.phrase_graph, decision_hz=500, **kwargs
+    ).unwrapped
+
+
+def _policy_steps(policy: LanguageController, seed: int, limit: int) -> dict[str, Any]:
+    """Every step taken by the policy: info values and rewards."""
+    env = _make(policy)
+    obs, _ = env.reset(seed=seed)
+    rows: dict[str, list[Any]] = {name: [] for name in FIELDS}
+    rewards: list[float] = []
+    for _ in range(limit):
+        obs, reward, terminated, _, info = env.step(policy.act(obs))
+        for name in pacer.ROW_FIELDS:
+            rows[name].append(float(info[name]))
+        rows["qpos"].append(env.motion.arm.data.qpos.copy())
+        rows["f_user"].append(env.motion.f_user.copy())
+        rewards.append(reward)
+        if terminated:
+            break
+    return {**{k: np.array(v) for k, v in rows.items()}, "reward": np.array(rewards)}
+
+
+def _law_steps(policy: LanguageController, seed: int, limit: int) -> tuple[dict[str, Any], int]:
+    """The same steps, the law's in compiled code and the others the policy's; and the number
+    of runs of the law."""
+    env = _make(policy)
+    env.reset(seed=seed)
+    law = policy.pace_law()
+    assert law is not None
+    parts: dict[str, list[Any]] = {name: [] for name in (*FIELDS, "reward")}
+    steps, terminated, runs = 0, False, 0
+    while not terminated and steps < limit:
+        run = env.run_law(law, limit - steps - 1)
+        runs += 1
+        for name in FIELDS:
+            parts[name].append(run.info[name])
+        parts["reward"].append(run.rewards)
+        steps += run.steps
+        if run.last is not None:
+            _, reward, terminated, _, info = run.last
+        else:
+            _, reward, terminated, _, info = env.step(policy.act(env.observation()))
+        steps += 1
+        for name in pacer.ROW_FIELDS:
+            parts[name].append(np.array([float(info[name])]))
+        parts["qpos"].append(env.motion.arm.data.qpos[None, :].copy())
+        parts["f_user"].append(env.motion.f_user[None, :].copy())
+        parts["reward"].append(np.array([reward]))
+    return {k: np.concatenate(v) for k, v in parts.items()}, runs
+
+
+@pytest.mark.parametrize(("name", "seed"), [("lc", 3), ("lc-noap", 4), ("lc-em", 5)])
+def test_law_episode_is_the_policy_episode_bit_for_bit(name: str, seed: int) -> None:
+    policy = make_analytic(name)
+    assert isinstance(policy, LanguageController)
+    plain = _policy_steps(policy, seed, 30_000)
+    fast, runs = _law_steps(policy, seed, 30_000)
+    assert plain["time"].size > 4000 and plain["motion_done"][-1] == 1.0
+    assert runs > 3  # phrase boundaries were crossed in Python, between runs of the law
+    for key, value in plain.items():
+        assert fast[key].shape == value.shape, key
+        assert np.array_equal(fast[key], value), key
+
+
+def test_law_run_stops_at_its_step_budget() -> None:
+    policy = make_analytic("lc")
+    assert isinstance(policy, LanguageController)
+    plain = _policy_steps(policy, 7, 700)
+    fast, _ = _law_steps(policy, 7, 700)
+    assert plain["time"].size == fast["time"].size == 700
+    assert np.array_equal(plain["t_x"], fast["t_x"]) and np.array_equal(
+        plain["reward"], fast["reward"]
+    )
+
+
+def test_terminal_phase_has_no_law_and_bad_calls_are_named() -> None:
+    assert make_analytic("lc-end").pace_law() is None  # type: ignore[union-attr]
+    law = make_analytic("lc").pace_law()  # type: ignore[union-attr]
+    assert law is not None
+    env = gym.make(langenv.ENV_ID, decision_hz=25).unwrapped
+    env.reset(seed=0)
+    with pytest.raises(ConfigError, match="decision_hz=500"):
+        env.run_law(law, 10)
+    env = _make(make_analytic("lc"))  # type: ignore[arg-type]
+    env.reset(seed=0)
+    with pytest.raises(ConfigError, match="PaceLaw"):
+        env.run_law("lc", 10)
+    with pytest.raises(ConfigError, match="max_steps"):
+        env.run_law(law, -1)
+    with pytest.raises(ConfigError, match="k_a"):
+        PaceLaw(k_c=10.0, k_a=0.0)
+    with pytest.raises(ConfigError, match="k_em"):
+        PaceLaw(k_c=10.0, k_a=7.0, k_em=float("nan"))
+    nothing = env.run_law(law, 0)
+    assert nothing.steps == 0 and nothing.last is None and nothing.rewards.shape == (0,)
+    assert env.time == 0.0
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    t_x=st.floats(-5.0, 60.0),
+    t_a=st.floats(-5.0, 60.0),
+    c=st.floats(-0.2, 1.2),
+    motion_on=st.booleans(),
+    k_em=st.sampled_from([0.0, 1.0, 3.5]),
+    p_max=st.sampled_from([1.4, 1.25]),
+)
+def test_commands_are_the_policys_through_observation_and_action(
+    t_x: float, t_a: float, c: float, motion_on: bool, k_em: float, p_max: float
+) -> None:
+    limits = PaceLimits(p_max=p_max)
+    policy = LanguageController(k_em=k_em, limits=limits)
+    obs = np.zeros(40, np.float32)
+    clip = lambda v: min(1.0, max(-1.0, v))  # noqa: E731
+    obs[Obs.T_X] = clip(encode_seconds(t_x))
+    obs[Obs.T_A] = clip(encode_seconds(t_a))
+    obs[Obs.COOPERATION] = clip(encode_fraction(c))
+    obs[Obs.MOTION_DONE] = encode_flag(not motion_on)
+    obs[Obs.SPEECH_DONE] = encode_flag(False)
+    action = policy.act(obs).tolist()
+    env_limits = PaceLimits()  # the env's, which may differ from the policy's
+    expected = (
+        command_from_action(action[0], env_limits.p_max),
+        command_from_action(action[1], env_limits.a_max),
+    )
+    law = policy.pace_law()
+    assert law is not None
+    env = _bare_env_array(env_limits)
+    values = [0.0] * pacer.N_LAW
+    values[pacer.L_KCA] = law.k_c / law.k_a
+    values[pacer.L_KEM], values[pacer.L_EMCLIP] = law.k_em, law.em_clip
+    values[pacer.L_PMAX], values[pacer.L_AMAX] = limits.p_max, limits.a_max
+    values[pacer.L_TSCALE], values[pacer.L_CMIN] = 40.0, -1.5
+    got = pacer.commands(np.array(values), env, t_x, t_a, c, motion_on)
+    assert got == expected
+
+
+def _bare_env_array(limits: PaceLimits) -> np.ndarray:
+    es = np.zeros(sk.N_ENV)
+    es[sk.E_PMAX], es[sk.E_AMAX] = limits.p_max, limits.a_max
+    return es
