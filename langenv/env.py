@@ -148,6 +148,18 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     the step), ``max_hand_speed`` (m/s, the highest over the step's ticks), ``safety_stop`` (the
     limit's name, or ``None``) and ``safety_message`` (``""`` without a stop).
 
+    ## Pace laws in compiled code (``run_law``)
+
+    A policy that is the paper's aligner law (:class:`~langenv.pacing.PaceLaw`; ``policies``' LC
+    and LC-noAP give theirs with ``pace_law()``) can let the env take its steps:
+    ``env.unwrapped.run_law(law, max_steps)`` (``decision_hz=500``) applies the law at every tick
+    inside the compiled ticks, exactly as the policy would through the observation and the action,
+    and returns each step's info values and reward (:class:`LawSteps`). It stops where a step needs
+    Python (a phrase boundary, the episode's end, a protective stop); take that step with
+    ``env.step(policy.act(env.unwrapped.observation()))`` and call it again. The episode is the
+    same, bit for bit, as the policy taking every step, at a few times the speed (``eval.compare``
+    runs 500 Hz aligners this way). Steps it takes bypass wrappers (count them for a time limit).
+
     ## Arguments
 
     | argument | default | meaning |
@@ -171,6 +183,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
 
     ## Version history
 
+    * v0 (langctrl 0.4): ``run_law`` and ``observation()`` added; episodes unchanged.
     * v0 (langctrl 0.2): plant, speech and synthetic users fitted to the study's recordings (the
       lab's leg switching instead of a rest at each end, the acceleration-limited command, a 43 deg
       arc, the study's speech lengths, recalibrated users); the safety layer and protective stops.
