@@ -337,7 +337,7 @@ def run_episode(job: Job) -> dict[str, Any]:
     rec = EpisodeRecorder(policy=policy.name, user=job.user)
     rec.append(_with_scene(info, base))
     law = policy.pace_law() if hz == 500 and hasattr(policy, "pace_law") else None
-    if law is not None:
+    if law is not None and base.runs_compiled:
         ret, terminated, info = _run_law(base, policy, law, int(60 * hz), rec)
     else:
         ret, done = 0.0, False

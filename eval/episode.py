@@ -438,20 +438,20 @@ class EpisodeRecorder:
         n = len(columns[0])
         if any(c.shape != (n,) for c in columns):
             raise ConfigError("EpisodeRecorder.extend: every column must have shape (n,)")
+        scene = {name: np.array(info[name], np.float32) for name in SCENE_TRACES if name in info}
+        for name, rows in scene.items():
+            if rows.ndim != 2 or rows.shape[0] != n:
+                raise ConfigError(
+                    f"EpisodeRecorder.extend: {name} must have {n} rows, got shape {rows.shape}"
+                )
         if n == 0:
             return
         self._rows.extend(np.stack(columns, axis=1).tolist())
-        for name in SCENE_TRACES:
-            if name in info:
-                scene = np.array(info[name], np.float32)
-                if scene.shape[0] != n:
-                    raise ConfigError(
-                        f"EpisodeRecorder.extend: {name} has {len(scene)} rows, not {n}"
-                    )
-                self._scene.setdefault(name, []).extend(scene)
+        for name, rows in scene.items():
+            self._scene.setdefault(name, []).extend(rows)
         said = None if in_pause else phrase
         self._phrases.extend([str(said) if said else None] * n)
-        self._last = {key: float(c[-1]) for key, c in zip(keys, columns, strict=True)}
+        self._last.update((key, float(c[-1])) for key, c in zip(keys, columns, strict=True))
         self._last.update(phrase=phrase, in_pause=in_pause)
 
     def __len__(self) -> int:

@@ -30,7 +30,7 @@ from langenv.speech.graph import PhraseGraph, graph_path
 from langenv.speech.timeline import SpeechTimeline
 from langenv.users import CallableUser, ReplayUser, SyntheticUser, User
 
-__all__ = ["LangCtrlEnv", "make_env"]
+__all__ = ["LAW_CHUNK", "LangCtrlEnv", "LawSteps", "make_env"]
 
 PHYSICS_HZ = 500
 CHOICE_OCTAVES = 2.0  # target-duration action spans t_x * 2**(±2)
@@ -155,8 +155,9 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     ``env.unwrapped.run_law(law, max_steps)`` (``decision_hz=500``) applies the law at every tick
     inside the compiled ticks, exactly as the policy would through the observation and the action,
     and returns each step's info values and reward (:class:`LawSteps`). It stops where a step needs
-    Python (a phrase boundary, the episode's end, a protective stop); take that step with
-    ``env.step(policy.act(env.unwrapped.observation()))`` and call it again. The episode is the
+    Python: a step it began and the env finished in Python (the episode's end, a protective stop)
+    comes back as ``last``; without one, take the next step with
+    ``env.step(policy.act(env.unwrapped.observation()))`` (a phrase boundary) and call it again. The episode is the
     same, bit for bit, as the policy taking every step, at a few times the speed (``eval.compare``
     runs 500 Hz aligners this way). Steps it takes bypass wrappers (count them for a time limit).
 
@@ -335,17 +336,19 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         The same episode, step for step and bit for bit, as a policy that is ``law`` stepping
         the env (``env.step(policy.act(obs))``), without returning to Python between steps:
         for analytic aligners at 500 Hz, whose steps cost several times their tick in Python.
-        It stops early where a step needs Python (a phrase's clip or slot ends, the end of the
-        episode, a protective stop, joint-limit avoidance): take one ``env.step`` with the
-        policy's action on :meth:`observation`, then call it again.
+        It takes at most :data:`LAW_CHUNK` steps per call and stops early where a step needs
+        Python. A step the law began whose tick ended as only Python can finish it (the end of
+        the episode, a protective stop, joint-limit avoidance) is finished and returned as
+        ``last``; when ``last`` is None, the next step needs Python (a phrase's clip or slot
+        ends) or the compiled ticks do not apply (:attr:`runs_compiled`): take it with
+        ``env.step(policy.act(env.observation()))``, then call this again.
 
         Args:
             law: The law (``policies``' LC and LC-noAP give theirs with ``pace_law()``).
             max_steps: Most steps to take (a time limit's steps left), >= 0.
 
         Returns:
-            The steps taken (:class:`LawSteps`): their info values and rewards, and the last
-            one's full result where the law's step ended the run in Python.
+            The steps taken (:class:`LawSteps`): their info values and rewards, and ``last``.
 
         Raises:
             ConfigError: if the env does not step one tick at a time (``decision_hz=500``), or for
@@ -362,11 +365,12 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         if max_steps < 0:
             raise ConfigError(f"max_steps must be >= 0, got {max_steps}")
         n_q = self.motion.arm.data.qpos.shape[0]
-        rows = np.zeros((int(max_steps), len(pacer.ROW_FIELDS) + n_q + 3))
-        rewards = np.zeros(int(max_steps))
+        n = min(int(max_steps), LAW_CHUNK) if self.runs_compiled else 0
+        rows = np.zeros((n, len(pacer.ROW_FIELDS) + n_q + 3))
+        rewards = np.zeros(n)
         phrase, in_pause = self.speech.phrase, self.speech.in_pause
         done, last = 0, None
-        if max_steps and not self._terminated and self._steps and self._steps.usable():
+        if n and self._steps is not None:
             self._choice_u = [0.0] * len(self._choice_u)  # the law's phrase rule
             done, answer, code, em_int, pace_int = pacer.run(
                 self._steps, self._law_array(law), rows, rewards
@@ -378,6 +382,13 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         info = {name: rows[:done, j] for j, name in enumerate(pacer.ROW_FIELDS)}
         info["qpos"], info["f_user"] = rows[:done, k : k + n_q], rows[:done, k + n_q :]
         return LawSteps(done, info, rewards[:done], phrase, in_pause, last)
+
+    @property
+    def runs_compiled(self) -> bool:
+        """Whether the next ticks run in compiled code (:meth:`run_law` takes steps): the arm's
+        compiled tick, a synthetic or replayed user, no force sensor noise, no protective stop,
+        the episode not over."""
+        return not self._terminated and self._steps is not None and self._steps.usable()
 
     def observation(self) -> np.ndarray:
         """The current observation (as ``reset`` and ``step`` return it), e.g. after
@@ -594,6 +605,10 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         }
 
 
+LAW_CHUNK = 4096
+"""Most steps one :meth:`LangCtrlEnv.run_law` call takes (8 s at 500 Hz; its arrays ~0.6 MB)."""
+
+
 @dataclass(frozen=True)
 class LawSteps:
     """Steps taken by :meth:`LangCtrlEnv.run_law`.
@@ -601,8 +616,8 @@ class LawSteps:
     Attributes:
         steps: Steps finished in compiled code (not counting ``last``'s).
         info: Per step (``steps`` rows) the info values ``time``, ``cooperation``,
-            ``hand_speed``, ``p``, ``a``, ``t_x``, ``t_a``, ``em``, ``motion_done``,
-            ``speech_done`` (as 0/1), the joint positions ``qpos`` (rad, shape ``(steps, nq)``) and
+            ``hand_speed``, ``p``, ``a``, ``t_x``, ``t_a``, ``em``, ``motion_done`` and
+            ``speech_done`` (these two as 0/1), the joint positions ``qpos`` (rad, shape ``(steps, nq)``) and
             the person's force ``f_user`` (N, shape ``(steps, 3)``).
         rewards: Each step's reward, shape ``(steps,)``.
         phrase: The phrase (``info["phrase"]``) during these steps (they never cross a boundary).

@@ -15,6 +15,7 @@ approach that bound faster.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 
 from langenv.errors import ConfigError
@@ -95,8 +96,10 @@ class PaceLaw:
     def __post_init__(self) -> None:
         for name in ("k_c", "k_a", "k_em", "em_clip"):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int | float):
+            if isinstance(value, bool) or not isinstance(value, numbers.Real):
                 raise ConfigError(f"PaceLaw.{name} must be a number, got {value!r}")
+            value = float(value)
+            object.__setattr__(self, name, value)  # a NumPy scalar kept as a float
             if not (math.isfinite(value) and value >= 0.0):
                 raise ConfigError(f"PaceLaw.{name} must be finite and >= 0, got {value!r}")
         if not self.k_a > 0.0:

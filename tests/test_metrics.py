@@ -250,6 +250,30 @@ def test_recorder_copies_the_scene_arrays_it_is_given() -> None:
     assert log.f_user[:, 2].tolist() == [0.0, -1.0, -2.0]
 
 
+def test_recorder_extend_is_append_per_sample_and_checks_before_keeping() -> None:
+    info = {
+        "time": np.array([0.0, 0.1]), "cooperation": np.ones(2), "hand_speed": np.zeros(2),
+        "p": np.ones(2), "a": np.ones(2), "t_x": np.array([2.0, 1.9]), "t_a": np.array([2.0, 2.0]),
+        "em": np.array([0.0, 0.1]), "motion_done": np.zeros(2), "speech_done": np.zeros(2),
+        "qpos": np.zeros((2, 6)), "f_user": np.zeros((2, 3)),
+    }  # fmt: skip
+    one = EpisodeRecorder("lc", "u")
+    for k in range(2):
+        one.append({**{key: v[k] for key, v in info.items()}, "phrase": "intro", "t_motion": 5.0})
+    many = EpisodeRecorder("lc", "u")
+    many.append({**{key: v[0] for key, v in info.items()}, "phrase": "intro", "t_motion": 5.0})
+    with pytest.raises(ConfigError, match="qpos"):
+        many.extend({**info, "qpos": np.zeros((1, 6))}, "intro")
+    with pytest.raises(ConfigError, match="'em'"):
+        many.extend({k: v for k, v in info.items() if k != "em"}, "intro")
+    assert len(many) == 1  # nothing kept of the refused samples
+    many.extend({k: v[1:] for k, v in info.items()}, "intro")
+    a, b = one.build(0.0, t_speech=5.0), many.build(0.0, t_speech=5.0)
+    assert a.t_motion == b.t_motion == 5.0  # the appended t_motion is kept after extend
+    assert a.utterances == b.utterances and np.array_equal(a.qpos, b.qpos)  # type: ignore[arg-type]
+    assert all(np.array_equal(getattr(a, n), getattr(b, n)) for n in ("t", "t_x", "em", "p"))
+
+
 # ------------------------------------------------------------------ metrics
 
 

@@ -4,6 +4,7 @@ observation and the action (float32 roundings included); bad calls are named."""
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -13,11 +14,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import langenv
+from langenv.env import LAW_CHUNK
 from langenv.errors import ConfigError
 from langenv.kernels import pacer
 from langenv.kernels import steps as sk
 from langenv.observation import Obs, encode_flag, encode_fraction, encode_seconds
 from langenv.pacing import PaceLaw, PaceLimits, command_from_action
+from langenv.users import SyntheticUser
+from langenv.users.synthetic import LogNormal, SyntheticUserParams
 from policies.analytic import LanguageController, make_analytic
 
 FIELDS = (*pacer.ROW_FIELDS, "qpos", "f_user")
@@ -29,9 +33,11 @@ def _make(policy: LanguageController, **kwargs: Any) -> Any:
     ).unwrapped
 
 
-def _policy_steps(policy: LanguageController, seed: int, limit: int) -> dict[str, Any]:
+def _policy_steps(
+    policy: LanguageController, seed: int, limit: int, **env_kwargs: Any
+) -> dict[str, Any]:
     """Every step taken by the policy: info values and rewards."""
-    env = _make(policy)
+    env = _make(policy, **env_kwargs)
     obs, _ = env.reset(seed=seed)
     rows: dict[str, list[Any]] = {name: [] for name in FIELDS}
     rewards: list[float] = []
@@ -47,15 +53,17 @@ def _policy_steps(policy: LanguageController, seed: int, limit: int) -> dict[str
     return {**{k: np.array(v) for k, v in rows.items()}, "reward": np.array(rewards)}
 
 
-def _law_steps(policy: LanguageController, seed: int, limit: int) -> tuple[dict[str, Any], int]:
-    """The same steps, the law's in compiled code and the others the policy's; and the number
-    of runs of the law."""
-    env = _make(policy)
+def _law_steps(
+    policy: LanguageController, seed: int, limit: int, **env_kwargs: Any
+) -> tuple[dict[str, Any], int, int]:
+    """The same steps, the law's in compiled code and the others the policy's; the number of
+    runs of the law and of steps it began that Python finished (``last``)."""
+    env = _make(policy, **env_kwargs)
     env.reset(seed=seed)
     law = policy.pace_law()
     assert law is not None
     parts: dict[str, list[Any]] = {name: [] for name in (*FIELDS, "reward")}
-    steps, terminated, runs = 0, False, 0
+    steps, terminated, runs, lasts = 0, False, 0, 0
     while not terminated and steps < limit:
         run = env.run_law(law, limit - steps - 1)
         runs += 1
@@ -65,6 +73,7 @@ def _law_steps(policy: LanguageController, seed: int, limit: int) -> tuple[dict[
         steps += run.steps
         if run.last is not None:
             _, reward, terminated, _, info = run.last
+            lasts += 1
         else:
             _, reward, terminated, _, info = env.step(policy.act(env.observation()))
         steps += 1
@@ -73,7 +82,7 @@ def _law_steps(policy: LanguageController, seed: int, limit: int) -> tuple[dict[
         parts["qpos"].append(env.motion.arm.data.qpos[None, :].copy())
         parts["f_user"].append(env.motion.f_user[None, :].copy())
         parts["reward"].append(np.array([reward]))
-    return {k: np.concatenate(v) for k, v in parts.items()}, runs
+    return {k: np.concatenate(v) for k, v in parts.items()}, runs, lasts
 
 
 @pytest.mark.parametrize(("name", "seed"), [("lc", 3), ("lc-noap", 4), ("lc-em", 5)])
@@ -81,7 +90,7 @@ def test_law_episode_is_the_policy_episode_bit_for_bit(name: str, seed: int) -> 
     policy = make_analytic(name)
     assert isinstance(policy, LanguageController)
     plain = _policy_steps(policy, seed, 30_000)
-    fast, runs = _law_steps(policy, seed, 30_000)
+    fast, runs, _ = _law_steps(policy, seed, 30_000)
     assert plain["time"].size > 4000 and plain["motion_done"][-1] == 1.0
     assert runs > 3  # phrase boundaries were crossed in Python, between runs of the law
     for key, value in plain.items():
@@ -93,11 +102,65 @@ def test_law_run_stops_at_its_step_budget() -> None:
     policy = make_analytic("lc")
     assert isinstance(policy, LanguageController)
     plain = _policy_steps(policy, 7, 700)
-    fast, _ = _law_steps(policy, 7, 700)
+    fast, _, _ = _law_steps(policy, 7, 700)
     assert plain["time"].size == fast["time"].size == 700
     assert np.array_equal(plain["t_x"], fast["t_x"]) and np.array_equal(
         plain["reward"], fast["reward"]
     )
+
+
+def test_a_protective_stop_in_a_law_step_is_the_policys() -> None:
+    """A tick of the law's ending in a protective stop: the env finishes that step (``last``)
+    as ``env.step`` does."""
+    policy = make_analytic("lc")
+    assert isinstance(policy, LanguageController)
+    pusher = SyntheticUserParams.calibrated(  # pushes at once, hard: a force stop
+        count_pmf=(0.0, 1.0),
+        p_start_resisting=1.0,
+        max_excess=400.0,
+        magnitude=LogNormal(300.0, 0.01),
+        rise=LogNormal(0.5, 0.01),
+    )
+    plain = _policy_steps(policy, 0, 30_000, users=SyntheticUser(pusher))
+    fast, _, lasts = _law_steps(policy, 0, 30_000, users=SyntheticUser(pusher))
+    assert lasts == 1 and plain["motion_done"][-1] == 0.0  # stopped before the motion ended
+    for key, value in plain.items():
+        assert np.array_equal(fast[key], value), key
+
+
+def test_without_compiled_ticks_the_law_takes_no_step() -> None:
+    policy = make_analytic("lc")
+    law = policy.pace_law()  # type: ignore[union-attr]
+    assert law is not None
+    env = _make(policy, sensor_noise=1.0)  # type: ignore[arg-type]
+    env.reset(seed=0)
+    assert not env.runs_compiled
+    run = env.run_law(law, 10**9)  # nothing allocated for steps it cannot take
+    assert run.steps == 0 and run.last is None and run.info["qpos"].shape == (0, 6)
+    env = _make(policy)  # type: ignore[arg-type]
+    env.reset(seed=0)
+    assert env.runs_compiled
+    assert env.run_law(law, 10**9).steps <= LAW_CHUNK
+
+
+def test_compare_episode_with_the_law_is_the_policys(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``eval.compare`` runs LC's 500 Hz episodes through the law: the same log and row."""
+    from eval.compare import Job, run_episode
+    from eval.episode import EpisodeLog
+
+    (tmp_path / "law").mkdir()
+    (tmp_path / "plain").mkdir()
+    law_row = run_episode(Job("lc", "s2", 2, None, str(tmp_path / "law"), False, False, None))
+    monkeypatch.setattr(LanguageController, "pace_law", lambda self: None)
+    plain_row = run_episode(Job("lc", "s2", 2, None, str(tmp_path / "plain"), False, False, None))
+    assert law_row == plain_row
+    fast = EpisodeLog.load_npz(tmp_path / "law" / "lc_s2.npz")
+    slow = EpisodeLog.load_npz(tmp_path / "plain" / "lc_s2.npz")
+    for name in (*pacer.ROW_FIELDS[1:], "t", "qpos", "f_user"):
+        assert np.array_equal(getattr(fast, name), getattr(slow, name)), name
+    assert fast.utterances == slow.utterances and fast.ret == slow.ret
 
 
 def test_terminal_phase_has_no_law_and_bad_calls_are_named() -> None:

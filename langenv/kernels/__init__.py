@@ -16,7 +16,8 @@ Modules: :mod:`~langenv.kernels.blas` (MuJoCo's dense routines), :mod:`~langenv.
 (a trajectory as an array: locate, frame, closest point, tool angle),
 :mod:`~langenv.kernels.etc` (FastETC's closed form and tables), :mod:`~langenv.kernels.arm`
 (the arm's velocity controller), :mod:`~langenv.kernels.tick` (the tick),
-:mod:`~langenv.kernels.steps` (the env's ticks of one step: pacing, user, tick, speech, rewards).
+:mod:`~langenv.kernels.steps` (the env's ticks of one step: pacing, user, tick, speech, rewards),
+:mod:`~langenv.kernels.pacer` (steps of a pace law: what an analytic aligner decides each tick).
 """
 
 from __future__ import annotations

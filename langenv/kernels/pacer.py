@@ -25,7 +25,7 @@ from langenv.kernels import tick as tk
 
 __all__ = ["ROW_FIELDS", "commands", "run", "run_law"]
 
-# law settings (``PaceLaw.as_array``)
+# law settings (``LangCtrlEnv._law_array``)
 L_KCA, L_KEM, L_EMCLIP, L_PMAX, L_AMAX, L_WEM, L_WPACE, L_TSCALE, L_CMIN = range(9)
 N_LAW = 9
 
