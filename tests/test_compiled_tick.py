@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -144,3 +145,34 @@ def test_compiled_leg_law_equals_the_numpy_one() -> None:
         for a, b in zip(fast, ref, strict=True):
             assert np.array_equal(a, b)
         assert np.isinf(fast[0]).any() or t_max == 60.0
+
+
+def test_cached_kernels_are_dropped_when_any_kernel_source_changes(tmp_path: Path) -> None:
+    """Numba checks a cached kernel against its own file only; the package's digest covers all."""
+    from langenv.kernels import clear_stale_cache
+
+    src, cache = tmp_path / "kernels", tmp_path / "kernels" / "__pycache__"
+    src.mkdir()
+    (src / "tick.py").write_text("x = 1\n")
+    (src / "steps.py").write_text("y = 2\n")
+    cache.mkdir()
+    kept = cache / "steps.cpython-311.pyc"
+    kept.write_bytes(b"pyc")
+
+    def compiled() -> list[Path]:
+        for name in ("steps.run-104.py311.nbi", "steps.run-104.py311.1.nbc"):
+            (cache / name).write_bytes(b"numba")
+        return sorted(cache.glob("*.nb[ic]"))
+
+    compiled()
+    assert clear_stale_cache(src, cache)  # no digest yet: the cache's origin is unknown
+    assert not list(cache.glob("*.nb[ic]")) and kept.is_file()
+    files = compiled()
+    assert not clear_stale_cache(src, cache)  # unchanged sources: kept
+    assert sorted(cache.glob("*.nb[ic]")) == files
+    (src / "tick.py").write_text("x = 3\n")  # another file than the cached kernel's
+    assert clear_stale_cache(src, cache)
+    assert not list(cache.glob("*.nb[ic]")) and kept.is_file()
+    blocked = tmp_path / "not_a_directory"
+    blocked.write_text("")
+    assert not clear_stale_cache(src, blocked)  # where nothing can be written: no error

@@ -18,16 +18,57 @@ Modules: :mod:`~langenv.kernels.blas` (MuJoCo's dense routines), :mod:`~langenv.
 (the arm's velocity controller), :mod:`~langenv.kernels.tick` (the tick),
 :mod:`~langenv.kernels.steps` (the env's ticks of one step: pacing, user, tick, speech, rewards),
 :mod:`~langenv.kernels.pacer` (steps of a pace law: what an analytic aligner decides each tick).
+
+Numba checks a cached kernel against its own source file only, while these kernels call each
+other across files: importing the package drops the package's cached kernels whenever any of its
+modules changed (:func:`clear_stale_cache`), so an edit to ``tick.py`` cannot leave ``steps.run``
+running the old tick.
 """
 
 from __future__ import annotations
 
+import hashlib
+import os
+import tempfile
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any, TypeVar, cast
 
 import numba
 
-__all__ = ["jit"]
+__all__ = ["clear_stale_cache", "jit"]
+
+_STAMP = "langctrl-kernels.sha256"
+
+
+def clear_stale_cache(sources: Path, cache: Path) -> bool:
+    """Delete numba's cache files in ``cache`` unless the ``*.py`` files of ``sources`` are those
+    they were compiled from (a digest kept in ``cache``); returns whether any was deleted.
+
+    Fails quietly where ``cache`` cannot be written (a read-only install: its sources do not
+    change, and numba then caches elsewhere, per file).
+    """
+    stamp = cache / _STAMP
+    try:
+        digest = hashlib.sha256()
+        for path in sorted(sources.glob("*.py")):
+            digest.update(path.name.encode() + b"\0" + path.read_bytes())
+        if stamp.is_file() and stamp.read_text() == digest.hexdigest():
+            return False
+        stale = sorted(cache.glob("*.nb[ic]"))
+        for path in stale:
+            path.unlink(missing_ok=True)
+        cache.mkdir(exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{_STAMP}.", dir=cache)
+        with os.fdopen(fd, "w") as fh:
+            fh.write(digest.hexdigest())
+        os.replace(tmp, stamp)
+        return bool(stale)
+    except OSError:
+        return False
+
+
+clear_stale_cache(Path(__file__).parent, Path(__file__).parent / "__pycache__")
 
 F = TypeVar("F", bound=Callable[..., Any])
 
