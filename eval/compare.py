@@ -190,8 +190,6 @@ def parse_args(argv: Sequence[str] | None = None) -> CompareArgs:
 
 
 def _check_policies(spec: str) -> list[str]:
-    from policies import load_policy
-
     names = [s.strip() for s in spec.split(",") if s.strip()]
     if not names:
         raise UsageError("--policies is empty")
@@ -199,7 +197,7 @@ def _check_policies(spec: str) -> list[str]:
         raise UsageError(f"--policies lists a policy twice: {spec}")
     for name in names:
         try:
-            load_policy(name)
+            _policy_rate(name)  # loads the policy (once: run_jobs orders episodes by its rate)
         except (KeyError, FileNotFoundError, ValueError, OSError) as exc:
             raise UsageError(f"--policies: {name}: {exc}") from None
     return names

@@ -15,7 +15,6 @@ policy stepping the env (``tests/test_pace_law.py``).
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 
@@ -38,12 +37,18 @@ joint positions and the person's force)."""
 
 
 @jit
-def _seconds_seen(t: float, t_scale: float) -> float:
-    """A time as a policy reads it back from the observation: ``t / T`` clipped to [-1, 1],
-    rounded to float32, times ``T``; negative readings as 0 (the policy's ``max(0, .)``)."""
-    v = t / t_scale
+def _stored(v: float) -> float:
+    """``v`` as the observation stores it: clipped to [-1, 1] as
+    :class:`~langenv.observation.ObservationEncoder` clips (NaN stays NaN), rounded to float32."""
     v = v if -1.0 <= v <= 1.0 else (1.0 if v > 1.0 else (-1.0 if v < -1.0 else v))
-    x = float(np.float32(v)) * t_scale
+    return float(np.float32(v))
+
+
+@jit
+def _seconds_seen(t: float, t_scale: float) -> float:
+    """A time as a policy reads it back from the observation: ``t / T`` stored, times ``T``;
+    negative readings as 0 (the policy's ``max(0, .)``)."""
+    x = _stored(t / t_scale) * t_scale
     return x if x > 0.0 else 0.0
 
 
@@ -74,9 +79,7 @@ def commands(
     ts = law[L_TSCALE]
     t_x = _seconds_seen(t_x, ts)
     t_a = _seconds_seen(t_a, ts)
-    v = 2.0 * c - 1.0
-    v = v if -1.0 <= v <= 1.0 else (1.0 if v > 1.0 else (-1.0 if v < -1.0 else v))
-    c = 0.5 * (float(np.float32(v)) + 1.0)
+    c = 0.5 * (_stored(2.0 * c - 1.0) + 1.0)
     if t_a == 0.0:
         p_star, a_star = 1.0, 1.0
     else:
@@ -169,12 +172,8 @@ def run(
 ) -> tuple[int, int, int, float, float]:
     """:func:`run_law` on ``steps``' env: its state loaded before and stored after; returns the
     answer and the reward integrals of the tick that stopped the run."""
-    t: Any = steps.load(0.0, 0.0)
-    done, answer, code = run_law(
-        t.ws, t.path, t.aw, t.ai, t.jac, t.xpos, t.xmat, t.qpos, t.qvel, t.ctrl, t.qfrc, t.prm,
-        t.tab, t.ptr, steps.es, steps.env._coop_hist, steps.table, steps.mid, steps.slot,
-        steps.kid_ptr, steps.kids, law, rows, rewards,
-    )  # fmt: skip
+    args = (*steps.load(0.0, 0.0), law, rows, rewards)
+    done, answer, code = run_law(*args)
     em_int, pace_int = 0.0, 0.0
     if done or answer != sk.R_PYTHON:  # some tick ran
         em_int, pace_int = steps.store()

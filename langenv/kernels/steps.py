@@ -221,7 +221,6 @@ class CompiledSteps:
         es[E_PMIN], es[E_PMAX], es[E_AMIN], es[E_AMAX] = lim.p_min, lim.p_max, lim.a_min, lim.a_max
         es[E_DT] = env.dt
         self.es = es
-        self.table = np.zeros(1)  # the user's force table of the current run
 
     def usable(self) -> bool:
         """Whether the compiled ticks apply now (see the class docstring)."""
@@ -239,22 +238,18 @@ class CompiledSteps:
         self, p_cmd: float, a_cmd: float, n: int, em_int: float, pace_int: float
     ) -> tuple[int, int, int, float, float]:
         """Up to ``n`` ticks (:func:`run`); returns its answer and the reward integrals."""
-        t = self.load(em_int, pace_int)
-        done, answer, code = run(
-            t.ws, t.path, t.aw, t.ai, t.jac, t.xpos, t.xmat, t.qpos, t.qvel, t.ctrl, t.qfrc,
-            t.prm, t.tab, t.ptr, self.es, self.env._coop_hist, self.table, self.mid, self.slot,
-            self.kid_ptr, self.kids, p_cmd, a_cmd, n,
-        )  # fmt: skip
+        args: tuple[Any, ...] = (*self.load(em_int, pace_int), p_cmd, a_cmd, n)
+        done, answer, code = run(*args)
         if done:
             em_int, pace_int = self.store()
         return done, answer, code, em_int, pace_int
 
-    def load(self, em_int: float, pace_int: float) -> Any:
-        """The env's state into ``es`` (before compiled ticks); returns the compiled tick."""
+    def load(self, em_int: float, pace_int: float) -> tuple[np.ndarray, ...]:
+        """The env's state into ``es`` (before compiled ticks); returns the arrays :func:`run`
+        takes first (``ws`` ... ``kids``), in order."""
         env, es = self.env, self.es
         paces, speech = env.paces, env.speech
         table, step = env.user.force_table()
-        self.table = table
         u = speech._phrase
         es[E_P : E_COOPI + 1] = (  # one slice assignment: the layout is E_P .. E_COOPI in order
             paces.p, paces.a, paces.p_dot, env.time, env.t_a, em_int, pace_int, env._max_speed,
@@ -262,7 +257,12 @@ class CompiledSteps:
             -1.0 if u is None else self.index[u], env._coop_i,
         )  # fmt: skip
         es[E_USTEP] = step
-        return env.motion._compiled
+        t = env.motion._compiled
+        return (
+            t.ws, t.path, t.aw, t.ai, t.jac, t.xpos, t.xmat, t.qpos, t.qvel, t.ctrl, t.qfrc,
+            t.prm, t.tab, t.ptr, es, env._coop_hist, table, self.mid, self.slot, self.kid_ptr,
+            self.kids,
+        )  # fmt: skip
 
     def store(self) -> tuple[float, float]:
         """``es`` back into the env's state (after compiled ticks); returns the reward integrals."""
