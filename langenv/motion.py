@@ -30,6 +30,7 @@ import math
 
 import numpy as np
 
+from langenv import vec
 from langenv.control.admittance import AdmittanceParams, VariableAdmittance
 from langenv.control.command import cap_speed, follow
 from langenv.control.cooperation import CooperationFilter
@@ -204,7 +205,7 @@ class GuidedArm:
         v = self.arm.hand_velocity()
         v.flags.writeable = False
         self._hand_velocity = v
-        self._hand_speed = math.sqrt(float(v.dot(v)))
+        self._hand_speed = vec.norm(v)
         self.path_deviation = math.dist(self.arm.hand_position().tolist(), self._path_point)
 
     def _offset(self, x: np.ndarray) -> tuple[float, float, float]:
@@ -249,7 +250,7 @@ class GuidedArm:
         """The tick in Python: the reference that the compiled tick repeats."""
         f_meas = self.sensor.measure(f_user, rng)
         self._f_measured = f_meas
-        self.coop.update(math.sqrt(float(f_meas @ f_meas)), self.dt)
+        self.coop.update(vec.norm(f_meas), self.dt)
         x = self.arm.hand_position()
         if not self.state.done:
             self.guide.update(self.state, x)
@@ -264,7 +265,7 @@ class GuidedArm:
             self._v_ref = limit_velocity(v_ref, offset, self.limits)
         was_moving = bool(self._v_cmd.any())
         target = self._v_ref
-        if not braking and float(f_meas @ self.tangent()) > 0.0:  # pushed along: the governor
+        if not braking and vec.dot(f_meas, self.tangent()) > 0.0:  # pushed along: the governor
             target = cap_speed(target, self.guide.speed_limit(self.state, self._v_cmd))
         # the safety limits override the acceleration limit
         self._v_cmd = limit_velocity(follow(self._v_cmd, target, self._dv_max), offset, self.limits)
@@ -273,7 +274,7 @@ class GuidedArm:
             moving = bool(self._v_cmd.any())
             if not moving and self.t_motion_end is None:
                 self.t_motion_end = self.time + (self.dt if was_moving else 0.0)
-            self.t_x = math.sqrt(float(self._v_cmd @ self._v_cmd)) / self.params.max_acceleration
+            self.t_x = vec.norm(self._v_cmd) / self.params.max_acceleration
         else:
             self.t_x = self.etc.etc(self.state, self.arm.hand_position(), self._v_ref, self._v_cmd)
         self._measure_hand()

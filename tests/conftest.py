@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -15,6 +17,54 @@ import langenv.robot  # noqa: F401  (picks MuJoCo's off-screen GL backend before
 settings.register_profile("ci", derandomize=True, print_blob=True)
 if os.environ.get("CI"):
     settings.load_profile("ci")
+
+
+WARM_TIMEOUT = 600
+"""Seconds the cache warm-up may take (a fresh machine compiles every kernel: about a minute)."""
+
+
+def _numba_caches() -> list[Path]:
+    """The numba cache files the suite's processes share: librosa's and the project's."""
+    import importlib.util
+
+    roots = [Path(__file__).resolve().parents[1] / "langenv"]
+    spec = importlib.util.find_spec("librosa")
+    if spec is not None and spec.origin is not None:
+        roots.append(Path(spec.origin).parent)
+    return [p for root in roots for p in root.rglob("__pycache__/*.nb[ic]")]
+
+
+def _warm() -> subprocess.CompletedProcess[str]:
+    env = {**os.environ, "LANGCTRL_ETC_CACHE": "off"}  # build the motion-time tables too
+    return subprocess.run(
+        [sys.executable, str(Path(__file__).with_name("warm_caches.py"))],
+        cwd=Path(__file__).resolve().parents[1],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=WARM_TIMEOUT,
+    )
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Under xdist, in the controller, before any worker starts: compile every cached numba
+    function once, in one process (``tests/warm_caches.py``), so that the workers load it
+    instead of compiling it together. A warm-up that crashes (a cache left corrupt, numba issue
+    10128) deletes the shared numba caches and tries once more; a second failure ends the run
+    with its output instead of letting every worker crash on it."""
+    if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None):
+        return
+    done = _warm()
+    if done.returncode != 0:
+        for path in _numba_caches():
+            path.unlink(missing_ok=True)
+        done = _warm()
+    if done.returncode != 0:
+        pytest.exit(
+            f"warming numba's caches failed twice (exit {done.returncode}):\n"
+            f"{done.stdout[-2000:]}{done.stderr[-4000:]}",
+            returncode=3,
+        )
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike
 
+from langenv import vec
 from langenv.errors import TrajectoryError
 from langenv.validation import as_vec3
 
@@ -96,7 +97,7 @@ class LineSegment:
     def __post_init__(self) -> None:
         start = _as_vec3(self.start, "LineSegment.start")
         end = _as_vec3(self.end, "LineSegment.end")
-        length = float(np.linalg.norm(end - start))
+        length = vec.norm(end - start)
         if length < MIN_LENGTH:
             raise TrajectoryError(
                 f"LineSegment.end must differ from LineSegment.start (zero length segment at "
@@ -182,7 +183,7 @@ class ArcSegment:
             angle = float(self.angle)
         except (TypeError, ValueError) as exc:
             raise TrajectoryError(f"ArcSegment.angle must be a number, got {self.angle!r}") from exc
-        axis_norm = float(np.linalg.norm(axis))
+        axis_norm = vec.norm(axis)
         if axis_norm < 1e-12:
             raise TrajectoryError("ArcSegment.axis must be non-zero, got [0, 0, 0]")
         if not math.isfinite(angle) or abs(angle) < 1e-12 or abs(angle) > 2.0 * math.pi + 1e-12:
@@ -191,9 +192,9 @@ class ArcSegment:
             )
         a = axis / axis_norm
         rel = start - center
-        axial = float(rel @ a)
+        axial = vec.dot(rel, a)
         radial = rel - axial * a
-        radius = float(np.linalg.norm(radial))
+        radius = vec.norm(radial)
         if radius < MIN_LENGTH:
             raise TrajectoryError(
                 f"ArcSegment.start {start.tolist()} lies on the rotation axis "
@@ -317,7 +318,7 @@ class Trajectory:
                     f"got {type(seg).__name__}"
                 )
             if i > 0:
-                gap = float(np.linalg.norm(seg.start - segs[i - 1].end))
+                gap = vec.norm(seg.start - segs[i - 1].end)
                 if gap > CONTINUITY_TOL:
                     raise TrajectoryError(
                         f"Trajectory.segments[{i}].start is {gap:.3g} m away from the end of "

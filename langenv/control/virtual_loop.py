@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from langenv import vec
 from langenv.control.admittance import AdmittanceParams, VariableAdmittance
 from langenv.control.command import cap_speed, follow
 from langenv.control.guide import Guide, GuideState
@@ -139,7 +140,7 @@ def simulate_virtual(
             rows[key].append(val)
         rows["leg"].append(state.leg)
         rows["p"].append(pk)
-        rows["e"].append(float(np.linalg.norm(x - trajectory.position(state.s))))
+        rows["e"].append(vec.norm(x - trajectory.position(state.s)))
         f_ext = zero
         if state.done:
             w = follow(w, zero, dv_max)
@@ -150,7 +151,7 @@ def simulate_virtual(
             p_dot = (float(pace(t + dt)) - pk) / dt
             v = adm.step(v, guide.virtual_force(state, x, v, pk) + f_ext, pk, p_dot, dt)
             target = v
-            if force is not None and float(f_ext @ b) > 0.0:  # pushed along: the governor
+            if force is not None and vec.dot(f_ext, b) > 0.0:  # pushed along: the governor
                 target = cap_speed(v, guide.speed_limit(state, w))
             w = follow(w, target, dv_max)
         rows["f"].append(f_ext)

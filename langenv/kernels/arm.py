@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from langenv.kernels import jit
-from langenv.kernels.blas import chol_factor, chol_solve, mul_mat_mat_t, mul_mat_t_vec
+from langenv.kernels.blas import chol_factor, chol_solve, mul_mat_mat_t, mul_mat_t_vec, mul_mat_vec
 
 __all__ = ["J0", "LIMITS_DUE", "OK", "apply", "solve"]
 
@@ -81,7 +81,7 @@ def solve(
     xdot = aw[A_XDOT : A_XDOT + 6]
     xdot[0], xdot[1], xdot[2] = x0, x1, x2
     if k == 6:
-        xdot[3:6] = np.dot(aw[A_ROTB : A_ROTB + 27].reshape(3, 9), xmat)
+        mul_mat_vec(xdot[3:6], aw[A_ROTB : A_ROTB + 27], xmat, 3, 9)
     # damped least squares on the task Jacobian
     jarm = aw[J0 + 6 * n : J0 + 6 * n + k * n]
     if aw[A_FULL] != 0.0:

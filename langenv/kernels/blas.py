@@ -12,7 +12,7 @@ import numpy as np
 
 from langenv.kernels import jit
 
-__all__ = ["chol_factor", "chol_solve", "dot", "mul_mat_mat_t", "mul_mat_t_vec"]
+__all__ = ["chol_factor", "chol_solve", "dot", "mul_mat_mat_t", "mul_mat_t_vec", "mul_mat_vec"]
 
 
 @jit
@@ -51,6 +51,13 @@ def mul_mat_mat_t(
     for i in range(r1):
         for j in range(r2):
             res[i * r2 + j] = dot(m1, i * c1, m2, j * c1, c1)
+
+
+@jit
+def mul_mat_vec(res: np.ndarray, mat: np.ndarray, vec: np.ndarray, nr: int, nc: int) -> None:
+    """``mju_mulMatVec``: ``res (nr,) = mat (nr, nc) @ vec (nc,)``, one :func:`dot` per row."""
+    for r in range(nr):
+        res[r] = dot(mat, r * nc, vec, 0, nc)
 
 
 @jit

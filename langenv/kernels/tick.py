@@ -23,6 +23,7 @@ import numpy as np
 from langenv.control.guide import _TURNED_COS2, GOVERNOR_SHARE
 from langenv.kernels import arm as arm_kernel
 from langenv.kernels import jit, mjc
+from langenv.kernels.blas import mul_mat_vec
 from langenv.kernels.etc import estimate
 from langenv.kernels.path import RADIUS, closest, frame, locate, point, tool_angle, unit_tangent
 from langenv.kernels.pymath import dist3, hypot3
@@ -376,8 +377,8 @@ def observe(
         b0, b1, b2 = _tangent(ws, path, xpos[0], xpos[1], xpos[2])
         ws[S_TAN], ws[S_TAN + 1], ws[S_TAN + 2] = b0, b1, b2
     nv = qvel.shape[0]
-    hv = np.dot(jac[: 3 * nv].reshape(3, nv), qvel)
-    ws[S_HV], ws[S_HV + 1], ws[S_HV + 2] = hv[0], hv[1], hv[2]
+    hv = ws[S_HV : S_HV + 3]  # J_p qvel, as mju_mulMatVec (not BLAS: the same on any CPU)
+    mul_mat_vec(hv, jac, qvel, 3, nv)
     speed = math.sqrt(hv[0] * hv[0] + hv[1] * hv[1] + hv[2] * hv[2])
     ws[S_HS] = speed
     dev = dist3(xpos[0], xpos[1], xpos[2], ws[S_PP], ws[S_PP + 1], ws[S_PP + 2])

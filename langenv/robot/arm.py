@@ -49,6 +49,7 @@ import mujoco
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from langenv import vec
 from langenv.errors import ActionError, ConfigError
 from langenv.robot.handles import ArmHandles, load_model
 from langenv.robot.ik import IK_ACCEPT, solve_ik
@@ -303,7 +304,9 @@ class Arm:
         Returns:
             (3,) float64, m/s, base frame.
         """
-        return self._jacp @ self.data.qvel
+        v = np.empty(3)
+        mujoco.mju_mulMatVec(v, self._jacp, self.data.qvel)  # MuJoCo's order, not BLAS's
+        return v
 
     def hand_rotation(self) -> NDArray[np.float64]:
         """Handle site orientation.
@@ -315,7 +318,7 @@ class Arm:
 
     def orientation_error(self) -> float:
         """Angle (rad) between the handle orientation and the one held since :meth:`reset`."""
-        return float(np.linalg.norm(rotation_vector(self._site_xmat.reshape(3, 3), self._r_held)))
+        return vec.norm(rotation_vector(self._site_xmat.reshape(3, 3), self._r_held))
 
     def joint_positions(self) -> NDArray[np.float64]:
         """Positions of the controlled joints, (n,) rad or m (a copy)."""
@@ -362,8 +365,8 @@ class Arm:
             or not f_ext.flags.c_contiguous
         ):
             f_ext = as_vec3(f_ext, "f_ext", ActionError)
-        s2 = v_ref.dot(v_ref)
-        f2 = f_ext.dot(f_ext)
+        s2 = vec.sumsq(v_ref)
+        f2 = vec.sumsq(f_ext)
         if not (s2 < math.inf and f2 < math.inf):  # NaN fails the comparison too
             as_vec3(v_ref, "v_ref", ActionError)
             as_vec3(f_ext, "f_ext", ActionError)
@@ -377,18 +380,18 @@ class Arm:
         x_ref = self._x_ref
         xdot_lin = self._xdot_lin
         np.subtract(x_ref, self._site_xpos, out=err)
-        e2 = err.dot(err)
+        e2 = vec.sumsq(err)
         if e2 > self._emax2:
             err *= self._emax / math.sqrt(e2)
             np.add(self._site_xpos, err, out=x_ref)  # anti-wind-up
         np.multiply(err, self._kp, out=xdot_lin)
         xdot_lin += v_ref
         if math.sqrt(s2) + self._kp * math.sqrt(min(e2, self._emax2)) > vmax:  # may exceed it
-            c2 = xdot_lin.dot(xdot_lin)
+            c2 = vec.sumsq(xdot_lin)
             if c2 > vmax * vmax:
                 xdot_lin *= vmax / math.sqrt(c2)
         if self._task == 6:
-            np.matmul(self._rot_b, self._site_xmat, out=self._xdot_rot)
+            mujoco.mju_mulMatVec(self._xdot_rot, self._rot_b, self._site_xmat)
 
         # Damped least squares on the cached site Jacobian.
         jac = self._jac_arm
@@ -409,7 +412,7 @@ class Arm:
         tmp = self._tmp_n
         np.multiply(qdot, self._inv_qdmax, out=tmp)
         scale = self.dt
-        if tmp.dot(tmp) > 1.0:
+        if vec.sumsq(tmp) > 1.0:
             ratio = float(np.abs(tmp).max())
             if ratio > 1.0:
                 qdot *= 1.0 / ratio
@@ -465,9 +468,15 @@ class Arm:
         if not (np.any(up) or np.any(lo)):
             return
         jw = self._jac_arm * w
-        a = jw @ jw.T
+        k = jw.shape[0]
+        a = np.empty((k, k))
+        mujoco.mju_mulMatMatT(a, jw, jw)  # the same routines as the main solve: no BLAS/LAPACK
         a[np.diag_indices_from(a)] += self._lambda2
-        qdot[:] = w * (jw.T @ np.linalg.solve(a, self._xdot))
+        mujoco.mju_cholFactor(a, 0.0)
+        y = np.empty(k)
+        mujoco.mju_cholSolve(y, a, self._xdot)
+        mujoco.mju_mulMatTVec(qdot, jw, y)
+        qdot *= w
 
     # ------------------------------------------------------------------ rendering
 

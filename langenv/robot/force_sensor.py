@@ -7,6 +7,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from langenv import vec
 from langenv.errors import ActionError, ConfigError
 
 
@@ -55,7 +56,7 @@ class ForceSensor:
             raise ActionError(f"f must have shape (3,), got shape {arr.shape}")
         if rng is not None and self.noise_std > 0.0:
             arr = arr + rng.normal(0.0, self.noise_std, 3)
-        norm2 = float(arr.dot(arr))
+        norm2 = vec.sumsq(arr)
         if not norm2 < math.inf:
             raise ActionError(f"f must be finite, got {np.asarray(f).tolist()}")
         norm = math.sqrt(norm2)
@@ -65,4 +66,4 @@ class ForceSensor:
 
     def magnitude(self, f: NDArray[np.float64], rng: np.random.Generator | None) -> float:
         """``|measure(f, rng)|`` (N), the input of the cooperation filter."""
-        return float(np.linalg.norm(self.measure(f, rng)))
+        return vec.norm(self.measure(f, rng))

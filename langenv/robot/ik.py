@@ -61,16 +61,36 @@ def solve_ik(
         mujoco.mj_comPos(model, data)
         jac = jacobian()
         err[:3] = target - site_xpos
-        residual = float(np.linalg.norm(err[:3]))
+        residual = _norm(err[:3])
         step = err[:3] * min(1.0, IK_MAX_STEP / max(residual, 1e-300))
         err[:3] = step
         if rotation is not None:
             err[3:] = rotation_vector(site_xmat.reshape(3, 3), rotation)
-        if float(np.linalg.norm(err)) < IK_TOL:
+        if _norm(err) < IK_TOL:
             break
-        a = jac @ jac.T + 1e-8 * np.eye(k)
-        dq = jac.T @ np.linalg.solve(a, err)
-        q = data.qpos[handles.qadr] + dq
+        q = data.qpos[handles.qadr] + _damped_step(jac, err)
         data.qpos[handles.qadr] = np.clip(q, handles.lower, handles.upper)
     mujoco.mj_kinematics(model, data)
-    return float(np.linalg.norm(target - site_xpos))
+    return _norm(target - site_xpos)
+
+
+def _norm(v: NDArray[np.float64]) -> float:
+    """Euclidean norm of a short vector, summed in index order (no BLAS kernel: the same
+    on any CPU)."""
+    return math.sqrt(sum(x * x for x in v.tolist()))
+
+
+def _damped_step(jac: NDArray[np.float64], err: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``J' (J J' + 1e-8 I)^-1 err`` for the (k, n) Jacobian ``jac`` and the (k,) error, by
+    MuJoCo's dense routines (Cholesky), whose order of operations does not depend on the CPU."""
+    k, n = jac.shape
+    jac = np.ascontiguousarray(jac)
+    a = np.empty((k, k))
+    mujoco.mju_mulMatMatT(a, jac, jac)
+    a[np.diag_indices_from(a)] += 1e-8
+    mujoco.mju_cholFactor(a, 0.0)
+    y = np.empty(k)
+    mujoco.mju_cholSolve(y, a, np.ascontiguousarray(err))
+    dq = np.empty(n)
+    mujoco.mju_mulMatTVec(dq, jac, y)
+    return dq

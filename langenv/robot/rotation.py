@@ -42,8 +42,10 @@ def rotation_vector(r_from: NDArray[np.float64], r_to: NDArray[np.float64]) -> N
     Returns:
         (3,) float64, axis * angle (rad), world frame.
     """
+    rel = np.empty((3, 3))  # r_to @ r_from.T in MuJoCo's fixed order (no BLAS: same on any CPU)
+    mujoco.mju_mulMatMatT(rel, np.ascontiguousarray(r_to), np.ascontiguousarray(r_from))
     quat = np.empty(4)
-    mujoco.mju_mat2Quat(quat, (r_to @ r_from.T).ravel())
+    mujoco.mju_mat2Quat(quat, rel.ravel())
     vel = np.empty(3)
     mujoco.mju_quat2Vel(vel, quat, 1.0)
     return vel

@@ -432,9 +432,11 @@ class SyntheticUser:
             if hi > lo:
                 envelope[lo:hi] = ep.envelope(grid[lo:hi])
         noise = self._ou_noise(rng, grid.shape[0])
-        excess = np.minimum(
-            envelope * np.exp(p.noise_std * noise - 0.5 * p.noise_std**2), p.max_excess
-        )
+        bias = 0.5 * p.noise_std**2
+        # math.exp per sample (the C library's exp), not np.exp: NumPy's vectorised exp rounds
+        # differently with AVX-512 than without, and this table drives every tick.
+        factor = np.array([math.exp(p.noise_std * z - bias) for z in noise.tolist()])
+        excess = np.minimum(envelope * factor, p.max_excess)
         applied = np.where(envelope > 0.0, excess + p.deadband, 0.0)
         applied.setflags(write=False)
         self.f_applied = applied
