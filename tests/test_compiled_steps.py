@@ -22,6 +22,8 @@ from langenv.users import ReplayUser, SyntheticUser
 from langenv.users.session_csv import Session
 from langenv.users.synthetic import LogNormal, SyntheticUserParams
 
+pytestmark = pytest.mark.portable
+
 
 def _pair(**kwargs: Any) -> tuple[LangCtrlEnv, LangCtrlEnv]:
     fast, ref = LangCtrlEnv(**kwargs), LangCtrlEnv(**kwargs)

@@ -17,6 +17,8 @@ from langenv.robot.arm import Arm
 from langenv.robot.force_sensor import ForceSensor
 from langenv.safety import SafetyLimits
 
+pytestmark = pytest.mark.portable
+
 
 def _pair(**arm_kwargs: float) -> tuple[GuidedArm, GuidedArm]:
     def make(compiled: bool) -> GuidedArm:

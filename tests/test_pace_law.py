@@ -24,6 +24,8 @@ from langenv.users import SyntheticUser
 from langenv.users.synthetic import LogNormal, SyntheticUserParams
 from policies.analytic import LanguageController, make_analytic
 
+pytestmark = pytest.mark.portable
+
 FIELDS = (*pacer.ROW_FIELDS, "qpos", "f_user")
 
 

@@ -46,6 +46,8 @@ from policies import load_policy
 from policies.aligner import AlignerGains
 from train.wrappers import ResidualLCWrapper
 
+pytestmark = pytest.mark.portable
+
 REFERENCE = Path(__file__).parent / "data" / "pinned_episodes.json"
 RTOL = 1e-6
 """Relative tolerance of every recorded float (see the module docstring)."""
