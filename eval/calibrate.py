@@ -204,9 +204,9 @@ def _correlation_time(series: Sequence[np.ndarray], step: float, max_lag: float 
     den = np.zeros(max_k + 1)
     for x in series:
         x = x - x.mean()
-        var = float(np.dot(x, x)) / max(len(x), 1)
+        var = float(np.sum(x * x)) / max(len(x), 1)  # sums, not BLAS: the same on any CPU
         for k in range(min(max_k + 1, len(x))):
-            num[k] += float(np.dot(x[: len(x) - k], x[k:]))
+            num[k] += float(np.sum(x[: len(x) - k] * x[k:]))
             den[k] += (len(x) - k) * var
     acf = np.divide(num, den, out=np.zeros_like(num), where=den > 0)
     below = np.flatnonzero(acf < math.exp(-1.0))
@@ -246,7 +246,7 @@ def fit_params(
     n_eps = np.array([len(x) for x in logs], dtype=np.float64)
     within = np.concatenate([x - x.mean() for x in logs])
     dof = max(len(within) - len(logs), 1)
-    var_w = float(np.dot(within, within)) / dof
+    var_w = float(np.sum(within * within)) / dof
     means = np.array([x.mean() for x in logs])
     var_b = float(means.var(ddof=1)) - var_w * float(np.mean(1.0 / n_eps)) if len(logs) > 1 else 0.0
     residuals = [e.log_residual for e in episodes if e.log_residual.size >= 10]

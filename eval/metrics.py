@@ -153,7 +153,7 @@ def time_mean(x: np.ndarray, t: np.ndarray, mask: np.ndarray | None = None) -> f
     total = float(w.sum())
     if total <= 0.0:
         return float("nan")
-    return float(np.dot(w, x) / total)
+    return float(np.sum(w * x) / total)  # NumPy's pairwise sum, not BLAS: the same on any CPU
 
 
 def window_mask(log: EpisodeLog, window: Window) -> np.ndarray:

@@ -250,7 +250,8 @@ def study_findings(
             share, weight = _column(rows, p, "a_within_0_1"), _column(rows, p, "t_speech")
             keep = np.isfinite(share) & (weight > 0.0)
             total = float(weight[keep].sum())
-            shares.append(float(np.dot(share[keep], weight[keep]) / total) if total else math.nan)
+            kept = np.sum(share[keep] * weight[keep])  # not BLAS's dot: the same on any CPU
+            shares.append(float(kept / total) if total else math.nan)
         measured = f"{n_lc} {100 * shares[0]:.1f} % vs {n_noap} {100 * shares[1]:.1f} %"
         out.append(Finding(claim, measured, bool(shares[0] > shares[1])))
     else:

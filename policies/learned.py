@@ -310,11 +310,16 @@ class MlpActor:
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         """Mean action for one normalised observation ``(n_inputs,)``, clipped to [-1, 1]."""
+        # Row sums (NumPy's pairwise sums) and the C library's tanh, not BLAS's gemv and NumPy's
+        # vectorised tanh, whose results depend on the CPU: the same actions on any machine.
         h = np.asarray(obs, dtype=np.float64).reshape(-1)
         for w, b in zip(self.weights[:-1], self.biases[:-1], strict=True):
-            h = w @ h + b
-            h = np.tanh(h) if self.activation == "tanh" else np.maximum(h, 0.0)
-        out = self.weights[-1] @ h + self.biases[-1]
+            h = np.sum(w * h, axis=1) + b
+            if self.activation == "tanh":
+                h = np.array([math.tanh(v) for v in h.tolist()])
+            else:
+                h = np.maximum(h, 0.0)
+        out = np.sum(self.weights[-1] * h, axis=1) + self.biases[-1]
         return np.clip(out, -1.0, 1.0)
 
     @classmethod
