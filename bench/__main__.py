@@ -130,10 +130,13 @@ def measure_etc() -> dict[str, float]:
 def measure_env(n_steps: int = 400) -> dict[str, float]:
     """``LangCtrl-v0`` steps at 25 Hz with a fixed action, and a bare ``mj_step`` beside them."""
     from langenv.env import LangCtrlEnv
+    from langenv.robot.arm import Arm
 
     env = LangCtrlEnv(decision_hz=25)
     action = np.zeros(env.action_space.shape or (0,))
-    model, data = env.motion.arm.model, env.motion.arm.data
+    arm = env.motion.arm
+    assert isinstance(arm, Arm)
+    model, data = arm.model, arm.data
     n_bare = 2000
 
     def steps() -> None:
