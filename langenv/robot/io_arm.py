@@ -75,6 +75,7 @@ class IOArm:
         self._state: RobotState = robot.read()
         self._wrench: list[float] = []
         self._same = 0
+        self._armed = False
         self._t_start = _time.perf_counter()
 
     # ------------------------------------------------------------------ Arm's face
@@ -92,8 +93,9 @@ class IOArm:
         """Start a session with the TCP at ``hand_position`` (the exercise's start).
 
         Unlike the simulation, a robot is not placed: it must already be there (the confirmed
-        move of :mod:`langenv.robot.ur.preflight`). Clears the fault and the timing record and
-        allows commands again (``robot.enable()``).
+        move of :mod:`langenv.robot.ur.preflight`). Clears the fault and the timing record; the
+        first :meth:`step` allows commands again (``robot.enable()``, which starts the robot's
+        period clock right before the first command).
 
         Raises:
             DeviceError: the TCP is more than ``start_tolerance`` from ``hand_position``.
@@ -112,8 +114,7 @@ class IOArm:
         self._wrench = self._state.wrench.tolist()
         self._same = 0
         self.sent = np.zeros(6)
-        self.robot.enable()
-        self._t_start = _time.perf_counter()
+        self._armed = False
 
     def hand_position(self) -> NDArray[np.float64]:
         """TCP position, shape (3,), m (a new array)."""
@@ -143,6 +144,10 @@ class IOArm:
         robot = self.robot
         v0, v1, v2 = v_ref.tolist()
         try:
+            if not self._armed:
+                robot.enable()
+                self._armed = True
+                self._t_start = _time.perf_counter()
             self.sent = robot.write_speed(
                 np.array((v0, v1, v2, 0.0, 0.0, 0.0)), self.acceleration, self.dt
             )
