@@ -30,12 +30,14 @@ from typing import Any
 import numpy as np
 
 from langenv.control.trajectory import Trajectory
+from langenv.errors import DeviceError
 from langenv.live.ring import AudioRing
 from langenv.live.sinks import AudioSink
 from langenv.live.stream import BLOCK, DEFAULT_LAG, SpeechStream
 from langenv.robot.io import RobotIO
 from langenv.robot.io_arm import IOArm
 from langenv.safety import SafetyStop
+from langenv.speech.vocoder import VariableRateVocoder
 from langenv.users.session_csv import write_session
 
 __all__ = ["FADE_S", "LOG_COLUMNS", "RobotLoop", "RobotSessionReport"]
@@ -100,6 +102,15 @@ class RobotSessionReport:
         )
 
 
+def _warm_vocoder(sr: int) -> None:
+    """Compile and run the vocoder's kernels once, before anything moves (the first pull
+    otherwise costs seconds inside a control period)."""
+    voc = VariableRateVocoder(sr)
+    voc.push(np.zeros(4 * BLOCK, np.float32))
+    voc.finish()
+    voc.pull(BLOCK, 1.1)
+
+
 class RobotLoop:
     """Runs one session of a policy on a robot.
 
@@ -149,6 +160,8 @@ class RobotLoop:
         self.ring = AudioRing(self.sr)
         self.sink = make_sink(self.ring, self.sr) if make_sink is not None else None
         self._rows: list[list[Any]] = []
+        if self.sink is not None:
+            _warm_vocoder(self.sr)
 
     @property
     def arm(self) -> IOArm:
@@ -184,7 +197,10 @@ class RobotLoop:
         except KeyboardInterrupt:
             arm.halt("interrupted")
         finally:
-            self.robot.stop()
+            try:
+                self.robot.stop()
+            except DeviceError:
+                pass  # the link is gone: the robot's watchdog has stopped it
             self._fade(started)
             gc.unfreeze()
             if collecting:

@@ -62,8 +62,12 @@ class IOArm:
         self.robot = robot
         self.dt: float = finite_positive("IOArm: robot.period", robot.period, DeviceError)
         self.acceleration = finite_positive("IOArm.acceleration", acceleration, ConfigError)
-        self.start_tolerance = finite_positive("IOArm.start_tolerance", start_tolerance, ConfigError)
-        self._stuck_periods = max(1, round(finite_positive("IOArm.stuck_after", stuck_after, ConfigError) / self.dt))
+        self.start_tolerance = finite_positive(
+            "IOArm.start_tolerance", start_tolerance, ConfigError
+        )
+        self._stuck_periods = max(
+            1, round(finite_positive("IOArm.stuck_after", stuck_after, ConfigError) / self.dt)
+        )
         lo, hi = robot.joint_limits
         self._lo, self._hi = np.array(lo, np.float64), np.array(hi, np.float64)
         self.joint_names: tuple[str, ...] = tuple(robot.joint_names)
@@ -183,7 +187,9 @@ class IOArm:
         """Stop now for a reason found outside the arm (``interrupted``): ``stop()`` is sent."""
         self._halt(limit, 0.0, 0.0, detail)
 
-    def _halt(self, limit: str, value: float = 0.0, threshold: float = 0.0, detail: str = "") -> None:
+    def _halt(
+        self, limit: str, value: float = 0.0, threshold: float = 0.0, detail: str = ""
+    ) -> None:
         if self.fault is None:
             self.fault = SafetyStop(limit, value, threshold, self.time, detail)
         try:

@@ -50,7 +50,9 @@ def ur_rtde_backend() -> Any:
         import rtde_control
         import rtde_receive
     except ImportError as exc:
-        raise DeviceError(f"the UR bridge needs ur-rtde, which is not installed: {INSTALL_HINT}") from exc
+        raise DeviceError(
+            f"the UR bridge needs ur-rtde, which is not installed: {INSTALL_HINT}"
+        ) from exc
     return types.SimpleNamespace(
         RTDEControlInterface=rtde_control.RTDEControlInterface,
         RTDEReceiveInterface=rtde_receive.RTDEReceiveInterface,
@@ -168,10 +170,17 @@ class URRobot(RobotContext):
         try:
             ok = c.speedL(sent.tolist(), acceleration, time)
             c.kickWatchdog()
+            if not ok:  # explained by a stop the next read reports, or the link is gone
+                r = self._r
+                explained = (
+                    r.isProtectiveStopped() or r.isEmergencyStopped() or not c.isProgramRunning()
+                )
         except RuntimeError as exc:
             raise DeviceError(f"link to the robot at {self.config.host} lost: {exc}") from None
         if not ok:
-            raise DeviceError(f"the robot at {self.config.host} refused speedL")
+            if not explained:
+                raise DeviceError(f"the robot at {self.config.host} refused speedL")
+            return np.zeros(6)
         return sent
 
     def wait(self) -> float:

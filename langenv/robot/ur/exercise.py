@@ -28,7 +28,9 @@ def exercise_trajectory(config: URConfig) -> Trajectory:
             moved.append(LineSegment(seg.start + o, seg.end + o, seg.waypoint, seg.turn))
         else:
             moved.append(
-                ArcSegment(seg.center + o, seg.axis, seg.start + o, seg.angle, seg.waypoint, seg.turn)
+                ArcSegment(
+                    seg.center + o, seg.axis, seg.start + o, seg.angle, seg.waypoint, seg.turn
+                )
             )
     return Trajectory(moved)
 

@@ -27,6 +27,7 @@ loop, not 10 s), and injects faults (:meth:`FakeUR.inject`) at a given ``speedL`
 from __future__ import annotations
 
 import datetime
+import time as _time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -77,10 +78,13 @@ class FakeUR:
         noise: Wrist sensor noise (N, std per axis), from a generator seeded with ``seed``.
         version: What ``polyscopeVersion()`` answers.
         payload: (mass kg, cog (3,) m) set on the robot; ``tcp_offset`` (6,) likewise.
+        realtime: ``waitPeriod`` sleeps until the period's end on the wall clock (as the real
+            library does) instead of advancing a virtual clock.
 
     Attributes:
         commands: Every command received, in order: ``("speedL", period, xd)``,
-            ``("speedStop", period, a)``, ``("moveL", period, pose)``, ``("stopScript", period)``.
+            ``("speedStop", period, a)``, ``("moveL", period, pose)``, ``("waitPeriod", period)``,
+            ``("stopScript", period)``.
         period_index: Periods elapsed on the virtual clock.
     """
 
@@ -96,6 +100,7 @@ class FakeUR:
         version: str = "URSoftware 5.11.1.108318 (Mar 22 2021)",
         payload: tuple[float, Sequence[float]] = (0.6, (0.0, 0.0, 0.05)),
         tcp_offset: Sequence[float] = (0.0, 0.0, 0.1, 0.0, 0.0, 0.0),
+        realtime: bool = False,
     ) -> None:
         if host not in _LOOPBACK:
             raise ValueError(f"FakeUR serves a loopback address only, got {host!r}")
@@ -111,6 +116,8 @@ class FakeUR:
         self.payload_mass, self.payload_cog = float(payload[0]), list(payload[1])
         self.tcp_offset = list(tcp_offset)
         self.clock = 0.0
+        self.realtime = bool(realtime)
+        self._t0 = _time.perf_counter()
         self.period_index = 0
         self.commands: list[tuple[Any, ...]] = []
         self.faults: list[_Fault] = []
@@ -223,11 +230,20 @@ class FakeUR:
         self.timestamp = self.clock
         self.period_index += 1
 
+    def now(self) -> float:
+        """The clock ``initPeriod`` reads (s): virtual, or the wall clock when ``realtime``."""
+        return _time.perf_counter() - self._t0 if self.realtime else self.clock
+
     def wait(self, t_start: float) -> None:
-        """Advance the virtual clock to one period after ``t_start`` (plus injected lateness)."""
+        """Advance the clock to one period after ``t_start`` (plus injected lateness)."""
         self.check_link()
+        self.commands.append(("waitPeriod", self.period_index))
         due = t_start + self.period + self._late
         self._late = 0.0
+        if self.realtime:
+            while (left := due - self.now()) > 0.0:
+                _time.sleep(left if left > 0.0005 else 0.0)
+            due = self.now()
         while self.clock < due - 1e-12:
             self.advance()
 
@@ -251,7 +267,10 @@ class FakeUR:
         self.commands.append(("moveL", self.period_index, list(pose)))
         target = np.array(pose, dtype=np.float64)
         distance = float(np.linalg.norm(target[:3] - self.pose[:3]))
-        for _ in range(int(np.ceil(distance / (speed * self.period)))):
+        periods = int(np.ceil(distance / (speed * self.period)))
+        if self.realtime:
+            _time.sleep(periods * self.period)
+        for _ in range(periods):
             self.clock += self.period
             self.period_index += 1
         self.pose = target
@@ -295,7 +314,7 @@ class RTDEControlInterface:
 
     def initPeriod(self) -> datetime.timedelta:
         self._ur.check_link()
-        return datetime.timedelta(seconds=self._ur.clock)
+        return datetime.timedelta(seconds=self._ur.now())
 
     def waitPeriod(self, arg0: datetime.timedelta, /) -> None:
         self._ur.wait(arg0.total_seconds())

@@ -62,7 +62,11 @@ def run_checks(robot: URRobot, config: URConfig) -> list[Check]:
     text = robot.controller_version()
     have, need = _version(text), _version(config.min_version)
     checks.append(
-        Check("controller_version", bool(have) and have >= need, f"{text!r} (need >= {config.min_version})")
+        Check(
+            "controller_version",
+            bool(have) and have >= need,
+            f"{text!r} (need >= {config.min_version})",
+        )
     )
     state = robot.read()
     bad = [
