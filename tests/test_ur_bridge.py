@@ -122,7 +122,7 @@ def test_ctrl_c_is_the_interrupted_stop(tmp_path: Path) -> None:
 def test_eval_compare_reads_the_robot_session(tmp_path: Path) -> None:
     from eval.compare import main as compare
 
-    report, _ = _session(tmp_path)
+    _session(tmp_path)
     out = tmp_path / "out"
     rc = compare(["--policies", "lc", "--sessions", str(tmp_path), "--out", str(out)])
     assert rc == 0

@@ -14,9 +14,10 @@ from __future__ import annotations
 
 import csv
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -235,7 +236,7 @@ def load_sessions(directory: str | Path, pattern: str = "*.csv") -> list[Session
     return [load_session(p) for p in files]
 
 
-def write_session(path: str | Path, columns: dict[str, Sequence[float] | Sequence[str]]) -> Path:
+def write_session(path: str | Path, columns: Mapping[str, Sequence[Any]]) -> Path:
     """Write a session CSV that :func:`load_session` (and ``eval.compare --sessions``) reads.
 
     Args:
