@@ -18,6 +18,7 @@ Figures (all measured here, on this machine, in this process):
 | ``env_step_ratio`` | ``env_step_us / (20 mj_step_us)``, with ``mj_step_us`` measured again beside it |
 | ``train_steps_per_s`` | PPO with the shipped config (``configs/ppo.yaml``: 2 envs, in subprocesses where the machine has more cores than envs (``--vec-env auto``), the residual LC wrappers) for 4096 steps: env steps per second of ``model.learn`` (rollouts and updates; building the envs not counted) |
 | ``audio_rtf`` | seconds of speech rendered by the variable-rate phase vocoder per second of wall time |
+| ``robot_compute_median_ms``, ``robot_compute_p999_ms``, ``robot_compute_max_ms`` | the UR bridge's loop against the fake ur-rtde (virtual clock, no audio): compute time per 2 ms period (read, control, speech, LC policy, log, ``speedL``) over 3 whole sessions (targets: median < 0.5 ms, p99.9 < 1.5 ms) |
 | ``compare_s`` | wall time of the main job: ``eval.compare`` with AC, LC-noAP and LC on 12 synthetic users (all outputs) |
 """
 
@@ -220,6 +221,36 @@ def measure_compare() -> dict[str, float]:
     return {"compare_s": elapsed}
 
 
+def measure_robot(sessions: int = 3) -> dict[str, float]:
+    """The UR bridge's loop compute time per period, against the fake ur-rtde."""
+    from langenv.live.registry import load_registered_policy
+    from langenv.live.robot_loop import RobotLoop
+    from langenv.robot.ur import fake_rtde
+    from langenv.robot.ur.bridge import URRobot
+    from langenv.robot.ur.config import URConfig
+    from langenv.robot.ur.exercise import exercise_trajectory
+    from langenv.robot.ur.preflight import move_to_start
+
+    cfg = URConfig(host="127.0.0.1")  # the fake's loopback host: nothing goes on the network
+    times: list[float] = []
+    for _ in range(sessions):
+        with fake_rtde.FakeUR(cfg.host):
+            robot = URRobot(cfg, backend=fake_rtde)
+            move_to_start(robot, cfg, lambda q: True)
+            loop = RobotLoop(
+                robot, load_registered_policy("lc"), trajectory=exercise_trajectory(cfg)
+            )
+            loop.run()
+            times.extend(loop.arm.compute_s)
+            robot.close()
+    ms = np.array(times) * 1e3
+    return {
+        "robot_compute_median_ms": float(np.median(ms)),
+        "robot_compute_p999_ms": float(np.quantile(ms, 0.999)),
+        "robot_compute_max_ms": float(ms.max()),
+    }
+
+
 SECTIONS: dict[str, Callable[[], dict[str, float]]] = {
     "physics": measure_physics,
     "nominal": measure_nominal,
@@ -228,6 +259,7 @@ SECTIONS: dict[str, Callable[[], dict[str, float]]] = {
     "train": measure_train,
     "audio": measure_audio,
     "compare": measure_compare,
+    "robot": measure_robot,
 }
 
 
