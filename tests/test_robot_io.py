@@ -42,10 +42,10 @@ def test_mujoco_robot_through_the_seam_runs_the_simulated_episode() -> None:
     seam = LangCtrlEnv(decision_hz=500, robot=MujocoRobot(ft_noise=0.05))
     ends = []
     for env in (direct, seam):
-        obs, info = env.reset(seed=0)
+        env.reset(seed=0)
         action = np.zeros(env.action_space.shape, np.float32)
         for _ in range(20000):
-            obs, _, term, trunc, info = env.step(action)
+            _, _, term, trunc, info = env.step(action)
             if term or trunc:
                 break
         assert info["safety_stop"] is None
