@@ -79,3 +79,39 @@ def test_write_session_round_trip(tmp_path: Path) -> None:
     )
     s = load_session(path)
     assert s.cooperation.tolist() == [1.0, 0.5]
+
+
+@pytest.mark.parametrize("robot", ["mujoco", "ur-fake"])
+def test_play_runs_a_session_through_the_seam(tmp_path: Path, robot: str, capsys) -> None:
+    """Real time on a shared machine may end it early on a late period: a named stop, still
+    logged; either way the loop ran on the robot and said how it ended."""
+    from langenv.play import main
+
+    wav, log = tmp_path / "a.wav", tmp_path / "s.csv"
+    argv = ["--robot", robot, "--headless", "--seconds", "0.5", "--audio-out", str(wav)]
+    assert main([*argv, "--log-out", str(log)]) == 0
+    out = capsys.readouterr().out
+    assert f"play: lc on {robot}, user synthetic:" in out and "periods" in out
+    assert wav.exists()
+
+
+def test_limit_speed_properties() -> None:
+    from hypothesis import given
+    from hypothesis import strategies as st
+
+    from langenv.robot.io import limit_speed
+
+    finite = st.floats(-10.0, 10.0, allow_nan=False)
+
+    @given(st.lists(finite, min_size=6, max_size=6), st.floats(0.01, 2.0))
+    def check(xd: list[float], vmax: float) -> None:
+        out = limit_speed(np.array(xd), vmax)
+        assert np.linalg.norm(out[:3]) <= vmax * (1 + 1e-12)
+        if np.linalg.norm(xd[:3]) <= vmax:
+            assert out.tolist() == xd  # within the limit: unchanged
+        else:  # scaled along the same direction
+            assert np.allclose(np.cross(out[:3], xd[:3]), 0.0, atol=1e-9)
+        assert out[3:].tolist() == xd[3:]
+
+    check()
+    assert not limit_speed(np.array([np.nan, 0, 0, 0, 0, 0.0]), 0.5).any()

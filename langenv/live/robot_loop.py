@@ -38,6 +38,7 @@ from langenv.robot.io import RobotIO
 from langenv.robot.io_arm import IOArm
 from langenv.safety import SafetyStop
 from langenv.speech.vocoder import VariableRateVocoder
+from langenv.users.base import User
 from langenv.users.session_csv import write_session
 
 __all__ = ["FADE_S", "LOG_COLUMNS", "RobotLoop", "RobotSessionReport"]
@@ -169,6 +170,17 @@ class RobotLoop:
         arm = self.env.motion.arm
         assert isinstance(arm, IOArm)
         return arm
+
+    def simulated_person(self, user: User) -> Callable[[float, np.ndarray], np.ndarray]:
+        """``user`` (reset with the loop's seed) as a simulated robot's ``person``: its force
+        from the time and the TCP velocity, along the guide's tangent as in the env."""
+        user.reset(np.random.default_rng(self.seed))
+        motion = self.env.motion
+
+        def person(t: float, velocity: np.ndarray) -> np.ndarray:
+            return user.force(t, velocity, motion.tangent())
+
+        return person
 
     def run(self) -> RobotSessionReport:
         """Run the session to its end or its first stop; always ends with ``robot.stop()``."""

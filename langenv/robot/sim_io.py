@@ -9,6 +9,7 @@ against :class:`~langenv.robot.io.RobotIO` run on the simulation.
 
 from __future__ import annotations
 
+import time as _time
 from collections.abc import Callable
 
 import mujoco
@@ -38,6 +39,9 @@ class MujocoRobot(RobotContext):
         ft_noise: Standard deviation (N) of the wrist sensor's noise on each force axis (a live
             sensor is never bit-for-bit constant: the loop's stuck-sensor check relies on it).
         seed: Seed of the noise's generator.
+        realtime: ``wait`` also sleeps until the period's end on the wall clock (a live
+            session, ``python -m langenv.play --robot mujoco``) and reports its lateness;
+            otherwise the simulation runs as fast as it computes, never late.
 
     Angular velocity commands are ignored: the arm's controller holds the handle's orientation.
     """
@@ -49,12 +53,15 @@ class MujocoRobot(RobotContext):
         max_speed: float = 0.5,
         ft_noise: float = 0.05,
         seed: int = 0,
+        realtime: bool = False,
     ) -> None:
         if not max_speed > 0.0:
             raise ConfigError(f"MujocoRobot.max_speed must be > 0 m/s, got {max_speed!r}")
         if not ft_noise >= 0.0:
             raise ConfigError(f"MujocoRobot.ft_noise must be >= 0 N, got {ft_noise!r}")
         self.ft_noise = float(ft_noise)
+        self.realtime = bool(realtime)
+        self._due: float | None = None
         self._rng = np.random.default_rng(seed)
         self.arm = arm if arm is not None else Arm()
         self.person = person
@@ -109,12 +116,24 @@ class MujocoRobot(RobotContext):
         return self._cmd
 
     def wait(self) -> float:
-        """One physics step under the stored command and the person's force; never late."""
+        """One physics step under the stored command and the person's force; with
+        ``realtime``, then sleep to the period's end (returns the lateness, s), else 0."""
         arm = self.arm
         if self.person is not None:
             self._force = np.asarray(self.person(self.time, arm.hand_velocity()), np.float64)
         arm.step(self._cmd[:3], self._force)
         self.time += arm.dt
+        return self._sleep() if self.realtime else 0.0
+
+    def _sleep(self) -> float:
+        now = _time.perf_counter()
+        due = (now if self._due is None else self._due) + self.arm.dt
+        if now > due:  # late: re-base the schedule, no catch-up burst
+            self._due = now
+            return now - due
+        while (left := due - _time.perf_counter()) > 0.0:
+            _time.sleep(left - 0.0007 if left > 0.0007 else 0.0)  # then spin
+        self._due = due
         return 0.0
 
     def zero_ft_sensor(self) -> None:
@@ -127,8 +146,9 @@ class MujocoRobot(RobotContext):
         self._cmd = np.zeros(6)
 
     def enable(self) -> None:
-        """Accept commands."""
+        """Accept commands (and restart the real-time schedule)."""
         self._enabled = True
+        self._due = None
 
     def close(self) -> None:
         """Free the arm's renderer, if any."""

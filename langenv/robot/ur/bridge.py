@@ -98,8 +98,9 @@ class URRobot(RobotContext):
                 f"({exc}): check the address, the cable and that the robot (or URSim) is on"
             ) from None
         try:
-            self._r = lib.RTDEReceiveInterface(host, config.frequency)
-            self._c = lib.RTDEControlInterface(host, config.frequency)
+            prio = config.rt_priority
+            self._r = lib.RTDEReceiveInterface(host, config.frequency, rt_priority=prio)
+            self._c = lib.RTDEControlInterface(host, config.frequency, rt_priority=prio)
             self._d = lib.DashboardClient(host)
             self._d.connect(round(1000 * config.connect_timeout))
         except RuntimeError as exc:

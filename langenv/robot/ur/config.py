@@ -21,6 +21,7 @@ m, kg, deg, s, m/s, Hz, and become SI (rad) once, at load:
 | ``stop_deceleration`` | m/s^2 | 2.0 | ``speedStop``'s deceleration (0.5 m/s stops within 6 cm) |
 | ``watchdog_hz`` | Hz | 50 | RTDE watchdog: the controller stops the arm if our loop sends nothing for 1/this s |
 | ``connect_timeout`` | s | 2.0 | no answer from the host within this is an error |
+| ``rt_priority`` | int | 0 | ur-rtde's real-time priority for its threads (0: the library's default; needs the right to set it) |
 | ``joint_lower``, ``joint_upper`` | [deg] x6 | ±360 (elbow ±180, as an e-series UR5) | the joints' ranges for the monitor's ``joint_margin`` |
 """
 
@@ -79,6 +80,7 @@ class URConfig:
     stop_deceleration: float = 2.0
     watchdog_hz: float = 50.0
     connect_timeout: float = 2.0
+    rt_priority: int = 0
     joint_lower: NDArray[np.float64] = field(
         default_factory=lambda: np.array([-2, -2, -1, -2, -2, -2]) * math.pi
     )
@@ -112,6 +114,10 @@ class URConfig:
             if not (math.isfinite(value) and value > 0.0):
                 raise ConfigError(f"URConfig.{name} must be finite and > 0, got {value!r}")
             object.__setattr__(self, name, float(value))
+        if isinstance(self.rt_priority, bool) or not isinstance(self.rt_priority, int):
+            raise ConfigError(f"URConfig.rt_priority must be an integer, got {self.rt_priority!r}")
+        if not 0 <= self.rt_priority <= 99:
+            raise ConfigError(f"URConfig.rt_priority must be in [0, 99], got {self.rt_priority}")
         if self.frequency != 500.0:
             raise ConfigError(
                 f"URConfig.frequency must be 500 Hz (the loop's 2 ms tick; an e-series "

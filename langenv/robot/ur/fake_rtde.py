@@ -242,7 +242,7 @@ class FakeUR:
         self._late = 0.0
         if self.realtime:
             while (left := due - self.now()) > 0.0:
-                _time.sleep(left if left > 0.0005 else 0.0)
+                _time.sleep(left - 0.0007 if left > 0.0007 else 0.0)  # then spin
             due = self.now()
         while self.clock < due - 1e-12:
             self.advance()
