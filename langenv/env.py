@@ -188,6 +188,8 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
 
     ## Version history
 
+    * v0 (langctrl 0.5): ``robot`` (a :class:`~langenv.robot.io.RobotIO`) and ``robot_acceleration``
+      added; episodes without them unchanged.
     * v0 (langctrl 0.4): ``run_law`` and ``observation()`` added; episodes unchanged.
     * v0 (langctrl 0.2): plant, speech and synthetic users fitted to the study's recordings (the
       lab's leg switching instead of a rest at each end, the acceleration-limited command, a 43 deg
