@@ -206,3 +206,48 @@ def test_config_file_is_checked(tmp_path: Path) -> None:
         load_ur_config(bad)
     with pytest.raises(ConfigError, match="frequency"):
         URConfig(host=HOST, frequency=125.0)
+
+
+def test_move_to_start_is_watched_and_interruptible() -> None:
+    cfg = URConfig(host=HOST)
+    with fake_rtde.FakeUR(HOST) as ur:
+        robot = URRobot(cfg, backend=fake_rtde)
+        calls = {"n": 0}
+        real_read = robot.read
+
+        def read():  # Ctrl-C half-way through the approach
+            calls["n"] += 1
+            if calls["n"] == 300:
+                raise KeyboardInterrupt
+            return real_read()
+
+        robot.read = read  # type: ignore[method-assign]
+        with pytest.raises(KeyboardInterrupt):
+            move_to_start(robot, cfg, lambda q: True)
+        robot.close()
+    kinds = [c[0] for c in ur.commands if c[0] in ("moveL", "stopL", "speedStop")]
+    assert kinds == ["moveL", "stopL", "speedStop"]
+    assert not ur.velocity.any()
+
+
+def test_an_error_inside_the_loop_still_stops_and_logs(tmp_path: Path) -> None:
+    cfg = URConfig(host=HOST)
+    policy = load_registered_policy("lc")
+    act, calls = policy.act, {"n": 0}
+
+    def failing_act(obs):
+        calls["n"] += 1
+        if calls["n"] == 1000:
+            raise ValueError("a bug in the policy")
+        return act(obs)
+
+    policy.act = failing_act
+    with fake_rtde.FakeUR(HOST) as ur:
+        robot = URRobot(cfg, backend=fake_rtde)
+        move_to_start(robot, cfg, lambda q: True)
+        loop = RobotLoop(robot, policy, log_path=tmp_path / "session.csv")
+        with pytest.raises(ValueError, match="bug in the policy"):
+            loop.run()
+    kinds = [c[0] for c in ur.commands if c[0] in ("speedL", "speedStop")]
+    assert kinds[-1] == "speedStop"
+    assert load_session(tmp_path / "session.csv").duration > 1.5

@@ -195,7 +195,7 @@ class RobotLoop:
             obs, info = env.reset(seed=self.seed)
             self.policy.reset()
             stream = SpeechStream(env.graph, env.clips, lag=DEFAULT_LAG)
-            self._log(info, force=True)
+            self._log(info)
             for step in range(self.max_steps):
                 obs, _, terminated, truncated, info = env.step(self.policy.act(obs))
                 speech = env.speech
@@ -217,10 +217,10 @@ class RobotLoop:
             gc.unfreeze()
             if collecting:
                 gc.enable()
-        if info:
-            self._log(env._info(), force=True)
+            if info:  # the log too, whatever ended the session (an error included)
+                self._log(env._info())
+            log = self._write()
         stop = env.motion.safety_stop if env.motion.safety_stop is not None else arm.fault
-        log = self._write()
         compute = np.asarray(arm.compute_s) * 1e3
         stats = (
             (float(np.median(compute)), float(np.quantile(compute, 0.999)), float(compute.max()))
@@ -228,7 +228,7 @@ class RobotLoop:
             else (math.nan, math.nan, math.nan)
         )
         am = info.get("am") if stop is None else None
-        return RobotSessionReport(stop, arm.compute_s.__len__(), env.time, am, stats, log)
+        return RobotSessionReport(stop, len(arm.compute_s), env.time, am, stats, log)
 
     def _audio(self, stream: SpeechStream, t: float, started: bool) -> bool:
         """At most one block into the ring; start the sink once it holds enough."""
@@ -248,11 +248,11 @@ class RobotLoop:
             time.sleep(FADE_S + 0.02)
         self.sink.stop()
 
-    def _log(self, info: dict[str, Any], force: bool = False) -> None:
+    def _log(self, info: dict[str, Any]) -> None:
+        """One row from the step's info (skipped when its time is not past the last row's)."""
         t = float(info["time"])
         if self._rows and (t <= self._rows[-1][0] + 1e-4):
             return
-        del force
         arm = self.arm
         x, y, z = arm.state.position.tolist()
         fx, fy, fz = arm.state.force.tolist()

@@ -244,8 +244,31 @@ class URRobot(RobotContext):
         return bool(self._call(self._c.isPoseWithinSafetyLimits, pose.tolist()))
 
     def move_linear(self, pose: NDArray[np.float64], speed: float, acceleration: float) -> None:
-        """``moveL`` to ``pose`` (6,), blocking (only while enabled)."""
+        """``moveL`` to ``pose`` (6,), asynchronous and watched every period: Ctrl-C, a stop of
+        the robot's, or a move that takes twice as long as it should (plus 2 s) ends it with
+        ``stopL`` at ``stop_deceleration`` (only while enabled).
+
+        Raises:
+            DeviceError: refused, stopped by the robot, or too slow; KeyboardInterrupt passes on
+                after ``stopL``.
+        """
         if not self._enabled:
             raise DeviceError("move_linear: the robot is stopped (enable it first)")
-        if not self._call(self._c.moveL, pose.tolist(), speed, acceleration, False):
+        c = self._c
+        start = self.read().position
+        budget = 2.0 * float(np.linalg.norm(pose[:3] - start)) / speed + 2.0
+        if not self._call(c.moveL, pose.tolist(), speed, acceleration, True):
             raise DeviceError(f"the robot at {self.config.host} refused moveL to {pose.tolist()}")
+        waited = 0.0
+        try:
+            while self._call(c.getAsyncOperationProgress) >= 0:
+                self.wait()
+                waited += self._period
+                state = self.read()
+                if state.protective_stop or state.emergency_stop or not state.program_running:
+                    raise DeviceError("the robot stopped during the move to the exercise's start")
+                if waited > budget:
+                    raise DeviceError(f"the move to the exercise's start took over {budget:.1f} s")
+        except BaseException:
+            self._call(c.stopL, self.config.stop_deceleration, False)
+            raise

@@ -83,7 +83,8 @@ class FakeUR:
 
     Attributes:
         commands: Every command received, in order: ``("speedL", period, xd)``,
-            ``("speedStop", period, a)``, ``("moveL", period, pose)``, ``("waitPeriod", period)``,
+            ``("speedStop", period, a)``, ``("moveL", period, pose)``, ``("stopL", period, a)``,
+            ``("waitPeriod", period)``,
             ``("stopScript", period)``.
         period_index: Periods elapsed on the virtual clock.
     """
@@ -133,6 +134,8 @@ class FakeUR:
         self._spike_until = -1.0
         self._late = 0.0
         self.timestamp = 0.0
+        self._move: tuple[NDArray[np.float64], float] | None = None
+        self._async_done = -1
 
     # ------------------------------------------------------------------ set-up
     def serve(self) -> FakeUR:
@@ -212,11 +215,16 @@ class FakeUR:
         self.velocity = np.zeros(6)
 
     def advance(self) -> None:
-        """One period: the velocity ramps towards the command, the pose integrates it."""
+        """One period: the velocity ramps towards the command, the pose integrates it (or an
+        asynchronous ``moveL`` goes on at its speed)."""
         dt = self.period
         if not self.moving_allowed:
             self._target = np.zeros(6)
             self.velocity = np.zeros(6)
+            self._move = None
+        if self._move is not None:
+            self._step_move(dt)
+            return
         dv = self._target - self.velocity
         lin = float(np.linalg.norm(dv[:3]))
         step = self._accel * dt
@@ -247,6 +255,34 @@ class FakeUR:
         while self.clock < due - 1e-12:
             self.advance()
 
+    def _step_move(self, dt: float) -> None:
+        assert self._move is not None
+        target, speed = self._move
+        gap = target[:3] - self.pose[:3]
+        dist = float(np.linalg.norm(gap))
+        if dist <= speed * dt:
+            self.pose = target.copy()
+            self.velocity = np.zeros(6)
+            self._move = None
+            self._async_done = -2 if self._async_done == -1 else -1
+        else:
+            self.velocity = np.zeros(6)
+            self.velocity[:3] = gap / dist * speed
+            self.pose[:3] += self.velocity[:3] * dt
+        self.clock += dt
+        self.timestamp = self.clock
+        self.period_index += 1
+
+    def async_progress(self) -> int:
+        self.check_link()
+        return 0 if self._move is not None else self._async_done
+
+    def stop_move(self, a: float) -> None:
+        self.check_link()
+        self.commands.append(("stopL", self.period_index, float(a)))
+        self._move = None
+        self.velocity = np.zeros(6)
+
     def wrench(self) -> list[float]:
         if self._stuck is not None:
             return list(self._stuck)
@@ -262,10 +298,13 @@ class FakeUR:
         self.check_link()
         self._ft_offset = self._ft_offset + np.array(self.wrench()[:3])
 
-    def move_to(self, pose: Sequence[float], speed: float) -> None:
+    def move_to(self, pose: Sequence[float], speed: float, asynchronous: bool = False) -> None:
         self.check_link()
         self.commands.append(("moveL", self.period_index, list(pose)))
         target = np.array(pose, dtype=np.float64)
+        if asynchronous:
+            self._move = (target, float(speed))
+            return
         distance = float(np.linalg.norm(target[:3] - self.pose[:3]))
         periods = int(np.ceil(distance / (speed * self.period)))
         if self.realtime:
@@ -330,8 +369,14 @@ class RTDEControlInterface:
         acceleration: float = 1.2,
         asynchronous: bool = False,
     ) -> bool:
-        self._ur.move_to(pose, speed)
+        self._ur.move_to(pose, speed, asynchronous)
         return True
+
+    def getAsyncOperationProgress(self) -> int:
+        return self._ur.async_progress()
+
+    def stopL(self, a: float = 10.0, asynchronous: bool = False) -> None:
+        self._ur.stop_move(a)
 
     def isSteady(self) -> bool:
         self._ur.check_link()
