@@ -44,8 +44,11 @@ class IOArm:
 
     Attributes:
         fault: The robot-side stop (see :data:`langenv.safety.ROBOT_STOPS`), or None.
-        compute_s: Per period, the loop's compute time (s): from the end of ``wait()`` to the
-            start of the next (read, control, speech, policy, logging, ``speedL``).
+        compute_s: Per period, the loop's compute time (s, wall clock): from the end of
+            ``wait()`` to the start of the next (read, control, speech, policy, logging,
+            ``speedL``); what the period's deadline sees, preemption included.
+        compute_cpu_s: The same span in the thread's CPU time (s): what the code costs, without
+            the time other processes took the core.
         sent: The last command sent, shape (6,) (m/s, rad/s).
     """
 
@@ -74,6 +77,7 @@ class IOArm:
         self.max_hand_speed: float = 0.5
         self.fault: SafetyStop | None = None
         self.compute_s = array("d")
+        self.compute_cpu_s = array("d")
         self.sent = np.zeros(6)
         self.time = 0.0
         self._state: RobotState = robot.read()
@@ -81,6 +85,7 @@ class IOArm:
         self._same = 0
         self._armed = False
         self._t_start = _time.perf_counter()
+        self._cpu_start = _time.thread_time()
 
     # ------------------------------------------------------------------ Arm's face
     @property
@@ -115,6 +120,7 @@ class IOArm:
         self.fault = None
         self.time = 0.0
         self.compute_s = array("d")
+        self.compute_cpu_s = array("d")
         self._wrench = self._state.wrench.tolist()
         self._same = 0
         self.sent = np.zeros(6)
@@ -152,12 +158,15 @@ class IOArm:
                 robot.enable()
                 self._armed = True
                 self._t_start = _time.perf_counter()
+                self._cpu_start = _time.thread_time()
             self.sent = robot.write_speed(
                 np.array((v0, v1, v2, 0.0, 0.0, 0.0)), self.acceleration, self.dt
             )
             self.compute_s.append(_time.perf_counter() - self._t_start)
+            self.compute_cpu_s.append(_time.thread_time() - self._cpu_start)
             late = robot.wait()
             self._t_start = _time.perf_counter()
+            self._cpu_start = _time.thread_time()
             state = robot.read()
         except DeviceError as exc:
             self._halt("connection_lost", 0.0, 0.0, str(exc))
