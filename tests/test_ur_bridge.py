@@ -158,8 +158,21 @@ def test_unconfirmed_move_moves_nothing() -> None:
     assert not [c for c in ur.commands if c[0] in ("moveL", "speedL")]
 
 
-def test_dry_run_against_the_fake_commands_nothing(capsys: pytest.CaptureFixture[str]) -> None:
+def test_dry_run_against_the_fake_commands_nothing(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    made: list[fake_rtde.FakeUR] = []
+    real_serve = fake_rtde.FakeUR.serve
+
+    def serve(self: fake_rtde.FakeUR) -> fake_rtde.FakeUR:
+        made.append(self)
+        return real_serve(self)
+
+    monkeypatch.setattr(fake_rtde.FakeUR, "serve", serve)
     assert ur_main(["--host", HOST, "--fake", "--dry-run"]) == 0
+    kinds = {c[0] for c in made[0].commands}
+    assert kinds <= {"stopScript"}, kinds  # no motion, no speedStop, no zeroing
+    assert made[0].speedl_count == 0 and not made[0]._ft_offset.any()
     text = capsys.readouterr().out
     assert "[ok] payload" in text and "would do:" in text and "moveL" in text
 

@@ -105,7 +105,7 @@ class URRobot(RobotContext):
             self._d.connect(round(1000 * config.connect_timeout))
         except RuntimeError as exc:
             raise DeviceError(f"cannot connect to the robot at {host}: {exc}") from None
-        self._enabled = False
+        self._enabled = self._ever_enabled = False
         self._period = config.period
         self._t = self._call(self._c.initPeriod)
         self._stamp = -1.0
@@ -202,8 +202,11 @@ class URRobot(RobotContext):
             raise DeviceError(f"the robot at {self.config.host} refused zeroFtSensor")
 
     def stop(self) -> None:
-        """``speedStop`` at ``config.stop_deceleration``; latched until :meth:`enable`."""
+        """``speedStop`` at ``config.stop_deceleration``; latched until :meth:`enable`. A robot
+        never enabled has been commanded nothing, and is sent nothing (a dry run)."""
         self._enabled = False
+        if not self._ever_enabled:
+            return
         self.stops_sent += 1
         self._call(self._c.speedStop, self.config.stop_deceleration)
 
@@ -211,7 +214,7 @@ class URRobot(RobotContext):
         """Accept commands (arms the RTDE watchdog) and restart the period clock."""
         self._call(self._c.setWatchdog, self.config.watchdog_hz)
         self._t = self._call(self._c.initPeriod)
-        self._enabled = True
+        self._enabled = self._ever_enabled = True
 
     def close(self) -> None:
         """Stop the control script and disconnect (best effort: the link may be gone)."""
