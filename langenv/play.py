@@ -84,6 +84,8 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
             )
         if not ns.headless:
             p.error("--robot needs --headless")
+        if ns.trace_out is not None:
+            p.error("--robot writes the session CSV with --log-out, not --trace-out")
     if ns.log_out is not None and ns.robot is None:
         p.error("--log-out needs --robot")
     if ns.headless and (ns.seconds is None or ns.audio_out is None):
@@ -131,8 +133,6 @@ def _make_env(ns: argparse.Namespace, policy: Any, user: Any) -> Any:
 
 def run_robot(ns: argparse.Namespace) -> str:
     """One session through the robot-IO seam on a simulated robot; returns the summary line."""
-    import numpy as np
-
     from langenv.live.registry import load_registered_policy
     from langenv.live.robot_loop import RobotLoop
     from langenv.live.sinks import WavSink
@@ -152,7 +152,6 @@ def run_robot(ns: argparse.Namespace) -> str:
 
         fake = fake_rtde.FakeUR("127.0.0.1", realtime=True, seed=ns.seed).serve()
         robot = URRobot(URConfig(host="127.0.0.1"), backend=fake_rtde)
-        fake.pose[:3] = np.asarray(robot.read().tcp_pose[:3])
     try:
         with robot:
             loop = RobotLoop(
