@@ -85,6 +85,7 @@ FAULTS = [
     ("force_spike", 1000, {"force": (0.0, 0.0, 300.0)}, "force"),
     ("stuck_sensor", 1000, {}, "sensor_stuck"),
     ("joint_limit", 1000, {"joint": 0, "margin": 0.005}, "joint_limit"),
+    ("stale_state", 1000, {}, "connection_lost"),
 ]
 
 
@@ -93,7 +94,7 @@ def test_each_fault_is_its_named_stop(tmp_path: Path, kind, at, params, stop) ->
     report, ur = _session(tmp_path, (kind, at, params))
     assert report.stop is not None and report.stop.limit == stop, report.summary()
     assert report.am is None
-    assert 1.9 < report.duration_s < 2.6 if stop != "sensor_stuck" else report.duration_s < 2.6
+    assert 1.9 < report.duration_s < 2.6
     _assert_stopped_in_time(ur)
     assert load_session(report.log).duration > 1.5
 
@@ -264,3 +265,18 @@ def test_an_error_inside_the_loop_still_stops_and_logs(tmp_path: Path) -> None:
     kinds = [c[0] for c in ur.commands if c[0] in ("speedL", "speedStop")]
     assert kinds[-1] == "speedStop"
     assert load_session(tmp_path / "session.csv").duration > 1.5
+
+
+def test_zeroing_refuses_a_touched_handle() -> None:
+    cfg = URConfig(host=HOST)
+    with fake_rtde.FakeUR(HOST, person=lambda t, v: np.array([0.0, 0.0, 40.0 * t])) as ur:
+        robot = URRobot(cfg, backend=fake_rtde)
+        with pytest.raises(DeviceError, match="touching the handle"):
+            zero_sensor(robot)
+        robot.close()
+    assert not [c for c in ur.commands if c[0] in ("moveL", "speedL")]
+
+
+def test_the_shipped_set_up_file_loads() -> None:
+    cfg = load_ur_config(Path(__file__).parents[1] / "configs" / "ur.yaml", host=HOST)
+    assert cfg.host == HOST and cfg.period == pytest.approx(0.002)

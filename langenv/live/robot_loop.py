@@ -81,8 +81,9 @@ class RobotSessionReport:
         periods: Control periods run.
         duration_s: Session time (s).
         am: Speech end minus motion end (s), None after a stop.
-        compute_ms: Median, 99.9th percentile and largest compute time of a period (ms).
+        compute_ms: Median, 99.9th percentile and largest compute time of a period (ms, wall).
         log: The session CSV written, or None.
+        cpu_ms: Median and 99.9th percentile of the same in the thread's CPU time (ms).
     """
 
     stop: SafetyStop | None
@@ -91,6 +92,7 @@ class RobotSessionReport:
     am: float | None
     compute_ms: tuple[float, float, float]
     log: Path | None
+    cpu_ms: tuple[float, float] = (math.nan, math.nan)
 
     def summary(self) -> str:
         """One line for the terminal."""
@@ -98,7 +100,8 @@ class RobotSessionReport:
         med, p999, worst = self.compute_ms
         return (
             f"{self.duration_s:.2f} s, {self.periods} periods; compute per period median "
-            f"{med:.3f} ms, p99.9 {p999:.3f} ms, max {worst:.3f} ms; {end}"
+            f"{med:.3f} ms, p99.9 {p999:.3f} ms, max {worst:.3f} ms (CPU median "
+            f"{self.cpu_ms[0]:.3f} ms, p99.9 {self.cpu_ms[1]:.3f} ms); {end}"
             + (f"; log {self.log}" if self.log is not None else "")
         )
 
@@ -227,8 +230,14 @@ class RobotLoop:
             if compute.size
             else (math.nan, math.nan, math.nan)
         )
+        cpu = np.asarray(arm.compute_cpu_s) * 1e3
+        cpu_stats = (
+            (float(np.median(cpu)), float(np.quantile(cpu, 0.999)))
+            if cpu.size
+            else (math.nan, math.nan)
+        )
         am = info.get("am") if stop is None else None
-        return RobotSessionReport(stop, len(arm.compute_s), env.time, am, stats, log)
+        return RobotSessionReport(stop, len(arm.compute_s), env.time, am, stats, log, cpu_stats)
 
     def _audio(self, stream: SpeechStream, t: float, started: bool) -> bool:
         """At most one block into the ring; start the sink once it holds enough."""

@@ -144,12 +144,6 @@ class URConfig:
         """Control period (s)."""
         return 1.0 / self.frequency
 
-    def replace(self, **changes: Any) -> URConfig:
-        """A copy with ``changes`` (checked again)."""
-        values = {f.name: getattr(self, f.name) for f in fields(self)}
-        values.update(changes)
-        return URConfig(**values)
-
 
 _ANGLES = {"tcp_offset": slice(3, 6), "joint_lower": slice(0, 6), "joint_upper": slice(0, 6)}
 

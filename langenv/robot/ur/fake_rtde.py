@@ -22,6 +22,7 @@ loop, not 10 s), and injects faults (:meth:`FakeUR.inject`) at a given ``speedL`
 | ``force_spike`` | ``force`` N (3,) added to the wrist reading for ``duration`` s |
 | ``stuck_sensor`` | the wrist reading freezes at its current value |
 | ``joint_limit`` | joint ``joint`` moves to ``margin`` rad inside its range's upper end |
+| ``stale_state`` | the RTDE timestamp (and the state) stop advancing: a receive thread gone quiet |
 """
 
 from __future__ import annotations
@@ -53,6 +54,7 @@ FAULTS = (
     "force_spike",
     "stuck_sensor",
     "joint_limit",
+    "stale_state",
 )
 """The faults :meth:`FakeUR.inject` knows."""
 
@@ -135,6 +137,7 @@ class FakeUR:
         self._late = 0.0
         self.timestamp = 0.0
         self._move: tuple[NDArray[np.float64], float] | None = None
+        self.stale = False
         self._async_done = -1
 
     # ------------------------------------------------------------------ set-up
@@ -206,6 +209,8 @@ class FakeUR:
             self._spike_until = self.clock + float(p.get("duration", 0.05))
         elif kind == "stuck_sensor":
             self._stuck = self.wrench()
+        elif kind == "stale_state":
+            self.stale = True
         elif kind == "joint_limit":
             j = int(p.get("joint", 0))
             self.q[j] = 2.0 * np.pi - float(p.get("margin", 0.005))
@@ -235,7 +240,8 @@ class FakeUR:
         self.velocity = self.velocity + dv
         self.pose[:3] += self.velocity[:3] * dt
         self.clock += dt
-        self.timestamp = self.clock
+        if not self.stale:
+            self.timestamp = self.clock
         self.period_index += 1
 
     def now(self) -> float:
