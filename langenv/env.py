@@ -303,6 +303,8 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     ) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
         if options and "user" in options:
+            if isinstance(self.user, MeasuredUser):
+                raise ConfigError("on a robot the person is real: reset(options={'user'}) refused")
             self.user = _make_user(options["user"], None)
         self.user.reset(self.np_random)
         self.motion.reset()

@@ -115,3 +115,9 @@ def test_limit_speed_properties() -> None:
 
     check()
     assert not limit_speed(np.array([np.nan, 0, 0, 0, 0, 0.0]), 0.5).any()
+
+
+def test_a_robot_env_refuses_a_simulated_user() -> None:
+    env = LangCtrlEnv(robot=MujocoRobot())
+    with pytest.raises(ConfigError, match="the person is real"):
+        env.reset(seed=0, options={"user": "synthetic"})
