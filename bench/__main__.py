@@ -18,6 +18,8 @@ Figures (all measured here, on this machine, in this process):
 | ``env_step_ratio`` | ``env_step_us / (20 mj_step_us)``, with ``mj_step_us`` measured again beside it |
 | ``train_steps_per_s`` | PPO with the shipped config (``configs/ppo.yaml``: 2 envs, in subprocesses where the machine has more cores than envs (``--vec-env auto``), the residual LC wrappers) for 4096 steps: env steps per second of ``model.learn`` (rollouts and updates; building the envs not counted) |
 | ``audio_rtf`` | seconds of speech rendered by the variable-rate phase vocoder per second of wall time |
+| ``robot_compute_median_ms``, ``robot_compute_p999_ms``, ``robot_compute_max_ms`` | the UR bridge's loop against the fake ur-rtde (virtual clock, no audio): compute time per 2 ms period, wall clock (read, control, speech, LC policy, log, ``speedL``) over 3 whole sessions (targets: median < 0.5 ms, p99.9 < 1.5 ms); preemption by other processes included |
+| ``robot_cpu_median_ms``, ``robot_cpu_p999_ms`` | the same periods in the thread's CPU time: what the loop's code costs |
 | ``compare_s`` | wall time of the main job: ``eval.compare`` with AC, LC-noAP and LC on 12 synthetic users (all outputs) |
 """
 
@@ -130,10 +132,13 @@ def measure_etc() -> dict[str, float]:
 def measure_env(n_steps: int = 400) -> dict[str, float]:
     """``LangCtrl-v0`` steps at 25 Hz with a fixed action, and a bare ``mj_step`` beside them."""
     from langenv.env import LangCtrlEnv
+    from langenv.robot.arm import Arm
 
     env = LangCtrlEnv(decision_hz=25)
     action = np.zeros(env.action_space.shape or (0,))
-    model, data = env.motion.arm.model, env.motion.arm.data
+    arm = env.motion.arm
+    assert isinstance(arm, Arm)
+    model, data = arm.model, arm.data
     n_bare = 2000
 
     def steps() -> None:
@@ -217,6 +222,40 @@ def measure_compare() -> dict[str, float]:
     return {"compare_s": elapsed}
 
 
+def measure_robot(sessions: int = 3) -> dict[str, float]:
+    """The UR bridge's loop compute time per period, against the fake ur-rtde."""
+    from langenv.live.registry import load_registered_policy
+    from langenv.live.robot_loop import RobotLoop
+    from langenv.robot.ur import fake_rtde
+    from langenv.robot.ur.bridge import URRobot
+    from langenv.robot.ur.config import URConfig
+    from langenv.robot.ur.exercise import exercise_trajectory
+    from langenv.robot.ur.preflight import move_to_start
+
+    cfg = URConfig(host="127.0.0.1")  # the fake's loopback host: nothing goes on the network
+    times: list[float] = []
+    cpu: list[float] = []
+    for _ in range(sessions):
+        with fake_rtde.FakeUR(cfg.host):
+            robot = URRobot(cfg, backend=fake_rtde)
+            move_to_start(robot, cfg, lambda q: True)
+            loop = RobotLoop(
+                robot, load_registered_policy("lc"), trajectory=exercise_trajectory(cfg)
+            )
+            loop.run()
+            times.extend(loop.arm.compute_s)
+            cpu.extend(loop.arm.compute_cpu_s)
+            robot.close()
+    ms, cpu_ms = np.array(times) * 1e3, np.array(cpu) * 1e3
+    return {
+        "robot_compute_median_ms": float(np.median(ms)),
+        "robot_compute_p999_ms": float(np.quantile(ms, 0.999)),
+        "robot_compute_max_ms": float(ms.max()),
+        "robot_cpu_median_ms": float(np.median(cpu_ms)),
+        "robot_cpu_p999_ms": float(np.quantile(cpu_ms, 0.999)),
+    }
+
+
 SECTIONS: dict[str, Callable[[], dict[str, float]]] = {
     "physics": measure_physics,
     "nominal": measure_nominal,
@@ -225,6 +264,7 @@ SECTIONS: dict[str, Callable[[], dict[str, float]]] = {
     "train": measure_train,
     "audio": measure_audio,
     "compare": measure_compare,
+    "robot": measure_robot,
 }
 
 

@@ -24,6 +24,8 @@ from langenv.observation import T_SCALE, TREND_WINDOW, ObservationEncoder, obser
 from langenv.pacing import COMMAND_MIN, PaceActuator, PaceLaw, PaceLimits, command_from_action
 from langenv.robot.arm import Arm
 from langenv.robot.force_sensor import ForceSensor
+from langenv.robot.io import RobotIO
+from langenv.robot.io_arm import IOArm, MeasuredUser
 from langenv.safety import SafetyLimits
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.graph import PhraseGraph, graph_path
@@ -179,11 +181,15 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     | ``model_path``, ``handle_site`` | our UR5, ``"handle"`` | another arm MJCF and its handle site |
     | ``render_mode`` | ``None`` | ``"rgb_array"`` (off-screen; needs ``MUJOCO_GL=egl`` or ``osmesa``); for a window wrap the env in ``gymnasium.wrappers.HumanRendering`` (needs pygame) |
     | ``width``, ``height`` | 640, 480 | render size (pixels) |
+    | ``robot`` | ``None`` | a :class:`~langenv.robot.io.RobotIO` to drive instead of the simulation (a real UR, its fake, or :class:`~langenv.robot.sim_io.MujocoRobot`): each tick sends ``speedL`` and waits for the robot's next period; the person's force is the wrist sensor's reading (``users`` is ignored); robot faults are stops too (:data:`~langenv.safety.ROBOT_STOPS`) |
+    | ``robot_acceleration`` | 1.0 | ``speedL``'s acceleration (m/s^2) with ``robot`` |
 
     ``reset(options=...)`` accepts ``{"user": User}`` to swap the user for that episode.
 
     ## Version history
 
+    * v0 (langctrl 0.5): ``robot`` (a :class:`~langenv.robot.io.RobotIO`) and ``robot_acceleration``
+      added; episodes without them unchanged.
     * v0 (langctrl 0.4): ``run_law`` and ``observation()`` added; episodes unchanged.
     * v0 (langctrl 0.2): plant, speech and synthetic users fitted to the study's recordings (the
       lab's leg switching instead of a rest at each end, the acceleration-limited command, a 43 deg
@@ -217,6 +223,8 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         width: int = 640,
         height: int = 480,
         clips: ClipLibrary | None = None,
+        robot: RobotIO | None = None,
+        robot_acceleration: float = 1.0,
     ) -> None:
         super().__init__()
         if (
@@ -243,14 +251,22 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         if safety is not None and not isinstance(safety, SafetyLimits):
             raise ConfigError(f"safety must be SafetyLimits or None, got {type(safety).__name__}")
 
-        self.user: User = _make_user(users, session)
+        arm: Arm | IOArm
+        if robot is None:
+            arm = Arm(model_path, handle_site)
+            self.user: User = _make_user(users, session)
+        else:
+            if render_mode is not None:
+                raise ConfigError("render_mode needs the simulation: pass robot=None")
+            arm = IOArm(robot, acceleration=robot_acceleration)
+            self.user = MeasuredUser(arm)
         self.clips = clips if clips is not None else ClipLibrary()
         self.graph = PhraseGraph.load(graph_path(phrase_graph), clips=self.clips)
         self.max_children = max(1, self.graph.max_children)
 
         params = admittance if admittance is not None else AdmittanceParams()
         self.motion = GuidedArm(
-            Arm(model_path, handle_site),
+            arm,
             trajectory if trajectory is not None else default_exercise(),
             params,
             ForceSensor(noise_std=sensor_noise, deadband=deadband),
@@ -287,6 +303,8 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     ) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
         if options and "user" in options:
+            if isinstance(self.user, MeasuredUser):
+                raise ConfigError("on a robot the person is real: reset(options={'user'}) refused")
             self.user = _make_user(options["user"], None)
         self.user.reset(self.np_random)
         self.motion.reset()
@@ -364,7 +382,8 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             raise ConfigError(f"max_steps must be an integer, got {max_steps!r}")
         if max_steps < 0:
             raise ConfigError(f"max_steps must be >= 0, got {max_steps}")
-        n_q = self.motion.arm.data.qpos.shape[0]
+        arm = self.motion.arm
+        n_q = arm.data.qpos.shape[0] if isinstance(arm, Arm) else 0
         n = min(int(max_steps), LAW_CHUNK) if self.runs_compiled else 0
         rows = np.zeros((n, len(pacer.ROW_FIELDS) + n_q + 3))
         rewards = np.zeros(n)
@@ -424,9 +443,10 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         return np.array(values)
 
     def render(self) -> np.ndarray | None:
-        if self.render_mode != "rgb_array":
+        arm = self.motion.arm
+        if self.render_mode != "rgb_array" or not isinstance(arm, Arm):
             return None
-        return self.motion.arm.render(
+        return arm.render(
             self.width,
             self.height,
             path=self.motion.trajectory.sample(200),

@@ -42,6 +42,7 @@ from langenv.kernels.runner import CompiledTick
 from langenv.kernels.tick import S_FMEAS, S_VCMD, S_VREF
 from langenv.robot.arm import Arm
 from langenv.robot.force_sensor import ForceSensor
+from langenv.robot.io_arm import IOArm
 from langenv.safety import SafetyLimits, SafetyMonitor, SafetyStop, limit_velocity
 
 __all__ = ["GuidedArm"]
@@ -51,7 +52,9 @@ class GuidedArm:
     """A UR5 under the paper's variable admittance, guided along a trajectory.
 
     Args:
-        arm: The simulated arm (its model's timestep is the tick, 2 ms).
+        arm: The simulated arm (its model's timestep is the tick, 2 ms), or a robot behind the
+            robot-IO seam (:class:`~langenv.robot.io_arm.IOArm`: the Python tick; its faults
+            are protective stops too, ahead of the monitor's).
         trajectory: The exercise path.
         params: Virtual dynamics and guide parameters.
         sensor: The handle's force sensor.
@@ -66,7 +69,7 @@ class GuidedArm:
 
     def __init__(
         self,
-        arm: Arm,
+        arm: Arm | IOArm,
         trajectory: Trajectory,
         params: AdmittanceParams,
         sensor: ForceSensor,
@@ -104,7 +107,7 @@ class GuidedArm:
         self.time: float = 0.0
         self._hand_velocity = np.zeros(3)
         self._hand_speed = 0.0
-        fast = compiled and mjc.available()
+        fast = compiled and isinstance(arm, Arm) and mjc.available()
         self._compiled: CompiledTick | None = CompiledTick(self) if fast else None
         if self._compiled is not None:
             self._compiled.load()
@@ -279,10 +282,15 @@ class GuidedArm:
             self.t_x = self.etc.etc(self.state, self.arm.hand_position(), self._v_ref, self._v_cmd)
         self._measure_hand()
         self.time += self.dt
-        self.safety_stop = self.monitor.check(
-            self.time,
-            self._hand_speed,
-            self.path_deviation,
-            math.hypot(*f_user.tolist()),
-            self.arm.joint_positions,
+        fault = self.arm.fault
+        self.safety_stop = (
+            fault
+            if fault is not None
+            else self.monitor.check(
+                self.time,
+                self._hand_speed,
+                self.path_deviation,
+                math.hypot(*f_user.tolist()),
+                self.arm.joint_positions,
+            )
         )

@@ -14,6 +14,14 @@ written to a WAV at the sound card's pace; it prints one summary line (late tick
 
     python -m langenv.play --headless --seconds 10 --audio-out out/live.wav
 
+Through the robot-IO seam (:mod:`langenv.robot.io`) the same session runs on a robot from
+:data:`~langenv.robot.backends.ROBOT_BACKENDS` (:class:`~langenv.live.robot_loop.RobotLoop`,
+one session, the simulated person pushing the simulated robot); a real UR has its own command,
+``python -m langenv.robot.ur``::
+
+    python -m langenv.play --robot mujoco --headless --seconds 30 --audio-out out/live.wav \
+        --log-out out/session.csv
+
 Policies are found by name through the ``langctrl.policies`` entry points
 (:mod:`langenv.live.registry`).
 """
@@ -58,12 +66,37 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
         default=None,
         help="write one CSV row per step: session, t, p, a, cooperation, em, force, phrase",
     )
+    p.add_argument(
+        "--robot",
+        default=None,
+        help="run one session through the robot-IO seam on a simulated robot: mujoco or "
+        "ur-fake (headless; a real UR: python -m langenv.robot.ur)",
+    )
+    p.add_argument(
+        "--log-out", type=Path, default=None, help="with --robot: write the session CSV here"
+    )
     ns = p.parse_args(argv)
+    if ns.robot is not None:
+        if ns.robot not in ("mujoco", "ur-fake"):
+            p.error(
+                f"--robot must be mujoco or ur-fake, got {ns.robot!r} (a real UR: python -m "
+                "langenv.robot.ur --host HOST)"
+            )
+        if not ns.headless:
+            p.error("--robot needs --headless")
+        if ns.trace_out is not None:
+            p.error("--robot writes the session CSV with --log-out, not --trace-out")
+    if ns.log_out is not None and ns.robot is None:
+        p.error("--log-out needs --robot")
     if ns.headless and (ns.seconds is None or ns.audio_out is None):
         p.error("--headless needs --seconds N and --audio-out X.wav")
     if ns.seconds is not None and not ns.seconds > 0:
         p.error(f"--seconds must be > 0, got {ns.seconds}")
-    for flag, path in (("--audio-out", ns.audio_out), ("--trace-out", ns.trace_out)):
+    for flag, path in (
+        ("--audio-out", ns.audio_out),
+        ("--trace-out", ns.trace_out),
+        ("--log-out", ns.log_out),
+    ):
         if path is not None and not path.parent.is_dir():
             p.error(f"{flag}: no directory {path.parent}")
     if ns.user is None:
@@ -98,8 +131,63 @@ def _make_env(ns: argparse.Namespace, policy: Any, user: Any) -> Any:
     )
 
 
+def run_robot(ns: argparse.Namespace) -> str:
+    """One session through the robot-IO seam on a simulated robot; returns the summary line."""
+    from langenv.live.registry import load_registered_policy
+    from langenv.live.robot_loop import RobotLoop
+    from langenv.live.sinks import WavSink
+    from langenv.users import ReplayUser, SyntheticUser
+
+    policy = load_registered_policy(ns.policy)
+    out = ns.audio_out
+    fake = None
+    if ns.robot == "mujoco":
+        from langenv.robot.sim_io import MujocoRobot
+
+        robot: Any = MujocoRobot(realtime=True, seed=ns.seed)
+    else:
+        from langenv.robot.ur import fake_rtde
+        from langenv.robot.ur.bridge import URRobot
+        from langenv.robot.ur.config import URConfig
+
+        fake = fake_rtde.FakeUR("127.0.0.1", realtime=True, seed=ns.seed).serve()
+        robot = URRobot(URConfig(host="127.0.0.1"), backend=fake_rtde)
+    try:
+        with robot:
+            loop = RobotLoop(
+                robot,
+                policy,
+                make_sink=lambda ring, sr: WavSink(ring, out, sr),
+                log_path=ns.log_out,
+                max_seconds=ns.seconds,
+                seed=ns.seed,
+            )
+            start = loop.env.motion.trajectory.position(0.0)
+            if fake is not None:
+                fake.pose[:3] = start
+            else:
+                robot.arm.reset(start)
+            user = (
+                SyntheticUser()
+                if ns.user == "synthetic"
+                else ReplayUser.from_csv(ns.user.removeprefix("replay:"))
+            )
+            person = loop.simulated_person(user)
+            if fake is not None:
+                fake.person = person
+            else:
+                robot.person = person
+            report = loop.run()
+    finally:
+        if fake is not None:
+            fake.shutdown()
+    return f"play: {ns.policy} on {ns.robot}, user {ns.user}: {report.summary()}"
+
+
 def run(ns: argparse.Namespace) -> str:
     """Build everything, run the loop, return the summary line."""
+    if ns.robot is not None:
+        return run_robot(ns)
     from langenv.live.drag import DragUser
     from langenv.live.loop import LiveHooks, RealTimeLoop
     from langenv.live.registry import load_registered_policy

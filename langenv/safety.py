@@ -39,6 +39,7 @@ __all__ = [
     "HOLD_TIME",
     "JOINT_CHECK_MAX",
     "JOINT_SPEED_BOUND",
+    "ROBOT_STOPS",
     "STOP_LIMITS",
     "SafetyLimits",
     "SafetyMonitor",
@@ -63,12 +64,40 @@ JOINT_CHECK_MAX = 25
 STOP_LIMITS: tuple[str, ...] = ("speed", "path_deviation", "force", "joint_limit")
 """Names of the limits whose breach is a protective stop (``info["safety_stop"]``)."""
 
-_UNITS = {"speed": "m/s", "path_deviation": "m", "force": "N", "joint_limit": "rad"}
+ROBOT_STOPS: tuple[str, ...] = (
+    "robot_protective_stop",
+    "emergency_stop",
+    "program_stopped",
+    "late_period",
+    "connection_lost",
+    "sensor_stuck",
+    "interrupted",
+)
+"""Names of the stops a real robot's loop adds to :data:`STOP_LIMITS` (:mod:`langenv.robot.io`):
+the robot's own protective and emergency stops, its control program no longer running, a control
+period started more than two periods late, the link to the robot lost, the force sensor's reading
+frozen, and the operator's Ctrl-C."""
+
+_UNITS = {
+    "speed": "m/s",
+    "path_deviation": "m",
+    "force": "N",
+    "joint_limit": "rad",
+    "late_period": "s",
+    "sensor_stuck": "s",
+}
 _WHAT = {
     "speed": "hand speed",
     "path_deviation": "distance from the path",
     "force": "force on the handle",
     "joint_limit": "joint",
+    "robot_protective_stop": "the robot made a protective stop of its own",
+    "emergency_stop": "the robot's emergency stop is pressed",
+    "program_stopped": "the robot's control program stopped running",
+    "late_period": "control period started late by",
+    "connection_lost": "the link to the robot is lost",
+    "sensor_stuck": "force sensor reading unchanged for",
+    "interrupted": "interrupted by the operator (Ctrl-C)",
 }
 
 
@@ -127,9 +156,10 @@ class SafetyStop:
     """A protective stop: which limit was exceeded, by how much, and when.
 
     Attributes:
-        limit: One of :data:`STOP_LIMITS`.
+        limit: One of :data:`STOP_LIMITS`, or on a real robot one of :data:`ROBOT_STOPS`.
         value: The measured value (m/s, m, N; for ``joint_limit`` the joint's distance to the
-            end of its range, rad or m).
+            end of its range, rad or m; for ``late_period`` the lateness, for ``sensor_stuck`` how
+            long the reading stayed the same, s; 0 for the other robot stops).
         threshold: The limit it crossed (same unit).
         time: Time of the tick (s since the episode started).
         detail: What exceeded it, in words (e.g. the joint's name).
@@ -144,8 +174,15 @@ class SafetyStop:
     @property
     def message(self) -> str:
         """One line saying why the arm stopped."""
-        unit = _UNITS[self.limit]
         what = _WHAT[self.limit] + (f" {self.detail}" if self.detail else "")
+        if self.limit in ROBOT_STOPS:
+            if self.limit not in _UNITS:
+                return f"stop at t={self.time:.3f} s: {what}"
+            return (
+                f"stop at t={self.time:.3f} s: {what} {self.value:.4g} s (limit "
+                f"{self.threshold:g} s)"
+            )
+        unit = _UNITS[self.limit]
         if self.limit == "joint_limit":
             return (
                 f"protective stop at t={self.time:.3f} s: {what} is {self.value:.4g} {unit} from "

@@ -29,3 +29,15 @@ def test_nominal_exercise_matches_the_study() -> None:
     assert 0.11 <= fig["plateau_speed"] <= 0.14
     assert fig["max_path_dev_m"] <= 0.01
     assert fig["max_path_dev_m"] <= fig["corner_overshoot_m"] <= 0.04
+
+
+def test_robot_section_prints_the_loop_figures(capsys: pytest.CaptureFixture[str]) -> None:
+    from bench.__main__ import measure_robot
+
+    figures = measure_robot(sessions=1)
+    assert set(figures) >= {
+        "robot_compute_median_ms",
+        "robot_compute_p999_ms",
+        "robot_cpu_median_ms",
+    }
+    assert 0.0 < figures["robot_cpu_median_ms"] < 50.0  # a sanity bound, not a timing target

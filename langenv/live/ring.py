@@ -80,3 +80,13 @@ class AudioRing:
                 self.underruns += 1
                 self.missing += out.size - n
             return n
+
+    def fade_out(self, samples: int) -> None:
+        """Keep at most ``samples`` of what is queued, ramped linearly down to silence; drop the
+        rest (the speech fades out instead of being cut)."""
+        with self._lock:
+            n = max(0, min(int(samples), self._size))
+            cap = self._buf.size
+            idx = (self._start + np.arange(n)) % cap
+            self._buf[idx] *= np.linspace(1.0, 0.0, n, dtype=np.float32)
+            self._size = n

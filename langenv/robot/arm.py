@@ -54,7 +54,7 @@ from langenv.errors import ActionError, ConfigError
 from langenv.robot.handles import ArmHandles, load_model
 from langenv.robot.ik import IK_ACCEPT, solve_ik
 from langenv.robot.rotation import rotation_error_matrix, rotation_vector
-from langenv.safety import DEFAULT_MAX_SPEED
+from langenv.safety import DEFAULT_MAX_SPEED, SafetyStop
 from langenv.validation import as_vec3, finite_positive
 
 if TYPE_CHECKING:
@@ -124,6 +124,9 @@ class Arm:
         ConfigError: unreadable MJCF, missing site/joint/actuator/keyframe (naming it and the
             file), an actuator that is not a velocity actuator, or an invalid keyword argument.
     """
+
+    fault: SafetyStop | None = None
+    """Robot-side stops: never on the simulated arm (see :class:`~langenv.robot.io_arm.IOArm`)."""
 
     def __init__(
         self,

@@ -14,9 +14,10 @@ from __future__ import annotations
 
 import csv
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -31,6 +32,7 @@ __all__ = [
     "Session",
     "load_session",
     "load_sessions",
+    "write_session",
 ]
 
 REQUIRED_COLUMNS: tuple[str, ...] = ("t", "cooperation")
@@ -232,3 +234,34 @@ def load_sessions(directory: str | Path, pattern: str = "*.csv") -> list[Session
     if not files:
         raise SessionDataError(f"{directory}: no session files match {pattern!r}")
     return [load_session(p) for p in files]
+
+
+def write_session(path: str | Path, columns: Mapping[str, Sequence[Any]]) -> Path:
+    """Write a session CSV that :func:`load_session` (and ``eval.compare --sessions``) reads.
+
+    Args:
+        path: The file to write (through a temporary file beside it, then renamed).
+        columns: Name -> values, all of one length, in the order to write; must include
+            :data:`REQUIRED_COLUMNS`. Floats are written with 6 significant digits.
+
+    Returns:
+        ``path``.
+
+    Raises:
+        SessionDataError: a required column missing or columns of different lengths.
+    """
+    path = Path(path)
+    missing = [c for c in REQUIRED_COLUMNS if c not in columns]
+    if missing:
+        raise SessionDataError(f"{path}: missing required column(s) {missing}")
+    lengths = {len(v) for v in columns.values()}
+    if len(lengths) != 1:
+        raise SessionDataError(f"{path}: columns of different lengths {sorted(lengths)}")
+    tmp = path.with_name(path.name + ".part")
+    with tmp.open("w", newline="", encoding="utf-8") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(list(columns))
+        for row in zip(*columns.values(), strict=True):
+            writer.writerow([f"{v:.6g}" if isinstance(v, float) else v for v in row])
+    tmp.replace(path)
+    return path

@@ -1,0 +1,155 @@
+"""``python -m langenv.robot.ur``: the controller on a real UR (or URSim).
+
+::
+
+    python -m langenv.robot.ur --host 192.168.1.10 --dry-run      # connect, check, print the plan
+    python -m langenv.robot.ur --config configs/ur.yaml --log-out session.csv
+    python -m langenv.robot.ur --host 127.0.0.1 --fake --dry-run  # against the built-in fake
+
+A dry run connects, reads, runs the preflight checks (:mod:`langenv.robot.ur.preflight`) and
+prints what a session would do; it commands no motion. A session then zeroes the wrist sensor,
+asks before the slow move to the exercise's start, and runs the policy at 500 Hz until the
+exercise ends or the first stop; every way out sends ``speedStop``.
+
+Exit codes: 0 done (a dry run whose checks all pass, a session that finished), 1 a check failed
+or the session ended on a stop, 2 a usage or connection error (no traceback).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from langenv.errors import LangEnvError
+
+__all__ = ["main", "parse_args"]
+
+
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    """Parse the command line."""
+    p = argparse.ArgumentParser(
+        prog="python -m langenv.robot.ur", description="Run LangCtrl on a UR through ur-rtde."
+    )
+    p.add_argument("--host", default=None, help="the robot's (or URSim's) address")
+    p.add_argument("--config", type=Path, default=None, help="UR set-up YAML (configs/ur.yaml)")
+    p.add_argument("--dry-run", action="store_true", help="connect, check, plan; move nothing")
+    p.add_argument("--policy", default="lc", help="policy by name (lc, ac, lc-noap, ppo:PATH...)")
+    p.add_argument("--log-out", type=Path, default=None, help="write the session CSV here")
+    p.add_argument("--audio-out", type=Path, default=None, help="speech to a WAV, not the card")
+    p.add_argument("--device", default=None, help="sound card (name or index)")
+    p.add_argument("--yes", action="store_true", help="confirm the move to the start (no prompt)")
+    p.add_argument(
+        "--fake", action="store_true", help="drive the built-in fake UR (a loopback host only)"
+    )
+    ns = p.parse_args(argv)
+    if ns.host is None and ns.config is None:
+        p.error("give --host HOST or --config FILE")
+    for flag, path in (("--log-out", ns.log_out), ("--audio-out", ns.audio_out)):
+        if path is not None and not path.parent.is_dir():
+            p.error(f"{flag}: no directory {path.parent}")
+    return ns
+
+
+def _config(ns: argparse.Namespace) -> Any:
+    from langenv.robot.ur.config import URConfig, load_ur_config
+
+    if ns.config is not None:
+        return load_ur_config(ns.config, host=ns.host)
+    return URConfig(host=ns.host)
+
+
+def run(
+    ns: argparse.Namespace,
+    out: Callable[[str], None] = print,
+    ask: Callable[[str], str] = input,
+) -> int:
+    """Connect, check, and (unless a dry run) run one session; returns the exit code."""
+    from langenv.robot.backends import make_robot
+    from langenv.robot.ur import preflight
+
+    config = _config(ns)
+    fake = None
+    if ns.fake:
+        from langenv.robot.ur.fake_rtde import FakeUR
+
+        fake = FakeUR(config.host).serve()
+    try:
+        robot: Any = make_robot("ur-fake" if ns.fake else "ur", config=config)
+        with robot:
+            checks = preflight.run_checks(robot, config)
+            out(f"robot at {config.host}:")
+            for check in checks:
+                out(check.line())
+            passed = all(c.ok for c in checks)
+            out(
+                ("would do:" if ns.dry_run else "plan:")
+                + "\n"
+                + "\n".join(preflight.plan(robot, config))
+            )
+            if ns.dry_run or not passed:
+                if not passed:
+                    out("not moving: a check failed")
+                return 0 if passed else 1
+            return _session(ns, robot, config, out, ask)
+    finally:
+        if fake is not None:
+            fake.shutdown()
+
+
+def _session(
+    ns: argparse.Namespace,
+    robot: Any,
+    config: Any,
+    out: Callable[[str], None],
+    ask: Callable[[str], str],
+) -> int:
+    from langenv.live.registry import load_registered_policy
+    from langenv.live.robot_loop import RobotLoop
+    from langenv.live.sinks import SoundCardSink, WavSink
+    from langenv.robot.ur import preflight
+    from langenv.robot.ur.exercise import exercise_trajectory
+
+    policy = load_registered_policy(ns.policy)  # before anything moves
+
+    def make_sink(ring: Any, sr: int) -> Any:
+        if ns.audio_out is not None:
+            return WavSink(ring, ns.audio_out, sr)
+        return SoundCardSink(ring, sr, device=ns.device)
+
+    loop = RobotLoop(
+        robot,
+        policy,
+        trajectory=exercise_trajectory(config),
+        make_sink=make_sink,
+        log_path=ns.log_out,
+        acceleration=config.speed_acceleration,
+    )
+    preflight.zero_sensor(robot)
+    out("force sensor zeroed")
+    preflight.move_to_start(
+        robot, config, lambda q: ns.yes or ask(q).strip().lower() in ("y", "yes")
+    )
+    out("at the exercise's start; session running (Ctrl-C stops the arm)")
+    report = loop.run()
+    out(report.summary())
+    return 0 if report.stop is None else 1
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point; returns the exit code."""
+    ns = parse_args(argv)
+    try:
+        return run(ns)
+    except LangEnvError as exc:
+        print(f"langenv.robot.ur: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("langenv.robot.ur: stopped", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,282 @@
+"""The UR bridge run whole against the fake ur-rtde: a session, and each fault -> its named stop.
+
+Only loopback host names are ever used (the fake refuses any other; nothing listens on
+127.0.0.1:30004 for the no-robot case).
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from langenv.errors import ConfigError, DeviceError
+from langenv.live.registry import load_registered_policy
+from langenv.live.robot_loop import LOG_COLUMNS, RobotLoop
+from langenv.robot.ur import fake_rtde
+from langenv.robot.ur.__main__ import main as ur_main
+from langenv.robot.ur.bridge import URRobot
+from langenv.robot.ur.config import URConfig, load_ur_config
+from langenv.robot.ur.exercise import exercise_trajectory
+from langenv.robot.ur.preflight import move_to_start, run_checks, zero_sensor
+from langenv.users import load_session
+
+HOST = "127.0.0.1"
+
+
+def _session(tmp_path: Path, fault: tuple[str, int, dict] | None = None, person=None):
+    cfg = URConfig(host=HOST)
+    with fake_rtde.FakeUR(HOST, person=person) as ur:
+        robot = URRobot(cfg, backend=fake_rtde)
+        zero_sensor(robot)
+        move_to_start(robot, cfg, lambda q: True)
+        if fault is not None:
+            ur.inject(fault[0], fault[1], **fault[2])
+        loop = RobotLoop(
+            robot,
+            load_registered_policy("lc"),
+            trajectory=exercise_trajectory(cfg),
+            log_path=tmp_path / "session.csv",
+        )
+        report = loop.run()
+        robot.close()  # best effort: after a lost link it sends nothing
+    return report, ur
+
+
+def _speed_commands(ur: fake_rtde.FakeUR) -> list[tuple]:
+    return [c for c in ur.commands if c[0] in ("speedL", "speedStop", "waitPeriod")]
+
+
+def _assert_stopped_in_time(ur: fake_rtde.FakeUR) -> None:
+    cmds = _speed_commands(ur)
+    cmds = cmds[min(i for i, c in enumerate(cmds) if c[0] == "speedL") :]  # the session
+    first_stop = min(i for i, c in enumerate(cmds) if c[0] == "speedStop")
+    assert all(c[0] != "speedL" for c in cmds[first_stop:]), "speedL after speedStop"
+    last_speed = max(i for i, c in enumerate(cmds) if c[0] == "speedL")
+    # speedStop in the period that found the fault: one waitPeriod after the last speedL at most
+    waits = [c for c in cmds[last_speed:first_stop] if c[0] == "waitPeriod"]
+    assert len(waits) <= 1
+    assert ur.commands[-1][0] == "stopScript"  # closed: nothing left commanding
+
+
+def test_whole_session_finishes_and_logs(tmp_path: Path) -> None:
+    report, ur = _session(tmp_path)
+    assert report.stop is None
+    assert report.am is not None and abs(report.am) < 2.0
+    assert 9.0 < report.duration_s < 13.0
+    _assert_stopped_in_time(ur)
+    session = load_session(report.log)
+    assert session.duration > 9.0 and session.t_x is not None
+    header = report.log.read_text().splitlines()[0].split(",")
+    assert tuple(header) == LOG_COLUMNS
+    moved = ur.pose[:3] - exercise_trajectory(URConfig(host=HOST)).position(0.0)
+    assert np.linalg.norm(moved) > 0.05  # the arm went along the exercise
+
+
+FAULTS = [
+    ("late", 1000, {"extra": 0.01}, "late_period"),
+    ("protective_stop", 1000, {}, "robot_protective_stop"),
+    ("emergency_stop", 1000, {}, "emergency_stop"),
+    ("program_stop", 1000, {}, "program_stopped"),
+    ("force_spike", 1000, {"force": (0.0, 0.0, 300.0)}, "force"),
+    ("stuck_sensor", 1000, {}, "sensor_stuck"),
+    ("joint_limit", 1000, {"joint": 0, "margin": 0.005}, "joint_limit"),
+    ("stale_state", 1000, {}, "connection_lost"),
+]
+
+
+@pytest.mark.parametrize(("kind", "at", "params", "stop"), FAULTS, ids=[f[0] for f in FAULTS])
+def test_each_fault_is_its_named_stop(tmp_path: Path, kind, at, params, stop) -> None:
+    report, ur = _session(tmp_path, (kind, at, params))
+    assert report.stop is not None and report.stop.limit == stop, report.summary()
+    assert report.am is None
+    assert 1.9 < report.duration_s < 2.6
+    _assert_stopped_in_time(ur)
+    assert load_session(report.log).duration > 1.5
+
+
+def test_lost_connection_is_a_named_stop(tmp_path: Path) -> None:
+    report, ur = _session(tmp_path, ("disconnect", 1000, {}))
+    assert report.stop is not None and report.stop.limit == "connection_lost"
+    speeds = [c for c in ur.commands if c[0] == "speedL"]
+    assert len(speeds) == 1000  # the 1001st never reached the robot
+    assert load_session(report.log).duration > 1.5
+
+
+def test_ctrl_c_is_the_interrupted_stop(tmp_path: Path) -> None:
+    def person(t: float, v: np.ndarray) -> np.ndarray:
+        if t > 3.0:
+            raise KeyboardInterrupt
+        return np.zeros(3)
+
+    report, ur = _session(tmp_path, person=person)
+    assert report.stop is not None and report.stop.limit == "interrupted"
+    cmds = [c for c in _speed_commands(ur) if c[0] != "waitPeriod"]
+    assert cmds[-1][0] == "speedStop"
+
+
+@pytest.mark.slow
+def test_eval_compare_reads_the_robot_session(tmp_path: Path) -> None:
+    from eval.compare import main as compare
+
+    _session(tmp_path)
+    out = tmp_path / "out"
+    rc = compare(["--policies", "lc", "--sessions", str(tmp_path), "--out", str(out)])
+    assert rc == 0
+    assert "session" in (out / "sessions.csv").read_text()
+
+
+def test_preflight_flags_a_wrong_payload_and_tcp() -> None:
+    cfg = URConfig(host=HOST, payload_mass=1.5)
+    with fake_rtde.FakeUR(HOST, tcp_offset=(0, 0, 0.12, 0, 0, 0)):
+        robot = URRobot(cfg, backend=fake_rtde)
+        checks = {c.name: c.ok for c in run_checks(robot, cfg)}
+        robot.close()
+    assert checks["payload"] is False and checks["tcp"] is False
+    assert checks["controller_version"] and checks["robot_state"] and checks["at_rest"]
+
+
+def test_old_controller_fails_the_version_check() -> None:
+    cfg = URConfig(host=HOST)
+    with fake_rtde.FakeUR(HOST, version="URSoftware 3.15.7.106331"):
+        robot = URRobot(cfg, backend=fake_rtde)
+        checks = {c.name: c.ok for c in run_checks(robot, cfg)}
+        robot.close()
+    assert checks["controller_version"] is False
+
+
+def test_unconfirmed_move_moves_nothing() -> None:
+    cfg = URConfig(host=HOST)
+    with fake_rtde.FakeUR(HOST) as ur:
+        robot = URRobot(cfg, backend=fake_rtde)
+        with pytest.raises(DeviceError, match="not confirmed"):
+            move_to_start(robot, cfg, lambda q: False)
+        robot.close()
+    assert not [c for c in ur.commands if c[0] in ("moveL", "speedL")]
+
+
+def test_dry_run_against_the_fake_commands_nothing(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    made: list[fake_rtde.FakeUR] = []
+    real_serve = fake_rtde.FakeUR.serve
+
+    def serve(self: fake_rtde.FakeUR) -> fake_rtde.FakeUR:
+        made.append(self)
+        return real_serve(self)
+
+    monkeypatch.setattr(fake_rtde.FakeUR, "serve", serve)
+    assert ur_main(["--host", HOST, "--fake", "--dry-run"]) == 0
+    kinds = {c[0] for c in made[0].commands}
+    assert kinds <= {"stopScript"}, kinds  # no motion, no speedStop, no zeroing
+    assert made[0].speedl_count == 0 and not made[0]._ft_offset.any()
+    text = capsys.readouterr().out
+    assert "[ok] payload" in text and "would do:" in text and "moveL" in text
+
+
+def test_no_robot_on_the_host_is_a_named_error_within_seconds(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    t0 = time.monotonic()
+    assert ur_main(["--host", HOST, "--dry-run"]) == 2
+    assert time.monotonic() - t0 < 5.0
+    err = capsys.readouterr().err
+    assert "no robot answers at 127.0.0.1" in err or ".[ur]" in err
+
+
+def test_import_needs_neither_ur_rtde_nor_mujoco_and_names_the_extra() -> None:
+    code = (
+        "import sys\n"
+        "for m in ('rtde_control', 'rtde_receive', 'dashboard_client'): sys.modules[m] = None\n"
+        "import langenv.robot.ur as ur\n"
+        "assert 'mujoco' not in sys.modules, 'mujoco imported'\n"
+        "from langenv.errors import DeviceError\n"
+        "try:\n"
+        "    ur.URRobot(ur.URConfig(host='127.0.0.1'))\n"
+        "except DeviceError as e:\n"
+        "    print(e)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert ".[ur]" in out.stdout and "ur-rtde" in out.stdout
+
+
+def test_fake_serves_loopback_only() -> None:
+    with pytest.raises(ValueError, match="loopback"):
+        fake_rtde.FakeUR("192.168.1.10")
+
+
+def test_config_file_is_checked(tmp_path: Path) -> None:
+    good = tmp_path / "ur.yaml"
+    good.write_text("host: 127.0.0.1\ntcp_offset: [0, 0, 0.1, 0, 0, 90]\n")
+    cfg = load_ur_config(good)
+    assert cfg.tcp_offset[5] == pytest.approx(np.pi / 2)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("host: 127.0.0.1\npayload: 3\n")
+    with pytest.raises(ConfigError, match="unknown key"):
+        load_ur_config(bad)
+    with pytest.raises(ConfigError, match="frequency"):
+        URConfig(host=HOST, frequency=125.0)
+
+
+def test_move_to_start_is_watched_and_interruptible() -> None:
+    cfg = URConfig(host=HOST)
+    with fake_rtde.FakeUR(HOST) as ur:
+        robot = URRobot(cfg, backend=fake_rtde)
+        calls = {"n": 0}
+        real_read = robot.read
+
+        def read():  # Ctrl-C half-way through the approach
+            calls["n"] += 1
+            if calls["n"] == 300:
+                raise KeyboardInterrupt
+            return real_read()
+
+        robot.read = read  # type: ignore[method-assign]
+        with pytest.raises(KeyboardInterrupt):
+            move_to_start(robot, cfg, lambda q: True)
+        robot.close()
+    kinds = [c[0] for c in ur.commands if c[0] in ("moveL", "stopL", "speedStop")]
+    assert kinds == ["moveL", "stopL", "speedStop"]
+    assert not ur.velocity.any()
+
+
+def test_an_error_inside_the_loop_still_stops_and_logs(tmp_path: Path) -> None:
+    cfg = URConfig(host=HOST)
+    policy = load_registered_policy("lc")
+    act, calls = policy.act, {"n": 0}
+
+    def failing_act(obs):
+        calls["n"] += 1
+        if calls["n"] == 1000:
+            raise ValueError("a bug in the policy")
+        return act(obs)
+
+    policy.act = failing_act
+    with fake_rtde.FakeUR(HOST) as ur:
+        robot = URRobot(cfg, backend=fake_rtde)
+        move_to_start(robot, cfg, lambda q: True)
+        loop = RobotLoop(robot, policy, log_path=tmp_path / "session.csv")
+        with pytest.raises(ValueError, match="bug in the policy"):
+            loop.run()
+    kinds = [c[0] for c in ur.commands if c[0] in ("speedL", "speedStop")]
+    assert kinds[-1] == "speedStop"
+    assert load_session(tmp_path / "session.csv").duration > 1.5
+
+
+def test_zeroing_refuses_a_touched_handle() -> None:
+    cfg = URConfig(host=HOST)
+    with fake_rtde.FakeUR(HOST, person=lambda t, v: np.array([0.0, 0.0, 40.0 * t])) as ur:
+        robot = URRobot(cfg, backend=fake_rtde)
+        with pytest.raises(DeviceError, match="touching the handle"):
+            zero_sensor(robot)
+        robot.close()
+    assert not [c for c in ur.commands if c[0] in ("moveL", "speedL")]
+
+
+def test_the_shipped_set_up_file_loads() -> None:
+    cfg = load_ur_config(Path(__file__).parents[1] / "configs" / "ur.yaml", host=HOST)
+    assert cfg.host == HOST and cfg.period == pytest.approx(0.002)
