@@ -96,7 +96,12 @@ class RobotSessionReport:
 
     def summary(self) -> str:
         """One line for the terminal."""
-        end = self.stop.message if self.stop is not None else f"finished, AM {self.am:+.2f} s"
+        if self.stop is not None:
+            end = self.stop.message
+        elif self.am is not None:
+            end = f"finished, AM {self.am:+.2f} s"
+        else:
+            end = "ended at its time limit, before the motion and speech ended"
         med, p999, worst = self.compute_ms
         return (
             f"{self.duration_s:.2f} s, {self.periods} periods; compute per period median "
