@@ -346,11 +346,12 @@ def run_episode(job: Job) -> dict[str, Any]:
             done = terminated or truncated
     graph_ref = _graph_ref(graph)
     graph = base.graph
-    texts = {u: (ph.text or u) for u, ph in graph.phrases.items()}
+    texts = {u: (ph.text or u) for u, ph in graph.phrases.items() if not ph.is_pause}
     end_t = float(info["time"])
     log = rec.build(
         ret,
         texts=texts,
+        fillers=graph.fillers,
         t_motion=info["t_motion"] if info["t_motion"] is not None else end_t,
         t_speech=info["t_speech"] if info["t_speech"] is not None else end_t,
         utterances=base.speech.utterances(),
@@ -363,7 +364,9 @@ def run_episode(job: Job) -> dict[str, Any]:
         session_figure(log, stem.with_suffix(".png"))
     if job.audio or job.video:
         clips = base.clips
-        audio = render_history(graph, clips, base.speech.path, log.t, log.a)
+        audio = render_history(
+            graph, clips, base.speech.path, log.t, log.a, pause_lengths=base.speech.pause_lengths
+        )
         if job.audio:
             sf.write(stem.with_suffix(".wav"), audio, clips.sr, subtype="PCM_16")
         if job.video:

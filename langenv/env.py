@@ -76,7 +76,11 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     speech duration ``t_x 2^{2u}`` s and the child whose mid-length ``(t_min + t_max)/2`` is
     closest to it is said next (``u = 0`` is the paper's rule). ``choice_mode="scores"``
     (``n_choice = max_children`` of the graph): the valid child with the highest score is said
-    next. An invalid child can never be chosen. An action that is not an array of shape
+    next. An invalid child can never be chosen. A pause vertex's length is chosen when it is
+    entered, within its bounds, by the graph's rule
+    (:meth:`~langenv.speech.graph.PhraseGraph.pause_length`: the speech from there ends at the
+    target duration): with ``choice_mode="target"`` the same target ``t_x 2^{2u}`` (``u = 0`` is
+    the rule with ``t_x``), with ``"scores"`` ``t_x`` itself. An action that is not an array of shape
     ``(2 + n_choice,)`` of numbers in ``[-1, 1]`` (NaN, inf, ``None``, a string, ...) raises
     :class:`~langenv.errors.ActionError`.
 
@@ -98,14 +102,14 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     | 7 | ``PROGRESS`` | progress ``d`` along the path | ``2d - 1`` |
     | 8 | ``HAND_SPEED`` | hand speed | m/s / 0.25 |
     | 9 | ``PHRASE_SAID`` | share of the current phrase said | ``2f - 1`` |
-    | 10 | ``PHRASE_LEFT`` | rest of the current phrase at ``a = 1`` | s / 40 |
-    | 11 | ``IN_PAUSE`` | in the pause after a phrase | ±1 |
+    | 10 | ``PHRASE_LEFT`` | rest of the current vertex's slot at ``a = 1`` (a pause vertex: of its chosen length) | s / 40 |
+    | 11 | ``IN_PAUSE`` | in silence: the pause after a clip, or a pause vertex | ±1 |
     | 12 | ``SPEECH_DONE`` | speech over | ±1 |
     | 13 | ``MOTION_DONE`` | motion over | ±1 |
     | 14 | ``BOUNDARY_DUE`` | a phrase boundary is due before the next decision | ±1 |
     | 15 | ``ELAPSED`` | elapsed time | s / 60 |
     | 16 + 3k | child ``VALID`` | child ``k`` is a valid next phrase | ±1 |
-    | 17 + 3k | child ``T_MIN`` | its ``t_min`` | s / 40 |
+    | 17 + 3k | child ``T_MIN`` | its ``t_min`` (pauses at their minimum) | s / 40 |
     | 18 + 3k | child ``T_MAX`` | its ``t_max`` | s / 40 |
 
     The scales normalise; they do not bound: a pace outside ``[0.6, 1.4]`` (wider ``paces``) or a
@@ -167,7 +171,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     |---|---|---|
     | ``users`` | ``"synthetic"`` | ``"synthetic"``, ``"replay"`` (with ``session``), a :class:`~langenv.users.User` or a callable ``f(t, hand_velocity, tangent) -> (3,)`` N |
     | ``session`` | ``None`` | session CSV (``t, cooperation``) for ``users="replay"`` |
-    | ``phrase_graph`` | LC graph | YAML path or one of ``"lc"``, ``"lc-noap"``, ``"ac"`` |
+    | ``phrase_graph`` | ``"lc"`` | YAML path or a shipped graph: ``"default"`` (= ``"lc"``, LC's graph with pauses and fillers), ``"study"`` (the study's LC graph), ``"lc-noap"``, ``"ac"`` |
     | ``decision_hz`` | 25 | agent decisions per second; must divide 500 |
     | ``choice_mode`` | ``"target"`` | next-phrase action design: ``"target"`` or ``"scores"`` |
     | ``w_em``, ``w_pace``, ``w_am`` | 1, 1, 1 | reward weights |
@@ -493,7 +497,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             self._terminated = True
             return 0.0, 0.0
         if not speech.done:
-            speech.step(self.dt, a, self._choose, motion.t_x)
+            speech.step(self.dt, a, self._choose, motion.t_x, self._pause_length)
         self.time += self.dt
         self._coop_hist[self._coop_i % self._coop_hist.size] = motion.cooperation
         self._coop_i += 1
@@ -545,6 +549,15 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             return candidates[int(np.argmin([abs(target - m) for m in mids]))]
         scores = self._choice_u[: len(candidates)]
         return candidates[int(np.argmax(scores))]
+
+    def _pause_length(self, pause: str) -> float:
+        """Length of a pause vertex being entered (s at a = 1): the graph's rule
+        (:meth:`~langenv.speech.graph.PhraseGraph.pause_length`) for the target speech duration
+        of the latest action (``choice_mode="target"``), else for ``t_x``."""
+        target = self.motion.t_x
+        if self.choice_mode == "target":
+            target *= 2.0 ** (CHOICE_OCTAVES * float(self._choice_u[0]))
+        return self.graph.pause_length(pause, target)
 
     def _update_speech_eta(self) -> None:
         self.t_a = self.speech.eta(self.motion.t_x)

@@ -1,11 +1,13 @@
 """The speech timeline: where the robot is in its speech, played at a varying audio pace.
 
 Speech starts with the graph's ``start`` phrase at ``reset``. Playback content advances at the
-audio pace ``a`` (``a`` seconds of base-pace content per second). Each phrase occupies a *slot*:
-its clip, then (unless it is final) the graph's pause, which also elapses at pace ``a``. When a
-slot ends — this is the *phrase boundary* — the next phrase starts at once: the caller's choice
-if it gave one, else the graph's rule with the motion ETC ``t_x`` the caller passed. Speech is over
-when the clip of a final phrase ends.
+audio pace ``a`` (``a`` seconds of base-pace content per second). Each vertex occupies a *slot*:
+a phrase's or filler's clip, then (unless it is final) the graph's pause, which also elapses at
+pace ``a``; a pause vertex's slot is silence whose length is chosen when it is entered (the
+caller's length, else :meth:`PhraseGraph.pause_length` with ``t_x``). When a slot ends — this is
+the *phrase boundary* — the next vertex starts at once: the caller's choice if it gave one, else
+the graph's rule with the motion ETC ``t_x`` the caller passed. Speech is over when the clip of a
+final phrase ends.
 
 Stepping costs a few additions per tick except at the (rare) clip and slot ends, so it can run
 inside a 500 Hz control loop.
@@ -21,25 +23,31 @@ from dataclasses import dataclass
 from langenv.errors import ActionError, ConfigError
 from langenv.speech.graph import PhraseGraph
 
-__all__ = ["Choice", "SpeechTimeline", "Utterance"]
+__all__ = ["Choice", "PauseChoice", "SpeechTimeline", "Utterance"]
 
 Choice = str | Callable[[tuple[str, ...]], str] | None
 """The next phrase at a boundary: a phrase id, a function of the candidate ids, or None."""
 
+PauseChoice = float | Callable[[str], float] | None
+"""A pause's length when one is entered: seconds at a = 1, a function of the pause's id, or None
+(the graph's :meth:`~langenv.speech.graph.PhraseGraph.pause_length` with ``t_x``)."""
+
 
 @dataclass(frozen=True)
 class Utterance:
-    """One phrase said.
+    """One vertex said: a phrase's or filler's clip, or a pause vertex's silence.
 
     Attributes:
-        phrase: Phrase id.
-        t_start: Time its clip started (s since the timeline's reset).
-        t_end: Time its clip ended (s), pause excluded.
+        phrase: Vertex id.
+        t_start: Time its clip (or silence) started (s since the timeline's reset).
+        t_end: Time its clip ended (s), the graph's pause after it excluded.
+        length: A pause vertex's chosen length at a = 1 (s); None for a clip.
     """
 
     phrase: str
     t_start: float
     t_end: float
+    length: float | None = None
 
     @property
     def duration(self) -> float:
@@ -62,6 +70,7 @@ class SpeechTimeline:
         "_a",
         "_children",
         "_content_done",
+        "_cur_slot",
         "_done",
         "_dur",
         "_graph",
@@ -69,6 +78,8 @@ class SpeechTimeline:
         "_in_pause",
         "_mark",
         "_path",
+        "_pause_lengths",
+        "_pauses",
         "_phrase",
         "_pos",
         "_slot",
@@ -84,6 +95,7 @@ class SpeechTimeline:
         self._dur = dict(graph.duration)
         self._slot = {u: graph.slot(u) for u in graph.phrases}
         self._children = {u: graph.children(u) for u in graph.phrases}
+        self._pauses = graph.pauses
         self.reset()
 
     def reset(self) -> None:
@@ -100,31 +112,44 @@ class SpeechTimeline:
         self._content_done = 0.0  # base-pace seconds of finished slots
         self._history: list[Utterance] = []
         self._path: list[str] = [start]
+        self._pause_lengths: list[float] = []
+        self._cur_slot = self._slot[start]  # the current vertex's slot (a pause: its length)
         self._mark = self._dur[start]  # next content position where something happens
 
     # ------------------------------------------------------------------ stepping
-    def step(self, dt: float, a: float, choice: Choice = None, t_x: float | None = None) -> None:
+    def step(
+        self,
+        dt: float,
+        a: float,
+        choice: Choice = None,
+        t_x: float | None = None,
+        pause: PauseChoice = None,
+    ) -> None:
         """Advance by ``dt`` seconds at audio pace ``a``.
 
-        If the current phrase's slot ends during the step, the next phrase is ``choice`` (an id,
+        If the current vertex's slot ends during the step, the next vertex is ``choice`` (an id,
         or ``choice(candidates)`` when it is callable, evaluated only then), else
         ``graph.choose(phrase, t_x')`` with ``t_x'`` the given ``t_x`` minus the time from the
-        start of the step to the boundary. A phrase with a single child needs neither (``choice``
+        start of the step to the boundary. A vertex with a single child needs neither (``choice``
         is then not consulted, so a callable is only called when there is a real choice). A second
         boundary inside the same step (only with slots shorter than ``a * dt``) calls a callable
-        ``choice`` again, else uses the rule, else the first child. After the speech is over,
-        only the time advances.
+        ``choice`` again, else uses the rule, else the first child. When the next vertex is a
+        pause, its length is ``pause`` (seconds, or ``pause(id)`` when callable), clipped to the
+        pause's bounds, else ``graph.pause_length(id, t_x')`` (at a second boundary without
+        either: the pause's minimum). After the speech is over, only the time advances.
 
         Args:
             dt: Step length (s, > 0).
             a: Audio pace over the step (>= 0; 1 is the recorded pace).
-            choice: Next phrase at a boundary (see above).
-            t_x: Motion time to completion at the start of the step (s), for the rule.
+            choice: Next vertex at a boundary (see above).
+            t_x: Motion time to completion at the start of the step (s), for the rules.
+            pause: Length of a pause entered in this step (see above).
 
         Raises:
             ActionError: naming the argument, for a non-finite or out-of-range ``dt``/``a``, a
-                choice that is not a child of the ending phrase, or a boundary with several
-                candidates and neither ``choice`` nor ``t_x``. The timeline is unchanged then.
+                choice that is not a child of the ending vertex, a non-finite pause length, or a
+                boundary with several candidates (or a pause to enter) and neither ``choice``
+                (``pause``) nor ``t_x``. The timeline is unchanged then.
         """
         if not 0.0 < dt < math.inf:
             raise ActionError(f"SpeechTimeline.step: dt must be finite and > 0, got {dt!r}")
@@ -139,14 +164,23 @@ class SpeechTimeline:
             self._pos += adv
             self._t += dt
             return
-        self._advance(dt, a, adv, choice, t_x)
+        self._advance(dt, a, adv, choice, t_x, pause)
 
-    def _advance(self, dt: float, a: float, adv: float, choice: Choice, t_x: float | None) -> None:
+    def _advance(
+        self,
+        dt: float,
+        a: float,
+        adv: float,
+        choice: Choice,
+        t_x: float | None,
+        pause: PauseChoice,
+    ) -> None:
         u = self._phrase
         assert u is not None
-        dur, slot, kids = self._dur[u], self._slot[u], self._children[u]
+        dur, slot, kids = self._dur[u], self._cur_slot, self._children[u]
         # Resolve the first boundary's choice before changing anything (errors leave no trace).
         nxt: str | None = None
+        nxt_len = 0.0
         if kids:
             rem, pos = adv, self._pos
             if not self._in_pause:
@@ -155,6 +189,8 @@ class SpeechTimeline:
             if rem >= slot - pos:
                 tau = (adv - rem + (slot - pos)) / a if a > 0.0 else 0.0
                 nxt = self._resolve(u, kids, choice, t_x, tau)
+                if nxt in self._pauses:
+                    nxt_len = self._pause_length(nxt, pause, t_x, tau)
 
         t0 = self._t
         tau = 0.0  # time from the start of the step
@@ -162,7 +198,7 @@ class SpeechTimeline:
         while True:
             u = self._phrase
             assert u is not None
-            dur, slot, kids = self._dur[u], self._slot[u], self._children[u]
+            dur, slot, kids = self._dur[u], self._cur_slot, self._children[u]
             if not self._in_pause:
                 need = dur - self._pos
                 if rem < need:
@@ -186,18 +222,56 @@ class SpeechTimeline:
                 break
             tau += need / a if need > 0.0 else 0.0
             rem -= need
+            if u in self._pauses:
+                self._history.append(Utterance(u, self._t_start, t0 + tau, slot))
             if nxt is None:  # a second boundary in the same step
                 nxt = self._resolve(u, kids, choice if callable(choice) else None, t_x, tau, True)
+                if nxt in self._pauses:
+                    later = pause if callable(pause) else None
+                    nxt_len = self._pause_length(nxt, later, t_x, tau, True)
             self._content_done += slot
             self._phrase = nxt
             self._path.append(nxt)
             self._pos = 0.0
-            self._in_pause = False
             self._t_start = t0 + tau
+            if nxt in self._pauses:
+                self._in_pause = True
+                self._cur_slot = nxt_len
+                self._pause_lengths.append(nxt_len)
+            else:
+                self._in_pause = False
+                self._cur_slot = self._slot[nxt]
             nxt = None
         self._t = t0 + dt
         if self._phrase is not None:
-            self._mark = self._slot[self._phrase] if self._in_pause else self._dur[self._phrase]
+            self._mark = self._cur_slot if self._in_pause else self._dur[self._phrase]
+
+    def _pause_length(
+        self, v: str, pause: PauseChoice, t_x: float | None, tau: float, fallback: bool = False
+    ) -> float:
+        """The length of the pause ``v`` being entered (see :meth:`step`)."""
+        lo, hi = self._graph.slot_range(v)
+        if pause is not None:
+            length = pause(v) if callable(pause) else pause
+            if isinstance(length, bool) or not isinstance(length, int | float):
+                raise ActionError(
+                    f"SpeechTimeline.step: pause length for {v!r} must be a number, got {length!r}"
+                )
+            if not math.isfinite(length):
+                raise ActionError(
+                    f"SpeechTimeline.step: pause length for {v!r} must be finite, got {length!r}"
+                )
+            return lo if length < lo else (hi if length > hi else float(length))
+        if t_x is not None:
+            if not math.isfinite(t_x):
+                raise ActionError(f"SpeechTimeline.step: t_x must be finite, got {t_x!r}")
+            return self._graph.pause_length(v, t_x - tau)
+        if fallback:
+            return lo
+        raise ActionError(
+            f"SpeechTimeline.step: pause {v!r} is entered and its length is open "
+            f"[{lo:g}, {hi:g}] s; pass `pause` or `t_x`"
+        )
 
     def _resolve(
         self,
@@ -240,31 +314,36 @@ class SpeechTimeline:
         if u is None or not self._children[u]:
             return False
         pace = self._a if a is None else a
-        return self._slot[u] - self._pos <= pace * horizon
+        return self._cur_slot - self._pos <= pace * horizon
 
     def eta(self, t_x: float) -> float:
         """Speech time to completion ``t_a`` at a = 1 (s): see :meth:`PhraseGraph.eta`."""
         u = self._phrase
         if u is None:
             return 0.0
-        return self._graph.eta(u, self._slot[u] - self._pos, t_x)
+        return self._graph.eta(u, self._cur_slot - self._pos, t_x)
 
     def said_at(self, t: float) -> str | None:
-        """Id of the phrase audible at time ``t`` (s); None in pauses, before 0, after the end."""
+        """Id of the phrase or filler audible at time ``t`` (s); None in pauses, before 0, after
+        the end."""
         u = self._phrase
         if u is not None and not self._in_pause and self._t_start <= t <= self._t:
             return u
         h = self._history
         i = bisect.bisect_right(h, t, key=lambda x: x.t_start) - 1
-        if i >= 0 and t < h[i].t_end:
+        if i >= 0 and t < h[i].t_end and h[i].length is None:
             return h[i].phrase
         return None
 
     def utterances(self) -> list[Utterance]:
-        """The history plus the phrase playing now (its ``t_end`` is the current time)."""
+        """The history plus the vertex playing now (its ``t_end`` is the current time): clips
+        and pause vertices (with their chosen ``length``), in order."""
         out = list(self._history)
-        if self._phrase is not None and not self._in_pause:
-            out.append(Utterance(self._phrase, self._t_start, self._t))
+        u = self._phrase
+        if u is not None and u in self._pauses:
+            out.append(Utterance(u, self._t_start, self._t, self._cur_slot))
+        elif u is not None and not self._in_pause:
+            out.append(Utterance(u, self._t_start, self._t))
         return out
 
     @property
@@ -306,7 +385,7 @@ class SpeechTimeline:
     def remaining_in_phrase(self) -> float:
         """Base-pace seconds until the current slot ends: clip rest + pause (0 when done)."""
         u = self._phrase
-        return 0.0 if u is None else self._slot[u] - self._pos
+        return 0.0 if u is None else self._cur_slot - self._pos
 
     @property
     def remaining_audio(self) -> float:
@@ -335,8 +414,19 @@ class SpeechTimeline:
 
     @property
     def path(self) -> tuple[str, ...]:
-        """Phrases started so far, in order."""
+        """Vertices started so far, in order (pauses included)."""
         return tuple(self._path)
+
+    @property
+    def pause_lengths(self) -> tuple[float, ...]:
+        """Lengths chosen for the pause vertices of :attr:`path`, in order (s at a = 1)."""
+        return tuple(self._pause_lengths)
+
+    @property
+    def slot_length(self) -> float:
+        """Base-pace length of the current vertex's slot (s; a pause's chosen length; 0 when
+        done)."""
+        return 0.0 if self._phrase is None else self._cur_slot
 
     @property
     def t_end(self) -> float | None:
