@@ -301,9 +301,7 @@ class _Captions:
         self._cache: dict[tuple[int, bool], np.ndarray] = {}
 
     def frame(self, t: float) -> np.ndarray:
-        said = [
-            k for k, u in enumerate(self.log.utterances) if u.t_start <= t and not u.is_pause
-        ]
+        said = [k for k, u in enumerate(self.log.utterances) if u.t_start <= t and not u.is_pause]
         k = said[-1] if said else -1
         speaking = k >= 0 and t < self.log.utterances[k].t_end
         key = (k, speaking)

@@ -76,11 +76,11 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     speech duration ``t_x 2^{2u}`` s and the child whose mid-length ``(t_min + t_max)/2`` is
     closest to it is said next (``u = 0`` is the paper's rule). ``choice_mode="scores"``
     (``n_choice = max_children`` of the graph): the valid child with the highest score is said
-    next. An invalid child can never be chosen. A pause vertex's length is chosen when it is
-    entered, within its bounds, by the graph's rule
-    (:meth:`~langenv.speech.graph.PhraseGraph.pause_length`: the speech from there ends at the
-    target duration): with ``choice_mode="target"`` the same target ``t_x 2^{2u}`` (``u = 0`` is
-    the rule with ``t_x``), with ``"scores"`` ``t_x`` itself. An action that is not an array of shape
+    next. An invalid child can never be chosen. A pause vertex's length is chosen within its
+    bounds by the graph's rule (:meth:`~langenv.speech.graph.PhraseGraph.pause_length`: the
+    speech from there ends at a target duration) when the pause is entered and again at every
+    tick while it lasts: with ``choice_mode="target"`` for the same target ``t_x 2^{2u}``
+    (``u = 0`` is the rule with ``t_x``), with ``"scores"`` for ``t_x`` itself. An action that is not an array of shape
     ``(2 + n_choice,)`` of numbers in ``[-1, 1]`` (NaN, inf, ``None``, a string, ...) raises
     :class:`~langenv.errors.ActionError`.
 
@@ -276,6 +276,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self.observation_space = spaces.Box(-1.0, 1.0, (size,), np.float32)
         self._obs = np.zeros(size, np.float32)
         self._choice_u: list[float] = [0.0] * n_choice
+        self._pause_factor = 1.0  # the pause rule's target over t_x (target mode: 2**(2u))
         self._renderer: Any = None
         self.time = 0.0
         self.t_a = 0.0
@@ -309,6 +310,9 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         p_cmd = command_from_action(values[0], lim.p_max)
         a_cmd = command_from_action(values[1], lim.a_max)
         self._choice_u = values[2:]
+        self._pause_factor = (
+            2.0 ** (CHOICE_OCTAVES * float(values[2])) if self.choice_mode == "target" else 1.0
+        )
 
         em_int = pace_int = 0.0
         self._max_speed = 0.0
@@ -376,6 +380,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         done, last = 0, None
         if n and self._steps is not None:
             self._choice_u = [0.0] * len(self._choice_u)  # the law's phrase rule
+            self._pause_factor = 1.0
             done, answer, code, em_int, pace_int = pacer.run(
                 self._steps, self._law_array(law), rows, rewards
             )
@@ -497,7 +502,8 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             self._terminated = True
             return 0.0, 0.0
         if not speech.done:
-            speech.step(self.dt, a, self._choose, motion.t_x, self._pause_length)
+            t_x = motion.t_x
+            speech.step(self.dt, a, self._choose, t_x, t_x * self._pause_factor)
         self.time += self.dt
         self._coop_hist[self._coop_i % self._coop_hist.size] = motion.cooperation
         self._coop_i += 1
@@ -549,15 +555,6 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             return candidates[int(np.argmin([abs(target - m) for m in mids]))]
         scores = self._choice_u[: len(candidates)]
         return candidates[int(np.argmax(scores))]
-
-    def _pause_length(self, pause: str) -> float:
-        """Length of a pause vertex being entered (s at a = 1): the graph's rule
-        (:meth:`~langenv.speech.graph.PhraseGraph.pause_length`) for the target speech duration
-        of the latest action (``choice_mode="target"``), else for ``t_x``."""
-        target = self.motion.t_x
-        if self.choice_mode == "target":
-            target *= 2.0 ** (CHOICE_OCTAVES * float(self._choice_u[0]))
-        return self.graph.pause_length(pause, target)
 
     def _update_speech_eta(self) -> None:
         self.t_a = self.speech.eta(self.motion.t_x)

@@ -32,8 +32,9 @@ E_P, E_A, E_PDOT, E_TIME, E_TA, E_EM, E_PACE, E_VMAX = 0, 1, 2, 3, 4, 5, 6, 7
 E_POS, E_ST, E_SA, E_MARK, E_U, E_COOPI, E_F = 8, 9, 10, 11, 12, 13, 14
 # settings
 E_KP, E_KA, E_PMIN, E_PMAX, E_AMIN, E_AMAX, E_DT, E_USTEP = 17, 18, 19, 20, 21, 22, 23, 24
-E_SLOT = 25  # the current vertex's slot length (a pause vertex: its chosen length)
-N_ENV = 26
+E_SLOT = 25  # the current vertex's slot length (a pause vertex: its length as planned now)
+E_TFAC = 26  # the pause rule's target over t_x (the target-duration action's factor)
+N_ENV = 27
 
 # run()'s answers
 R_DONE, R_PYTHON, R_CONTROL, R_STOP, R_OVER = 0, 1, 2, 3, 4
@@ -100,9 +101,7 @@ def eta(
             if e < err:
                 v, err = w, e
         length = (
-            slot[v, 0]
-            if slot[v, 1] == slot[v, 2]
-            else _fill(v, left, mid, slot, kid_ptr, kids)
+            slot[v, 0] if slot[v, 1] == slot[v, 2] else _fill(v, left, mid, slot, kid_ptr, kids)
         )
         total += length
         left -= length
@@ -212,7 +211,12 @@ def run(
             es[E_SA] = a
             es[E_POS] += adv
             es[E_ST] += dt
-            t_a = eta(u, es[E_SLOT] - es[E_POS], t_x, mid, slot, kid_ptr, kids)
+            pos = es[E_POS]
+            if slot[u, 1] < slot[u, 2]:  # an open pause: its length planned again
+                length = _fill(u, pos + t_x * es[E_TFAC], mid, slot, kid_ptr, kids)
+                es[E_SLOT] = length if length > pos else pos
+                es[E_MARK] = es[E_SLOT]
+            t_a = eta(u, es[E_SLOT] - pos, t_x, mid, slot, kid_ptr, kids)
         es[E_TIME] = t + dt
         ci = int(es[E_COOPI])
         hist[ci % size] = ws[tk.S_C]
@@ -290,6 +294,7 @@ class CompiledSteps:
         )  # fmt: skip
         es[E_USTEP] = step
         es[E_SLOT] = speech.slot_length
+        es[E_TFAC] = env._pause_factor
         t = env.motion._compiled
         return (
             t.ws, t.path, t.aw, t.ai, t.jac, t.xpos, t.xmat, t.qpos, t.qvel, t.ctrl, t.qfrc,
@@ -303,9 +308,12 @@ class CompiledSteps:
         paces, speech, motion = env.paces, env.speech, env.motion
         (
             paces.p, paces.a, paces.p_dot, env.time, env.t_a, em_int, pace_int,
-            env._max_speed, speech._pos, speech._t, speech._a, _, _, coop_i,
+            env._max_speed, speech._pos, speech._t, speech._a, mark, _, coop_i,
         ) = es[E_P : E_COOPI + 1].tolist()  # fmt: skip
         env._coop_i = int(coop_i)
+        if speech._elastic:  # an open pause's length, planned again at each tick
+            speech._mark = mark
+            speech._cur_slot = float(es[E_SLOT])
         motion.f_user = es[E_F : E_F + 3].copy()
         motion._compiled.sync()
         return em_int, pace_int

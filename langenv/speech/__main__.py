@@ -188,14 +188,6 @@ def _clips(args: argparse.Namespace) -> ClipLibrary:
 
 def _check(args: argparse.Namespace) -> int:
     graph = PhraseGraph.load(_graph_path(args.graph), _clips(args))
-    start = graph.start
-    unreachable = sorted(set(graph.phrases) - graph.reachable())
-    if unreachable:
-        print(
-            f"warning: {graph.path}: phrases never said (not reachable from {start!r}): "
-            f"{unreachable}",
-            file=sys.stderr,
-        )
     if args.paths:
         for path in graph.paths(limit=10_000):
             lo, hi = graph.path_range(path)

@@ -162,13 +162,17 @@ class _Line:
                 inner = alt[i + 1 : end]
                 if ch == "[":
                     if not inner.strip():
-                        raise self.error(col, "empty '[]': put the words that may be left out in it")
+                        raise self.error(
+                            col, "empty '[]': put the words that may be left out in it"
+                        )
                     if not pieces:
                         piece_col = col
                     pieces.append((inner, True))
                 else:
                     flush()
-                    units.append(self._pause(col, inner) if ch == "(" else self._fillers(col, inner))
+                    units.append(
+                        self._pause(col, inner) if ch == "(" else self._fillers(col, inner)
+                    )
                 i = end + 1
                 continue
             j = i
@@ -187,7 +191,8 @@ class _Line:
         m = _PAUSE_RE.match(inner.strip())
         if m is None:
             raise self.error(
-                col, f"'({inner})' is not a pause; write (pause MIN-MAX) in seconds, e.g. (pause 0.5-2)"
+                col,
+                f"'({inner})' is not a pause; write (pause MIN-MAX) in seconds, e.g. (pause 0.5-2)",
             )
         lo = float(m.group(1))
         hi = float(m.group(2)) if m.group(2) is not None else lo
@@ -200,7 +205,9 @@ class _Line:
     def _fillers(self, col: int, inner: str) -> _Unit:
         words = [w.strip() for w in inner.split("|")]
         if not inner.strip() or any(not w for w in words):
-            raise self.error(col, f"'{{{inner}}}': fillers are words separated by '|', e.g. {{okay|so}}")
+            raise self.error(
+                col, f"'{{{inner}}}': fillers are words separated by '|', e.g. {{okay|so}}"
+            )
         for w in words:
             if not re.search(r"[^\W\d_]", w):
                 raise self.error(col, f"filler {w!r} has no word to say")
@@ -241,7 +248,9 @@ class _Builder:
 
     def add(self, kind: str, text: str | None, bounds: tuple[float, float] | None, line: int,
             col: int, parents: list[str]) -> str:  # fmt: skip
-        base = f"pause_{line}" if kind == "pause" else _slug(text or "", 1 if kind == "filler" else 3)
+        base = (
+            f"pause_{line}" if kind == "pause" else _slug(text or "", 1 if kind == "filler" else 3)
+        )
         vid, k = base, 2
         while vid in self.vertices:
             vid, k = f"{base}_{k}", k + 1
@@ -274,7 +283,9 @@ class _Builder:
             bounds = unit.bounds
             return [self.add("pause", None, bounds, line.number, unit.column, frontier)]
         made = [
-            self.add(unit.kind, w, None, line.number, unit.column, frontier) for w in unit.words if w
+            self.add(unit.kind, w, None, line.number, unit.column, frontier)
+            for w in unit.words
+            if w
         ]
         skip = unit.kind == "filler" or "" in unit.words
         return _union(made, frontier) if skip else made
@@ -310,7 +321,15 @@ def parse_script(source: str, path: str | Path = "<script>") -> Script:
             pause = _directive(line, text, bool(frontier))
             continue
         outs: list[list[str]] = []
-        for col, alt in line.alternatives():
+        alternatives = line.alternatives()
+        if not b.vertices and len(alternatives) > 1:
+            col, alt = alternatives[1]
+            raise line.error(
+                col + len(alt) - len(alt.lstrip()),
+                "the speech starts with one wording: the first step must be a single phrase "
+                "(no alternatives)",
+            )
+        for col, alt in alternatives:
             cur = frontier
             for unit in line.units(col, alt):
                 cur = b.unit(line, unit, cur)

@@ -102,8 +102,7 @@ def coverage(graph: PhraseGraph, limits: PaceLimits | None = None) -> Coverage:
     lo_n, hi_n = 1.0 - NATURAL, 1.0 + NATURAL
     if not (lim.a_min <= lo_n and hi_n <= lim.a_max):
         raise ConfigError(
-            f"coverage: audio pace limits [{lim.a_min}, {lim.a_max}] must contain "
-            f"[{lo_n}, {hi_n}]"
+            f"coverage: audio pace limits [{lim.a_min}, {lim.a_max}] must contain [{lo_n}, {hi_n}]"
         )
     speech = speech_lengths(graph)
     natural = _merge([(a / hi_n, b / lo_n) for a, b in speech])

@@ -140,7 +140,9 @@ class Phrase:
         if not isinstance(self.id, str) or not self.id:
             raise PhraseGraphError(f"Phrase.id must be a non-empty str, got {self.id!r}")
         if self.kind not in KINDS:
-            raise PhraseGraphError(f"vertex {self.id!r}: kind must be one of {KINDS}, got {self.kind!r}")
+            raise PhraseGraphError(
+                f"vertex {self.id!r}: kind must be one of {KINDS}, got {self.kind!r}"
+            )
         if self.text is not None and (not isinstance(self.text, str) or not self.text.strip()):
             raise PhraseGraphError(f"{self.kind} {self.id!r}: text must be a non-empty str or None")
         if self.audio is not None and not isinstance(self.audio, Path):
@@ -208,7 +210,8 @@ class PhraseGraph:
     Raises:
         PhraseGraphError: listing every problem, one per line, each naming the file and the
             vertex: unknown ``start`` or ``next`` id, duplicate ``next`` entries, a cycle (with the
-            vertices on it), a vertex that cannot reach a terminal, a pause that starts or ends the speech or follows a pause, a missing or bad duration,
+            vertices on it), a vertex that cannot reach a terminal, a pause that starts or ends
+            the speech or follows a pause, a missing or bad duration,
             a filler longer than ``MAX_FILLER``, a bad pause.
     """
 
@@ -355,9 +358,7 @@ class PhraseGraph:
             if ph.is_pause:
                 continue
             if ph.audio is not None and not ph.audio.is_file():
-                problems.append(
-                    f"{path}: {ph.kind} {pid!r}: audio file {ph.audio} does not exist"
-                )
+                problems.append(f"{path}: {ph.kind} {pid!r}: audio file {ph.audio} does not exist")
                 continue
             try:
                 durations[pid] = clips.duration(ph)
@@ -494,7 +495,9 @@ class PhraseGraph:
         if ph is None or not ph.is_pause:
             raise PhraseGraphError(f"{self._label}: {u!r} is not a pause of this graph")
         if not math.isfinite(target):
-            raise PhraseGraphError(f"{self._label}: pause {u!r}: target must be finite, got {target!r}")
+            raise PhraseGraphError(
+                f"{self._label}: pause {u!r}: target must be finite, got {target!r}"
+            )
         return self._fill(u, float(target))
 
     def _fill(self, v: str, left: float) -> float:
@@ -753,7 +756,8 @@ def _structure_problems(label: str, phrases: Mapping[str, Phrase], start: object
         if len(comp) > 1 or comp[0] in phrases[comp[0]].next:
             cycle = _a_cycle(phrases, set(comp))
             problems.append(
-                f"{label}: {phrases[cycle[0]].kind} {cycle[0]!r}: on a cycle {' -> '.join(repr(c) for c in cycle)}"
+                f"{label}: {phrases[cycle[0]].kind} {cycle[0]!r}: on a cycle "
+                f"{' -> '.join(repr(c) for c in cycle)}"
                 + (
                     f" (phrases on cycles here: {sorted(comp)})"
                     if len(comp) > len(cycle) - 1

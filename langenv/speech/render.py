@@ -113,9 +113,6 @@ def plan_speech(
     tt, aa, xx = _trace(t, a, t_x)
     tl = SpeechTimeline(graph)
 
-    def shortest_pause(v: str) -> float:
-        return graph.slot_range(v)[0]
-
     shortest = graph.shortest_path()
     on_shortest = dict(itertools.pairwise(shortest))
 
@@ -127,7 +124,7 @@ def plan_speech(
         return min(kids, key=graph.t_min)
 
     choice = shortest_child if xx is None else None
-    pause = shortest_pause if xx is None else None
+    pause = 0.0 if xx is None else None  # no target: every pause at its minimum
     for i in range(tt.size - 1):
         if tl.done:
             break
@@ -144,9 +141,7 @@ def plan_speech(
         tl.step(_PLAN_DT, float(aa[-1]), choice, t_x_now, pause)
         extra += _PLAN_DT
     t0 = float(tt[0])
-    return [
-        Utterance(u.phrase, u.t_start + t0, u.t_end + t0, u.length) for u in tl.utterances()
-    ]
+    return [Utterance(u.phrase, u.t_start + t0, u.t_end + t0, u.length) for u in tl.utterances()]
 
 
 def silence(seconds: float, sr: int) -> np.ndarray:

@@ -3,10 +3,13 @@
 Speech starts with the graph's ``start`` phrase at ``reset``. Playback content advances at the
 audio pace ``a`` (``a`` seconds of base-pace content per second). Each vertex occupies a *slot*:
 a phrase's or filler's clip, then (unless it is final) the graph's pause, which also elapses at
-pace ``a``; a pause vertex's slot is silence whose length is chosen when it is entered (the
-caller's length, else :meth:`PhraseGraph.pause_length` with ``t_x``). When a slot ends — this is
-the *phrase boundary* — the next vertex starts at once: the caller's choice if it gave one, else
-the graph's rule with the motion ETC ``t_x`` the caller passed. Speech is over when the clip of a
+pace ``a``. A pause vertex's slot is silence whose length the graph's rule
+(:meth:`PhraseGraph.pause_length <langenv.speech.graph.PhraseGraph.pause_length>`) chooses within
+its bounds for a *target*, the speech time wanted from now (the caller's, else ``t_x``): when the
+pause is entered, and again at every step while it lasts (never below what has elapsed), as a
+person who waits for the arm goes on waiting while it is slow. When a slot ends — this is the
+*phrase boundary* — the next vertex starts at once: the caller's choice if it gave one, else the
+graph's rule with the motion ETC ``t_x`` the caller passed. Speech is over when the clip of a
 final phrase ends.
 
 Stepping costs a few additions per tick except at the (rare) clip and slot ends, so it can run
@@ -23,14 +26,13 @@ from dataclasses import dataclass
 from langenv.errors import ActionError, ConfigError
 from langenv.speech.graph import PhraseGraph
 
-__all__ = ["Choice", "PauseChoice", "SpeechTimeline", "Utterance"]
+__all__ = ["Choice", "PauseTarget", "SpeechTimeline", "Utterance"]
 
 Choice = str | Callable[[tuple[str, ...]], str] | None
 """The next phrase at a boundary: a phrase id, a function of the candidate ids, or None."""
 
-PauseChoice = float | Callable[[str], float] | None
-"""A pause's length when one is entered: seconds at a = 1, a function of the pause's id, or None
-(the graph's :meth:`~langenv.speech.graph.PhraseGraph.pause_length` with ``t_x``)."""
+PauseTarget = float | None
+"""The speech time (s) wanted from the start of a step, for the pause rule; None: ``t_x``."""
 
 
 @dataclass(frozen=True)
@@ -41,7 +43,7 @@ class Utterance:
         phrase: Vertex id.
         t_start: Time its clip (or silence) started (s since the timeline's reset).
         t_end: Time its clip ended (s), the graph's pause after it excluded.
-        length: A pause vertex's chosen length at a = 1 (s); None for a clip.
+        length: A pause vertex's length at a = 1 (s; so far, while it lasts); None for a clip.
     """
 
     phrase: str
@@ -73,6 +75,7 @@ class SpeechTimeline:
         "_cur_slot",
         "_done",
         "_dur",
+        "_elastic",
         "_graph",
         "_history",
         "_in_pause",
@@ -114,6 +117,7 @@ class SpeechTimeline:
         self._path: list[str] = [start]
         self._pause_lengths: list[float] = []
         self._cur_slot = self._slot[start]  # the current vertex's slot (a pause: its length)
+        self._elastic = False  # in a pause vertex whose length is still open
         self._mark = self._dur[start]  # next content position where something happens
 
     # ------------------------------------------------------------------ stepping
@@ -123,7 +127,7 @@ class SpeechTimeline:
         a: float,
         choice: Choice = None,
         t_x: float | None = None,
-        pause: PauseChoice = None,
+        pause: PauseTarget = None,
     ) -> None:
         """Advance by ``dt`` seconds at audio pace ``a``.
 
@@ -133,21 +137,24 @@ class SpeechTimeline:
         start of the step to the boundary. A vertex with a single child needs neither (``choice``
         is then not consulted, so a callable is only called when there is a real choice). A second
         boundary inside the same step (only with slots shorter than ``a * dt``) calls a callable
-        ``choice`` again, else uses the rule, else the first child. When the next vertex is a
-        pause, its length is ``pause`` (seconds, or ``pause(id)`` when callable), clipped to the
-        pause's bounds, else ``graph.pause_length(id, t_x')`` (at a second boundary without
-        either: the pause's minimum). After the speech is over, only the time advances.
+        ``choice`` again, else uses the rule, else the first child. A pause entered takes the
+        length ``graph.pause_length(id, target')`` with ``target'`` the target (``pause``, else
+        ``t_x``) minus the time to the boundary (at a second boundary without either: the
+        pause's minimum); while it lasts, each step sets it again to
+        ``graph.pause_length(id, elapsed + target)``, never below what has elapsed. After the
+        speech is over, only the time advances.
 
         Args:
             dt: Step length (s, > 0).
             a: Audio pace over the step (>= 0; 1 is the recorded pace).
             choice: Next vertex at a boundary (see above).
             t_x: Motion time to completion at the start of the step (s), for the rules.
-            pause: Length of a pause entered in this step (see above).
+            pause: Speech time wanted from the start of the step (s), for the pause rule; None:
+                ``t_x``.
 
         Raises:
             ActionError: naming the argument, for a non-finite or out-of-range ``dt``/``a``, a
-                choice that is not a child of the ending vertex, a non-finite pause length, or a
+                choice that is not a child of the ending vertex, a non-finite target, or a
                 boundary with several candidates (or a pause to enter) and neither ``choice``
                 (``pause``) nor ``t_x``. The timeline is unchanged then.
         """
@@ -163,8 +170,26 @@ class SpeechTimeline:
         if self._pos + adv < self._mark:  # the common case: nothing happens in this tick
             self._pos += adv
             self._t += dt
+            if self._elastic:
+                target = pause if pause is not None else t_x
+                if target is not None:
+                    self._replan(target)
             return
         self._advance(dt, a, adv, choice, t_x, pause)
+
+    def _replan(self, target: float) -> None:
+        """The open pause's length for ``target`` s of speech wanted from now (mirrored by
+        ``langenv.kernels.steps.run``)."""
+        if not math.isfinite(target):
+            raise ActionError(
+                f"SpeechTimeline.step: the pause target must be finite, got {target!r}"
+            )
+        u = self._phrase
+        assert u is not None
+        pos = self._pos
+        length = self._graph._fill(u, pos + target)
+        self._cur_slot = length if length > pos else pos
+        self._mark = self._cur_slot
 
     def _advance(
         self,
@@ -173,7 +198,7 @@ class SpeechTimeline:
         adv: float,
         choice: Choice,
         t_x: float | None,
-        pause: PauseChoice,
+        pause: PauseTarget,
     ) -> None:
         u = self._phrase
         assert u is not None
@@ -224,11 +249,11 @@ class SpeechTimeline:
             rem -= need
             if u in self._pauses:
                 self._history.append(Utterance(u, self._t_start, t0 + tau, slot))
+                self._pause_lengths.append(slot)
             if nxt is None:  # a second boundary in the same step
                 nxt = self._resolve(u, kids, choice if callable(choice) else None, t_x, tau, True)
                 if nxt in self._pauses:
-                    later = pause if callable(pause) else None
-                    nxt_len = self._pause_length(nxt, later, t_x, tau, True)
+                    nxt_len = self._pause_length(nxt, pause, t_x, tau, True)
             self._content_done += slot
             self._phrase = nxt
             self._path.append(nxt)
@@ -237,35 +262,33 @@ class SpeechTimeline:
             if nxt in self._pauses:
                 self._in_pause = True
                 self._cur_slot = nxt_len
-                self._pause_lengths.append(nxt_len)
+                lo, hi = self._graph.slot_range(nxt)
+                self._elastic = lo < hi
             else:
                 self._in_pause = False
                 self._cur_slot = self._slot[nxt]
+                self._elastic = False
             nxt = None
         self._t = t0 + dt
         if self._phrase is not None:
             self._mark = self._cur_slot if self._in_pause else self._dur[self._phrase]
 
     def _pause_length(
-        self, v: str, pause: PauseChoice, t_x: float | None, tau: float, fallback: bool = False
+        self, v: str, pause: PauseTarget, t_x: float | None, tau: float, fallback: bool = False
     ) -> float:
         """The length of the pause ``v`` being entered (see :meth:`step`)."""
         lo, hi = self._graph.slot_range(v)
-        if pause is not None:
-            length = pause(v) if callable(pause) else pause
-            if isinstance(length, bool) or not isinstance(length, int | float):
+        target = pause if pause is not None else t_x
+        if target is not None:
+            if isinstance(target, bool) or not isinstance(target, int | float):
                 raise ActionError(
-                    f"SpeechTimeline.step: pause length for {v!r} must be a number, got {length!r}"
+                    f"SpeechTimeline.step: pause target must be a number, got {target!r}"
                 )
-            if not math.isfinite(length):
+            if not math.isfinite(target):
                 raise ActionError(
-                    f"SpeechTimeline.step: pause length for {v!r} must be finite, got {length!r}"
+                    f"SpeechTimeline.step: the pause target must be finite, got {target!r}"
                 )
-            return lo if length < lo else (hi if length > hi else float(length))
-        if t_x is not None:
-            if not math.isfinite(t_x):
-                raise ActionError(f"SpeechTimeline.step: t_x must be finite, got {t_x!r}")
-            return self._graph.pause_length(v, t_x - tau)
+            return self._graph.pause_length(v, target - tau)
         if fallback:
             return lo
         raise ActionError(
@@ -341,7 +364,7 @@ class SpeechTimeline:
         out = list(self._history)
         u = self._phrase
         if u is not None and u in self._pauses:
-            out.append(Utterance(u, self._t_start, self._t, self._cur_slot))
+            out.append(Utterance(u, self._t_start, self._t, self._pos))
         elif u is not None and not self._in_pause:
             out.append(Utterance(u, self._t_start, self._t))
         return out
@@ -419,13 +442,16 @@ class SpeechTimeline:
 
     @property
     def pause_lengths(self) -> tuple[float, ...]:
-        """Lengths chosen for the pause vertices of :attr:`path`, in order (s at a = 1)."""
+        """Lengths of the pause vertices of :attr:`path`, in order (s at a = 1); a pause that
+        lasts still counts with what has elapsed of it."""
+        if self._phrase is not None and self._phrase in self._pauses:
+            return (*self._pause_lengths, self._pos)
         return tuple(self._pause_lengths)
 
     @property
     def slot_length(self) -> float:
-        """Base-pace length of the current vertex's slot (s; a pause's chosen length; 0 when
-        done)."""
+        """Base-pace length of the current vertex's slot (s; a pause's length as planned now;
+        0 when done)."""
         return 0.0 if self._phrase is None else self._cur_slot
 
     @property
