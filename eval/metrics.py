@@ -46,6 +46,7 @@ __all__ = [
     "METRICS",
     "METRIC_COLUMNS",
     "NUMERIC_METRICS",
+    "OPTIONAL_METRICS",
     "MetricSpec",
     "Window",
     "episode_metrics",
@@ -108,6 +109,9 @@ NUMERIC_METRICS: tuple[str, ...] = tuple(METRICS)
 
 METRIC_COLUMNS: tuple[str, ...] = ("policy", "user", *NUMERIC_METRICS)
 """All columns of a session row (``sessions.csv``), in order."""
+
+OPTIONAL_METRICS: frozenset[str] = frozenset({"pause_share", "filler_share"})
+"""Metrics that tables of older runs lack (langctrl 0.4 and before): read as NaN."""
 
 
 def time_weights(t: np.ndarray) -> np.ndarray:

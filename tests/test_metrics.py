@@ -386,5 +386,5 @@ def test_pause_and_filler_shares_of_the_speech_time(tmp_path: Path) -> None:
     plain = episode_metrics(hand_log())
     assert plain["pause_share"] == pytest.approx(0.5 / 8.0)
     assert plain["filler_share"] == 0.0
-    with pytest.raises(ConfigError, match="Utterance.length must be finite and >= 0"):
+    with pytest.raises(ConfigError, match=r"Utterance\.length must be finite and >= 0"):
         Utterance("wait", "", 3.0, 5.0, length=-1.0)
