@@ -38,9 +38,9 @@ Row = Mapping[str, Any]
 
 
 _SHARE_COLUMNS = {
-    "a_within_0_1": "|a - 1| <= 0.1 (%)",
-    "pause_share": "pauses (%)",
-    "filler_share": "fillers (%)",
+    "a_within_0_1": "|a-1|<=0.1 %",
+    "pause_share": "pauses %",
+    "filler_share": "fillers %",
 }
 """Shares of speech time shown (mean over users, in percent) when the rows have them."""
 

@@ -30,7 +30,7 @@ def test_smoke_run_writes_every_output(tmp_path: Path, capsys: pytest.CaptureFix
         assert col in rows[0]
     for col in ("a_within_0_1", "pause_share", "filler_share"):  # shares of the speech time
         assert 0.0 <= float(rows[1][col]) <= 1.0
-    assert "pauses (%)" in said and "fillers (%)" in said and "|a - 1| <= 0.1" in said
+    assert "pauses %" in said and "fillers %" in said and "|a-1|<=0.1 %" in said
     assert float(rows[0]["a_dev"]) == pytest.approx(0.0)  # AC never changes its pace
     assert (out / "summary.md").read_text().startswith("# ")
     assert (out / "summary.png").stat().st_size > 10_000
