@@ -68,8 +68,9 @@ class CompareArgs:
         audio: Render each session's speech to WAV.
         figures: Draw the per-session close-up figures.
         decision_hz: Override every policy's decision rate (default: each policy's own).
-        phrase_graph: Phrase graph YAML for the policies that choose phrases (LC, learned),
-            instead of the shipped LC graph.
+        phrase_graph: Phrase graph for the policies that choose phrases (LC, learned), instead
+            of their own (LC's: ``default``): a YAML path or a shipped graph's name (``study``:
+            the study's graph, without pauses or fillers).
         stat: Statistic of the differences against LC in ``summary.md``: ``median`` (of the
             per-user differences) or ``mean``.
         video: Render each session's video (MP4 with the speech as its sound track).
@@ -86,7 +87,7 @@ class CompareArgs:
     audio: bool = True
     figures: bool = True
     decision_hz: int | None = None
-    phrase_graph: Path | None = None
+    phrase_graph: str | Path | None = None
     stat: str = "median"
     video: bool = False
     overwrite: bool = False
@@ -150,10 +151,12 @@ def parse_args(argv: Sequence[str] | None = None) -> CompareArgs:
     )
     p.add_argument("--decision-hz", type=int, default=None, help="override every policy's rate")
     p.add_argument(
+        "--graph",
         "--phrase-graph",
-        type=Path,
+        dest="phrase_graph",
         default=None,
-        help="phrase graph YAML for the policies that choose phrases (lc, ppo)",
+        help="phrase graph for the policies that choose phrases (lc, ppo): a YAML file or a "
+        "shipped graph (default: theirs; 'study' is the study's graph)",
     )
     p.add_argument(
         "--stat",
@@ -212,12 +215,12 @@ def _check_options(args: CompareArgs) -> None:
         raise UsageError(f"--decision-hz must divide 500, got {args.decision_hz}")
     if args.phrase_graph is not None:
         from langenv.errors import LangEnvError
-        from langenv.speech.graph import PhraseGraph
+        from langenv.speech.graph import PhraseGraph, graph_path
 
         try:
-            PhraseGraph.load(args.phrase_graph)
+            PhraseGraph.load(graph_path(args.phrase_graph))
         except LangEnvError as exc:
-            raise UsageError(f"--phrase-graph: {exc}") from None
+            raise UsageError(f"--graph: {exc}") from None
 
 
 def _check_video() -> None:
@@ -346,11 +349,12 @@ def run_episode(job: Job) -> dict[str, Any]:
             done = terminated or truncated
     graph_ref = _graph_ref(graph)
     graph = base.graph
-    texts = {u: (ph.text or u) for u, ph in graph.phrases.items()}
+    texts = {u: (ph.text or u) for u, ph in graph.phrases.items() if not ph.is_pause}
     end_t = float(info["time"])
     log = rec.build(
         ret,
         texts=texts,
+        fillers=graph.fillers,
         t_motion=info["t_motion"] if info["t_motion"] is not None else end_t,
         t_speech=info["t_speech"] if info["t_speech"] is not None else end_t,
         utterances=base.speech.utterances(),
@@ -363,7 +367,9 @@ def run_episode(job: Job) -> dict[str, Any]:
         session_figure(log, stem.with_suffix(".png"))
     if job.audio or job.video:
         clips = base.clips
-        audio = render_history(graph, clips, base.speech.path, log.t, log.a)
+        audio = render_history(
+            graph, clips, base.speech.path, log.t, log.a, pause_lengths=base.speech.pause_lengths
+        )
         if job.audio:
             sf.write(stem.with_suffix(".wav"), audio, clips.sr, subtype="PCM_16")
         if job.video:

@@ -15,7 +15,7 @@ import math
 import os
 import tempfile
 import zipfile
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
@@ -51,19 +51,24 @@ _NPZ_FORMATS = (1, 2)  # format 1: no scene traces, no phrase graph
 
 @dataclass(frozen=True)
 class Utterance:
-    """One phrase said during an episode.
+    """One phrase (or filler) said during an episode, or one pause vertex's silence.
 
     Attributes:
         phrase: Id of the phrase-graph vertex (non-empty).
-        text: What the phrase says (may be empty when only audio is known).
+        text: What the phrase says (may be empty when only audio is known; empty for a pause).
         t_start: Episode time at which the phrase started playing (s).
         t_end: Episode time at which it stopped playing, before any pause (s), ``>= t_start``.
+        length: For a pause vertex, the length chosen for it (s at a = 1, ``>= 0``); None for
+            a clip.
+        filler: True for a filler clip ("okay", "so").
     """
 
     phrase: str
     text: str
     t_start: float
     t_end: float
+    length: float | None = None
+    filler: bool = False
 
     def __post_init__(self) -> None:
         if not isinstance(self.phrase, str) or not self.phrase:
@@ -84,6 +89,17 @@ class Utterance:
                 f"Utterance.t_end ({self.t_end}) must be >= t_start ({self.t_start}) "
                 f"for phrase {self.phrase!r}"
             )
+        if self.length is not None:
+            length = float(self.length)
+            if not (math.isfinite(length) and length >= 0.0):
+                raise ConfigError(f"Utterance.length must be finite and >= 0, got {self.length!r}")
+            object.__setattr__(self, "length", length)
+        object.__setattr__(self, "filler", bool(self.filler))
+
+    @property
+    def is_pause(self) -> bool:
+        """True for a pause vertex's silence."""
+        return self.length is not None
 
     @property
     def duration(self) -> float:
@@ -303,6 +319,10 @@ class EpisodeLog:
             "utt_span": np.array([(u.t_start, u.t_end) for u in utt], dtype=np.float64).reshape(
                 -1, 2
             ),
+            "utt_length": np.array(
+                [np.nan if u.length is None else u.length for u in utt], dtype=np.float64
+            ),
+            "utt_filler": np.array([u.filler for u in utt], dtype=bool),
         }
         for name in (*FLOAT_TRACES, *FLAG_TRACES):
             payload[name] = getattr(self, name)
@@ -335,10 +355,24 @@ class EpisodeLog:
                 if fmt not in _NPZ_FORMATS:
                     raise SessionDataError(f"{path}: unsupported episode log format {fmt}")
                 spans = data["utt_span"]
+                n_utt = len(spans)
+                lengths = (
+                    data["utt_length"] if "utt_length" in data.files else np.full(n_utt, np.nan)
+                )
+                fillers = (
+                    data["utt_filler"] if "utt_filler" in data.files else np.zeros(n_utt, bool)
+                )
                 utterances = tuple(
-                    Utterance(str(ph), str(tx), float(s0), float(s1))
-                    for ph, tx, (s0, s1) in zip(
-                        data["utt_phrase"], data["utt_text"], spans, strict=True
+                    Utterance(
+                        str(ph),
+                        str(tx),
+                        float(s0),
+                        float(s1),
+                        None if np.isnan(ln) else float(ln),
+                        bool(fl),
+                    )
+                    for ph, tx, (s0, s1), ln, fl in zip(
+                        data["utt_phrase"], data["utt_text"], spans, lengths, fillers, strict=True
                     )
                 )
                 traces = {name: data[name] for name in (*FLOAT_TRACES, *FLAG_TRACES)}
@@ -462,6 +496,7 @@ class EpisodeRecorder:
         ret: float,
         *,
         texts: Mapping[str, str] | None = None,
+        fillers: Collection[str] = (),
         t_motion: float | None = None,
         t_speech: float | None = None,
         utterances: Sequence[Any] | None = None,
@@ -473,12 +508,13 @@ class EpisodeRecorder:
         Args:
             ret: Episode return.
             texts: Phrase id -> text, for the utterance labels (empty text when absent).
+            fillers: Ids of the graph's filler vertices (their utterances are marked).
             t_motion: Motion end (s); default: the last sample's ``t_motion`` key, else the time
                 of the first sample with ``motion_done``.
             t_speech: Speech end (s); same defaults with ``t_speech`` / ``speech_done``.
             utterances: The phrases said with exact times, as objects with ``phrase``,
-                ``t_start`` and ``t_end`` (e.g. ``SpeechTimeline.history``); default: read off
-                the recorded ``phrase`` key.
+                ``t_start``, ``t_end`` and optionally ``length`` (a pause vertex's; e.g.
+                ``SpeechTimeline.utterances()``); default: read off the recorded ``phrase`` key.
             phrase_graph: The phrase graph spoken (see :attr:`EpisodeLog.phrase_graph`).
             path: The exercise path drawn in videos, shape ``(m, 3)`` (m).
 
@@ -494,7 +530,14 @@ class EpisodeRecorder:
         texts = texts or {}
         if utterances is not None:
             said = [
-                Utterance(str(u.phrase), texts.get(str(u.phrase), ""), u.t_start, u.t_end)
+                Utterance(
+                    str(u.phrase),
+                    "" if getattr(u, "length", None) is not None else texts.get(str(u.phrase), ""),
+                    u.t_start,
+                    u.t_end,
+                    getattr(u, "length", None),
+                    str(u.phrase) in fillers,
+                )
                 for u in utterances
             ]
         else:

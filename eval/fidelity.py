@@ -59,6 +59,11 @@ __all__ = [
 ]
 
 CONTROLLERS: dict[str, str] = {"ac": "ac", "lcnoap": "lc-noap", "lc": "lc"}
+
+STUDY_GRAPH = "study"
+"""The phrase graph LC speaks here: the study's (``langenv.speech.graph.SHIPPED_GRAPHS``), since
+fidelity compares the simulation with the study's recordings; the product's default graph (with
+pauses and fillers) is measured by ``eval.compare``."""
 """Session-file suffix -> policy that recorded it (``u3_lcnoap.csv`` was run under LC-noAP)."""
 
 COOP_BINS: tuple[float, ...] = (0.0, 0.6, 0.7, 0.8, 0.9, 0.95, 1.0)
@@ -391,7 +396,18 @@ def _simulate(
 
     with tempfile.TemporaryDirectory(prefix="fidelity-") as tmp:
         specs = [
-            Job(pol, user, seed, sess, tmp, False, False, None, user_params=user_params)
+            Job(
+                pol,
+                user,
+                seed,
+                sess,
+                tmp,
+                False,
+                False,
+                None,
+                phrase_graph=STUDY_GRAPH,
+                user_params=user_params,
+            )
             for pol, user, seed, sess in jobs
         ]
         run_jobs(specs, workers)

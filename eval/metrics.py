@@ -16,6 +16,9 @@ column             window       definition
 ``a_mean``         ``speech``   mean audio pace while speech is going on
 ``a_dev``          ``speech``   mean ``|a - 1|`` while speech is going on
 ``a_within_0_1``   ``speech``   share (0-1) of the speech time with ``|a - 1| <= 0.1``
+``pause_share``    ``speech``   share (0-1) of the speech time in silence: pauses between clips
+                                and pause vertices
+``filler_share``   ``speech``   share (0-1) of the speech time spent saying fillers
 ``p_mean``         ``motion``   mean physical pace while motion is going on
 ``coop_mean``      ``motion``   mean cooperation while the robot guides the hand
 ``t_motion``       --           motion completion time (s)
@@ -43,9 +46,11 @@ __all__ = [
     "METRICS",
     "METRIC_COLUMNS",
     "NUMERIC_METRICS",
+    "OPTIONAL_METRICS",
     "MetricSpec",
     "Window",
     "episode_metrics",
+    "speech_shares",
     "time_mean",
     "time_samples",
     "time_weights",
@@ -89,6 +94,8 @@ METRICS: dict[str, MetricSpec] = {
     "a_within_0_1": MetricSpec(
         "|a-1| <= 0.1", "%", 1, "share of speech time at near-natural pace", False
     ),
+    "pause_share": MetricSpec("pauses", "%", 1, "share of speech time in silence (pauses)"),
+    "filler_share": MetricSpec("fillers", "%", 1, "share of speech time saying fillers"),
     "p_mean": MetricSpec("mean p", "", 3, "mean physical pace while moving"),
     "coop_mean": MetricSpec("mean c", "", 3, "mean cooperation while moving"),
     "t_motion": MetricSpec("t_motion", "s", 2, "motion completion time"),
@@ -102,6 +109,9 @@ NUMERIC_METRICS: tuple[str, ...] = tuple(METRICS)
 
 METRIC_COLUMNS: tuple[str, ...] = ("policy", "user", *NUMERIC_METRICS)
 """All columns of a session row (``sessions.csv``), in order."""
+
+OPTIONAL_METRICS: frozenset[str] = frozenset({"pause_share", "filler_share"})
+"""Metrics that tables of older runs lack (langctrl 0.4 and before): read as NaN."""
 
 
 def time_weights(t: np.ndarray) -> np.ndarray:
@@ -210,6 +220,26 @@ def time_samples(log: EpisodeLog, name: str, window: Window, hz: float = 50.0) -
     return values[idx][mask[idx]]
 
 
+def speech_shares(log: EpisodeLog) -> dict[str, float]:
+    """Shares of the speech time (from the log's start to the speech's end) in silence and in
+    fillers, from the log's utterances.
+
+    Returns:
+        ``{"pause_share": ..., "filler_share": ...}``, each in [0, 1]; NaN when the speech took
+        no time or no utterance was recorded.
+    """
+    span = log.t_speech - float(log.t[0])
+    clips = [u for u in log.utterances if not u.is_pause]
+    if span <= 0.0 or not clips:
+        return {"pause_share": float("nan"), "filler_share": float("nan")}
+    said = sum(min(u.t_end, log.t_speech) - u.t_start for u in clips)
+    filler = sum(min(u.t_end, log.t_speech) - u.t_start for u in clips if u.filler)
+    return {
+        "pause_share": min(1.0, max(0.0, 1.0 - said / span)),
+        "filler_share": min(1.0, max(0.0, filler / span)),
+    }
+
+
 def episode_metrics(log: EpisodeLog) -> dict[str, float | str]:
     """The session row of ``log``: ``policy``, ``user`` and the metrics of the module docstring.
 
@@ -235,6 +265,7 @@ def episode_metrics(log: EpisodeLog) -> dict[str, float | str]:
         "a_mean": time_mean(log.a, t, speech),
         "a_dev": time_mean(dev, t, speech),
         "a_within_0_1": time_mean((dev <= A_TOLERANCE + _EPS).astype(np.float64), t, speech),
+        **speech_shares(log),
         "p_mean": time_mean(log.p, t, motion),
         "coop_mean": time_mean(log.cooperation, t, motion),
         "t_motion": log.t_motion,

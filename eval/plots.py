@@ -300,6 +300,8 @@ def _phrase_labels(
     px_per_s = width_px / (x_range[1] - x_range[0])
     char_px = 7.5 * DPI / 72.0 * 0.58  # mean glyph width of a 7.5 pt sans font
     for u in log.utterances:
+        if u.is_pause:
+            continue  # silence: the gap between the spans shows it
         color = colors.setdefault(u.phrase, _PHRASE_COLORS[len(colors) % len(_PHRASE_COLORS)])
         rect = Rectangle(
             (u.t_start, 0.08),

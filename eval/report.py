@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from eval.metrics import A_TOLERANCE, METRIC_COLUMNS, METRICS, NUMERIC_METRICS
+from eval.metrics import A_TOLERANCE, METRIC_COLUMNS, METRICS, NUMERIC_METRICS, OPTIONAL_METRICS
 from eval.stats import MetricSummary, Stat, SummaryTable, median_iqr, summarise
 from langenv.errors import ConfigError, SessionDataError
 
@@ -89,7 +89,7 @@ def _columns(rows: Sequence[Row]) -> list[str]:
         raise ConfigError("rows must not be empty")
     extra: list[str] = []
     for i, row in enumerate(rows):
-        missing = [c for c in METRIC_COLUMNS if c not in row]
+        missing = [c for c in METRIC_COLUMNS if c not in row and c not in OPTIONAL_METRICS]
         if missing:
             raise ConfigError(f"rows[{i}] lacks column(s) {', '.join(missing)}")
         extra.extend(k for k in row if k not in METRIC_COLUMNS and k not in extra)
@@ -140,7 +140,7 @@ def read_sessions_csv(path: str | Path) -> list[dict[str, float | str]]:
         raise SessionDataError(f"{path}: cannot read sessions table: {exc}") from None
     if not raw:
         raise SessionDataError(f"{path}: no session rows")
-    missing = [c for c in METRIC_COLUMNS if c not in header]
+    missing = [c for c in METRIC_COLUMNS if c not in header and c not in OPTIONAL_METRICS]
     if missing:
         raise SessionDataError(f"{path}: lacks column(s) {', '.join(missing)}")
 
@@ -170,6 +170,8 @@ def read_sessions_csv(path: str | Path) -> list[dict[str, float | str]]:
                     ) from None
             else:
                 row[c] = r[c] or ""
+        for c in OPTIONAL_METRICS - set(header):  # a table of an older run
+            row[c] = float("nan")
         rows.append(row)
     return rows
 

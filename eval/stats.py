@@ -19,6 +19,7 @@ from typing import Literal, NamedTuple
 
 import numpy as np
 
+from eval.metrics import OPTIONAL_METRICS
 from langenv.errors import ConfigError
 
 __all__ = [
@@ -240,6 +241,8 @@ class SummaryTable:
 
 def _value(row: Mapping[str, object], metric: str, index: int) -> float:
     if metric not in row:
+        if metric in OPTIONAL_METRICS:
+            return float("nan")  # a table of an older run
         raise ConfigError(f"rows[{index}] lacks metric {metric!r}")
     value = row[metric]
     try:

@@ -5,7 +5,9 @@ PASS/FAIL); when the output is a file or a pipe it is plain text (aligned column
 box characters), so logs stay readable.
 
 The table has one row per policy: the median over users of ``|AM|``, the mean over users of the
-mean ``|EM|`` and of the mean ``|a - 1|`` while speaking, the number of truncated episodes when
+mean ``|EM|`` and of the mean ``|a - 1|`` while speaking, the mean shares of speech time at
+``|a - 1| <= 0.1``, in pauses and in fillers (when the rows have them), the number of truncated
+episodes when
 there are any, and the number of protective stops when ``sessions.csv`` has a column for them
 (the first of :data:`STOP_COLUMNS` present).
 """
@@ -33,6 +35,14 @@ STOP_COLUMNS: tuple[str, ...] = (
 """Columns of ``sessions.csv`` counted as protective stops per episode, in order of preference."""
 
 Row = Mapping[str, Any]
+
+
+_SHARE_COLUMNS = {
+    "a_within_0_1": "|a-1|<=0.1 %",
+    "pause_share": "pauses %",
+    "filler_share": "fillers %",
+}
+"""Shares of speech time shown (mean over users, in percent) when the rows have them."""
 
 
 def _values(rows: Sequence[Row], policy: str, column: str) -> np.ndarray:
@@ -70,6 +80,8 @@ def verdict_table(
     """
     header = ["policy", "users", "median |AM| (s)", "mean |EM| (s)", "mean |a - 1|"]
     columns = set().union(*(r.keys() for r in rows)) if rows else set()
+    shares = [c for c in _SHARE_COLUMNS if c in columns]
+    header += [_SHARE_COLUMNS[c] for c in shares]
     stop_col = next((c for c in STOP_COLUMNS if c in columns), None)
     truncated = "truncated" in columns and any(
         _values(rows, p, "truncated").sum() > 0 for p in policies
@@ -87,6 +99,7 @@ def verdict_table(
             _fmt(_stat(_values(rows, p, "em_mean_abs"), "mean")),
             _fmt(_stat(_values(rows, p, "a_dev"), "mean"), 3),
         ]
+        line += [_fmt(100.0 * _stat(_values(rows, p, c), "mean"), 1) for c in shares]
         if truncated:
             line.append(str(int(np.nansum(_values(rows, p, "truncated")))))
         if stop_col is not None:

@@ -301,7 +301,7 @@ class _Captions:
         self._cache: dict[tuple[int, bool], np.ndarray] = {}
 
     def frame(self, t: float) -> np.ndarray:
-        said = [k for k, u in enumerate(self.log.utterances) if u.t_start <= t]
+        said = [k for k, u in enumerate(self.log.utterances) if u.t_start <= t and not u.is_pause]
         k = said[-1] if said else -1
         speaking = k >= 0 and t < self.log.utterances[k].t_end
         key = (k, speaking)
@@ -412,7 +412,7 @@ def session_audio(
         )
     lib = clips if clips is not None else ClipLibrary()
     graph = PhraseGraph.load(graph_path(ref), clips=lib)
-    audio = render_history(graph, lib, [u.phrase for u in log.utterances], log.t, log.a)
+    audio = render_history(graph, lib, log.utterances, log.t, log.a)
     return audio, lib.sr
 
 

@@ -78,7 +78,11 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     speech duration ``t_x 2^{2u}`` s and the child whose mid-length ``(t_min + t_max)/2`` is
     closest to it is said next (``u = 0`` is the paper's rule). ``choice_mode="scores"``
     (``n_choice = max_children`` of the graph): the valid child with the highest score is said
-    next. An invalid child can never be chosen. An action that is not an array of shape
+    next. An invalid child can never be chosen. A pause vertex's length is chosen within its
+    bounds by the graph's rule (:meth:`~langenv.speech.graph.PhraseGraph.pause_length`: the
+    speech from there ends at a target duration) when the pause is entered and again at every
+    tick while it lasts: with ``choice_mode="target"`` for the same target ``t_x 2^{2u}``
+    (``u = 0`` is the rule with ``t_x``), with ``"scores"`` for ``t_x`` itself. An action that is not an array of shape
     ``(2 + n_choice,)`` of numbers in ``[-1, 1]`` (NaN, inf, ``None``, a string, ...) raises
     :class:`~langenv.errors.ActionError`.
 
@@ -100,14 +104,14 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     | 7 | ``PROGRESS`` | progress ``d`` along the path | ``2d - 1`` |
     | 8 | ``HAND_SPEED`` | hand speed | m/s / 0.25 |
     | 9 | ``PHRASE_SAID`` | share of the current phrase said | ``2f - 1`` |
-    | 10 | ``PHRASE_LEFT`` | rest of the current phrase at ``a = 1`` | s / 40 |
-    | 11 | ``IN_PAUSE`` | in the pause after a phrase | ±1 |
+    | 10 | ``PHRASE_LEFT`` | rest of the current vertex's slot at ``a = 1`` (a pause vertex: of its chosen length) | s / 40 |
+    | 11 | ``IN_PAUSE`` | in silence: the pause after a clip, or a pause vertex | ±1 |
     | 12 | ``SPEECH_DONE`` | speech over | ±1 |
     | 13 | ``MOTION_DONE`` | motion over | ±1 |
     | 14 | ``BOUNDARY_DUE`` | a phrase boundary is due before the next decision | ±1 |
     | 15 | ``ELAPSED`` | elapsed time | s / 60 |
     | 16 + 3k | child ``VALID`` | child ``k`` is a valid next phrase | ±1 |
-    | 17 + 3k | child ``T_MIN`` | its ``t_min`` | s / 40 |
+    | 17 + 3k | child ``T_MIN`` | its ``t_min`` (pauses at their minimum) | s / 40 |
     | 18 + 3k | child ``T_MAX`` | its ``t_max`` | s / 40 |
 
     The scales normalise; they do not bound: a pace outside ``[0.6, 1.4]`` (wider ``paces``) or a
@@ -169,7 +173,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     |---|---|---|
     | ``users`` | ``"synthetic"`` | ``"synthetic"``, ``"replay"`` (with ``session``), a :class:`~langenv.users.User` or a callable ``f(t, hand_velocity, tangent) -> (3,)`` N |
     | ``session`` | ``None`` | session CSV (``t, cooperation``) for ``users="replay"`` |
-    | ``phrase_graph`` | LC graph | YAML path or one of ``"lc"``, ``"lc-noap"``, ``"ac"`` |
+    | ``phrase_graph`` | ``"lc"`` | YAML path or a shipped graph: ``"default"`` (= ``"lc"``, LC's graph with pauses and fillers), ``"study"`` (the study's LC graph), ``"lc-noap"``, ``"ac"`` |
     | ``decision_hz`` | 25 | agent decisions per second; must divide 500 |
     | ``choice_mode`` | ``"target"`` | next-phrase action design: ``"target"`` or ``"scores"`` |
     | ``w_em``, ``w_pace``, ``w_am`` | 1, 1, 1 | reward weights |
@@ -288,6 +292,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self.observation_space = spaces.Box(-1.0, 1.0, (size,), np.float32)
         self._obs = np.zeros(size, np.float32)
         self._choice_u: list[float] = [0.0] * n_choice
+        self._pause_factor = 1.0  # the pause rule's target over t_x (target mode: 2**(2u))
         self._renderer: Any = None
         self.time = 0.0
         self.t_a = 0.0
@@ -323,6 +328,9 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         p_cmd = command_from_action(values[0], lim.p_max)
         a_cmd = command_from_action(values[1], lim.a_max)
         self._choice_u = values[2:]
+        self._pause_factor = (
+            2.0 ** (CHOICE_OCTAVES * float(values[2])) if self.choice_mode == "target" else 1.0
+        )
 
         em_int = pace_int = 0.0
         self._max_speed = 0.0
@@ -391,6 +399,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         done, last = 0, None
         if n and self._steps is not None:
             self._choice_u = [0.0] * len(self._choice_u)  # the law's phrase rule
+            self._pause_factor = 1.0
             done, answer, code, em_int, pace_int = pacer.run(
                 self._steps, self._law_array(law), rows, rewards
             )
@@ -513,7 +522,8 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             self._terminated = True
             return 0.0, 0.0
         if not speech.done:
-            speech.step(self.dt, a, self._choose, motion.t_x)
+            t_x = motion.t_x
+            speech.step(self.dt, a, self._choose, t_x, t_x * self._pause_factor)
         self.time += self.dt
         self._coop_hist[self._coop_i % self._coop_hist.size] = motion.cooperation
         self._coop_i += 1

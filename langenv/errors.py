@@ -23,6 +23,10 @@ class PhraseGraphError(LangEnvError, ValueError):
     """A phrase graph file is malformed (names the file and the phrase)."""
 
 
+class ScriptError(PhraseGraphError):
+    """A plain-text speech script is malformed (names the file, line and column)."""
+
+
 class AudioError(LangEnvError, OSError):
     """A phrase clip cannot be read, synthesised or written (names the file)."""
 

@@ -17,7 +17,7 @@ clips):
 | 8 | ``HAND_SPEED`` | hand speed (m/s) | ``v / 0.25`` | :func:`hand_speed` |
 | 9 | ``PHRASE_SAID`` | share of the current phrase said | ``2f - 1`` | :func:`fraction` |
 | 10 | ``PHRASE_LEFT`` | rest of the phrase at ``a = 1`` (s) | ``t / 40`` | :func:`seconds` |
-| 11 | ``IN_PAUSE`` | in the pause after a phrase | ±1 | :func:`flag` |
+| 11 | ``IN_PAUSE`` | in silence: the pause after a clip, or a pause vertex | ±1 | :func:`flag` |
 | 12 | ``SPEECH_DONE`` | speech over | ±1 | :func:`flag` |
 | 13 | ``MOTION_DONE`` | motion over | ±1 | :func:`flag` |
 | 14 | ``BOUNDARY_DUE`` | a phrase boundary is due before the next decision | ±1 | :func:`flag` |

@@ -47,7 +47,12 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     )
     p.add_argument("--policy", default="lc", help="lc (default), ac, lc-noap, lc-em, ppo:PATH...")
     p.add_argument(
-        "--phrase-graph", default=None, help="phrase graph YAML (default: the policy's own)"
+        "--graph",
+        "--phrase-graph",
+        dest="phrase_graph",
+        default=None,
+        help="phrase graph: a YAML file or a shipped graph such as 'study' (default: the "
+        "policy's own)",
     )
     p.add_argument(
         "--user",

@@ -374,6 +374,19 @@ def graph_digest(phrase_graph: str | Path) -> str:
     return file_sha256(graph_path(phrase_graph))
 
 
+def _shipped_graph_of(digest: str | None) -> str | None:
+    """The shipped graph whose YAML has this digest (a model trained on the shipped graph of its
+    day records only the digest: the study's graph before the default graph existed)."""
+    if not digest:
+        return None
+    from langenv.speech.graph import SHIPPED_GRAPHS
+
+    for name in ("lc", *sorted(SHIPPED_GRAPHS)):
+        if graph_digest(name) == digest:
+            return name
+    return None
+
+
 def model_files(path: str | Path) -> tuple[Path, Path, Path]:
     """The three files of a saved model: ``(STEM.zip, STEM_vecnormalize.pkl, STEM_config.yaml)``.
 
@@ -449,9 +462,9 @@ class PPOPolicy:
                 f"{norm_path}: observation normaliser does not match the model's {n_obs} inputs"
             )
         hz = int(env_kwargs.pop("decision_hz", spec.decision_hz))
-        graph = str(env_kwargs.pop("phrase_graph", "lc"))
-        env_kwargs.pop("max_episode_steps", None)
         digest = config.get("phrase_graph_sha256")
+        graph = str(env_kwargs.pop("phrase_graph", None) or _shipped_graph_of(digest) or "lc")
+        env_kwargs.pop("max_episode_steps", None)
         if digest and digest != graph_digest(graph):
             warnings.warn(
                 f"{zip_path}: the phrase graph {graph!r} changed since this model was trained; "

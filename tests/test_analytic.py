@@ -138,8 +138,9 @@ def test_finishing_phase_ends_the_other_channel_as_fast_as_allowed() -> None:
 def test_terminal_phase_ends_speech_and_motion_together(hz: int, push: float) -> None:
     """Closed loop: with the terminal phase |AM| is a few ms, well below LC's on the same user.
 
-    On the plant fitted to the recordings (the hand brakes to rest at the end) it measures 3-9 ms
-    against LC's 250-270 ms: within a quarter of a 25 Hz decision step."""
+    On the plant fitted to the recordings (the hand brakes to rest at the end) and the study's
+    phrase graph it measures 3-9 ms against LC's 250-270 ms: within a quarter of a 25 Hz
+    decision step. (On the default graph LC's own final pause already ends together.)"""
     import gymnasium as gym
 
     results = {}
@@ -147,6 +148,7 @@ def test_terminal_phase_ends_speech_and_motion_together(hz: int, push: float) ->
         pol = make_analytic(name, decision_hz=hz)
         env = gym.make(
             langenv.ENV_ID,
+            phrase_graph="study",
             decision_hz=hz,
             max_episode_steps=60 * hz,
             users=lambda t, v, b, push=push: push * b if 4.0 < t < 7.0 else 0.0 * b,

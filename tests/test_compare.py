@@ -28,6 +28,9 @@ def test_smoke_run_writes_every_output(tmp_path: Path, capsys: pytest.CaptureFix
     assert [r["policy"] for r in rows] == ["ac", "lc"]
     for col in ("am", "abs_am", "em_mean_abs", "a_mean", "a_dev", "p_mean", "coop_mean"):
         assert col in rows[0]
+    for col in ("a_within_0_1", "pause_share", "filler_share"):  # shares of the speech time
+        assert 0.0 <= float(rows[1][col]) <= 1.0
+    assert "pauses %" in said and "fillers %" in said and "|a-1|<=0.1 %" in said
     assert float(rows[0]["a_dev"]) == pytest.approx(0.0)  # AC never changes its pace
     assert (out / "summary.md").read_text().startswith("# ")
     assert (out / "summary.png").stat().st_size > 10_000
@@ -95,6 +98,24 @@ def test_replay_sessions_one_episode_per_csv(tmp_path: Path) -> None:
     assert rc == 0
     rows = list(csv.DictReader((out / "sessions.csv").open()))
     assert [(r["policy"], r["user"]) for r in rows] == [("lc", "u2_lc")]
+
+
+def test_lc_speaks_the_default_graph_unless_told_the_study_s(tmp_path: Path) -> None:
+    from eval.episode import EpisodeLog
+
+    graphs = {}
+    for name, extra in (("default", []), ("study", ["--graph", "study"])):
+        out = tmp_path / name
+        args = ["--policies", "lc", "--users", "synthetic:1", "--seed", "4", "--out", str(out)]
+        rc = main([*args, *extra, "--workers", "1", "--no-audio", "--no-figures"])
+        assert rc == 0
+        log = EpisodeLog.load_npz(out / "sessions" / "lc_s4.npz")
+        graphs[name] = (log.phrase_graph, {u.phrase for u in log.utterances})
+        rows = list(csv.DictReader((out / "sessions.csv").open()))
+        assert float(rows[0]["pause_share"]) > 0.0
+    assert graphs["default"][0] == "lc" and graphs["study"][0] == "study"
+    assert "intro" in graphs["study"][1] and "intro" not in graphs["default"][1]
+    assert any(u.startswith("pause_") for u in graphs["default"][1])
 
 
 def test_policy_names_are_distinct_for_several_learned_models() -> None:

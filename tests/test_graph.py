@@ -134,10 +134,10 @@ def test_choose_on_terminal_or_unknown_phrase_raises() -> None:
 
 
 # ---------------------------------------------------------------- the shipped graphs
-def test_lc_paths_span_the_study_s_sessions_and_branch_along_the_exercise(
+def test_study_paths_span_the_study_s_sessions_and_branch_along_the_exercise(
     clips: ClipLibrary,
 ) -> None:
-    g = PhraseGraph.load(default_graph_path("lc"), clips)
+    g = PhraseGraph.load(default_graph_path("study"), clips)
     lengths = [g.path_length(p) for p in g.paths()]
     # from the study's speech at the start of a session (11.7 s) to twice that
     assert 11.0 <= min(lengths) <= 12.0
@@ -182,8 +182,8 @@ def test_lc_noap_and_ac_say_one_wording_of_the_study_s_length(clips: ClipLibrary
         assert g.t_min(g.start) == pytest.approx(STUDY_SPEECH_AT_START[name], abs=0.5)
 
 
-def test_lc_plans_the_study_s_speech_length_at_the_start(clips: ClipLibrary) -> None:
-    g = PhraseGraph.load(default_graph_path("lc"), clips)
+def test_study_graph_plans_the_study_s_speech_length_at_the_start(clips: ClipLibrary) -> None:
+    g = PhraseGraph.load(default_graph_path("study"), clips)
     planned = g.eta(g.start, g.slot(g.start), NOMINAL_T_X)
     assert planned == pytest.approx(STUDY_SPEECH_AT_START["lc"], abs=0.5)
     # it can stretch a slowed session to well beyond twice its nominal length of speech
@@ -191,7 +191,8 @@ def test_lc_plans_the_study_s_speech_length_at_the_start(clips: ClipLibrary) -> 
 
 
 def test_default_graph_path_rejects_unknown_names() -> None:
-    assert default_graph_path("lc") == GRAPHS_DIR / "lc.yaml"
+    assert default_graph_path("study") == GRAPHS_DIR / "study.yaml"
+    assert default_graph_path("lc") == default_graph_path("default") == GRAPHS_DIR / "default.yaml"
     with pytest.raises(Exception, match="no shipped phrase graph named 'nope'"):
         default_graph_path("nope")
 

@@ -116,7 +116,9 @@ def test_headless_loop_keeps_real_time_and_streams_the_offline_rendering(tmp_pat
     assert live.size / sr == pytest.approx(SECONDS - DEFAULT_LAG, abs=0.05)
     t, a = loop.stream.trace()
     assert a.min() < 0.95  # LC changed the audio pace while it spoke (the user resisted)
-    offline = render_history(base.graph, base.clips, base.speech.path, t, a)
+    offline = render_history(
+        base.graph, base.clips, base.speech.path, t, a, pause_lengths=base.speech.pause_lengths
+    )
     n = live.size
     assert np.abs(live).max() > 0.05
     np.testing.assert_allclose(live, offline[:n], atol=2.0 / 32768)  # 16-bit PCM

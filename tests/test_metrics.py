@@ -365,3 +365,26 @@ def test_time_mean_is_a_weighted_average(
     assert time_mean(xs, shift + scale * t) == pytest.approx(m, rel=1e-6, abs=1e-6)
     # a constant averages to itself
     assert time_mean(np.full_like(xs, 3.25), t) == pytest.approx(3.25)
+
+
+def test_pause_and_filler_shares_of_the_speech_time(tmp_path: Path) -> None:
+    said = (
+        Utterance("intro", "hello", 0.0, 3.0),
+        Utterance("wait", "", 3.0, 5.0, length=1.8),  # a pause vertex
+        Utterance("okay", "Okay.", 5.5, 6.0, filler=True),
+        Utterance("done", "bye", 6.5, 8.0),
+    )
+    log = hand_log(utterances=said)
+    row = episode_metrics(log)
+    # speech 0-8 s: clips 3 + 0.5 + 1.5 = 5 s, silence 3 s, filler 0.5 s
+    assert row["pause_share"] == pytest.approx(3.0 / 8.0)
+    assert row["filler_share"] == pytest.approx(0.5 / 8.0)
+    assert list(row) == list(METRIC_COLUMNS)
+    back = EpisodeLog.load_npz(log.save_npz(tmp_path / "x.npz"))
+    assert back.utterances == said and back.utterances[1].is_pause
+    # the hand log's default speech: 3 s + 4.5 s of clips, no filler
+    plain = episode_metrics(hand_log())
+    assert plain["pause_share"] == pytest.approx(0.5 / 8.0)
+    assert plain["filler_share"] == 0.0
+    with pytest.raises(ConfigError, match=r"Utterance\.length must be finite and >= 0"):
+        Utterance("wait", "", 3.0, 5.0, length=-1.0)

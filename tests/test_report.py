@@ -48,6 +48,8 @@ def synthetic_rows(
                     "a_mean": 1.0 - a_dev,
                     "a_dev": a_dev,
                     "a_within_0_1": min(1.0, max(0.0, within[p] + rng.normal(0.0, 0.05))),
+                    "pause_share": rng.uniform(0.2, 0.4),
+                    "filler_share": 0.0 if p != "lc" else rng.uniform(0.0, 0.05),
                     "p_mean": 1.0 if p == "ac" else rng.uniform(0.9, 1.1),
                     "coop_mean": rng.uniform(0.7, 1.0),
                     "t_motion": t_motion,
@@ -211,3 +213,17 @@ def test_cli_regenerates_summary(tmp_path: Path, capsys: pytest.CaptureFixture[s
     text = (tmp_path / "summary.md").read_text()
     assert "| metric | LC (n=4) | AC (n=4) |" in text
     assert "summary.md" in capsys.readouterr().out
+
+
+def test_a_table_of_an_older_run_without_the_speech_shares_reads_as_nan(tmp_path: Path) -> None:
+    rows = synthetic_rows(np.random.default_rng(1), n_users=2)
+    for r in rows:
+        del r["pause_share"], r["filler_share"]
+    path = write_sessions_csv(rows, tmp_path / "sessions.csv")
+    old = tmp_path / "old.csv"
+    lines = path.read_text().splitlines()
+    header = lines[0].split(",")
+    keep = [i for i, c in enumerate(header) if c not in ("pause_share", "filler_share")]
+    old.write_text("\n".join(",".join(line.split(",")[i] for i in keep) for line in lines) + "\n")
+    back = read_sessions_csv(old)
+    assert all(math.isnan(float(r["pause_share"])) for r in back)

@@ -58,10 +58,13 @@ def write_trace(path: Path, t: np.ndarray, a: np.ndarray, t_x: np.ndarray | None
 
 
 def test_check_prints_one_line(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["check", str(default_graph_path("lc"))]) == 0
+    assert main(["check", str(default_graph_path("study"))]) == 0
     out = capsys.readouterr().out.splitlines()
     assert len(out) == 1
-    assert "16 phrases" in out[0] and "paths" in out[0] and "lc.yaml" in out[0]
+    assert "16 phrases" in out[0] and "paths" in out[0] and "study.yaml" in out[0]
+    assert main(["check", "default"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert "fillers" in out[0] and "pauses" in out[0] and "default.yaml" in out[0]
 
 
 def test_check_accepts_shipped_names_and_lists_paths(capsys: pytest.CaptureFixture[str]) -> None:
@@ -139,7 +142,7 @@ def test_module_entry_point_runs() -> None:
 
 
 def test_plan_follows_rule_or_shortest_path() -> None:
-    g = PhraseGraph.load(default_graph_path("lc"))
+    g = PhraseGraph.load(default_graph_path("study"))
     t = np.linspace(0.0, 30.0, 1501)
     plan = plan_speech(g, t, np.ones_like(t))
     assert tuple(u.phrase for u in plan) == g.shortest_path()
@@ -151,7 +154,7 @@ def test_plan_follows_rule_or_shortest_path() -> None:
 
 
 def test_render_history_validates_its_arguments() -> None:
-    g = PhraseGraph.load(default_graph_path("lc"))
+    g = PhraseGraph.load(default_graph_path("study"))
     clips = ClipLibrary()
     t, a = np.array([0.0, 1.0]), np.ones(2)
     with pytest.raises(ConfigError, match=r"history\[0\]"):
@@ -180,13 +183,13 @@ def test_render_duration_equals_the_trace(
     t_x = np.maximum(0.0, 14.0 - 0.9 * t)
     trace = write_trace(tmp_path / "trace.csv", t, a, t_x)
     out = tmp_path / "speech.wav"
-    assert main(["render", "lc", str(trace), str(out)]) == 0
+    assert main(["render", "study", str(trace), str(out)]) == 0
     assert "wrote" in capsys.readouterr().out
     y, sr = sf.read(out)
     assert y.ndim == 1
     assert abs(y.size / sr - (t[-1] - t[0])) < 0.02
     # the speech ends where the plan (∫ a dt over clips and pauses) says it does
-    plan = plan_speech(PhraseGraph.load(default_graph_path("lc")), t, a, t_x)
+    plan = plan_speech(PhraseGraph.load(default_graph_path("study")), t, a, t_x)
     start, end = sound_span(y, sr)
     assert start < 0.05
     assert abs(end - plan[-1].t_end) < 0.06
@@ -212,11 +215,11 @@ def test_render_a_recorded_session(tmp_path: Path) -> None:
     pytest.importorskip("langenv.speech.vocoder")
     session = SESSIONS / "u1_lc.csv"
     out = tmp_path / "u1.flac"
-    assert main(["render", "lc", str(session), str(out)]) == 0
+    assert main(["render", "study", str(session), str(out)]) == 0
     y, sr = sf.read(out)
     data = np.genfromtxt(session, delimiter=",", names=True)
     plan = plan_speech(
-        PhraseGraph.load(default_graph_path("lc")), data["t"], data["audio_pace"], data["t_x"]
+        PhraseGraph.load(default_graph_path("study")), data["t"], data["audio_pace"], data["t_x"]
     )
     expected = max(float(data["t"][-1] - data["t"][0]), plan[-1].t_end - float(data["t"][0]))
     assert abs(y.size / sr - expected) < 0.02

@@ -34,9 +34,21 @@ def rows(stops: str | None = None) -> list[dict[str, float | str]]:
 
 def test_table_values_per_policy() -> None:
     header, body = verdict_table(rows(), ["ac", "lc-noap", "lc"])
-    assert header == ["policy", "users", "median |AM| (s)", "mean |EM| (s)", "mean |a - 1|"]
-    assert body[0] == ["AC", "4", "3.15", "1.50", "0.000"]
-    assert body[2][0] == "LC" and body[2][2] == "0.35"
+    assert header == [
+        "policy", "users", "median |AM| (s)", "mean |EM| (s)", "mean |a - 1|",
+        "|a-1|<=0.1 %",
+    ]  # fmt: skip
+    assert body[0] == ["AC", "4", "3.15", "1.50", "0.000", "20.0"]
+    assert body[2][0] == "LC" and body[2][2] == "0.35" and body[2][5] == "90.0"
+
+
+def test_shares_of_speech_time_appear_when_the_table_has_them() -> None:
+    table = rows()
+    for r in table:
+        r["pause_share"], r["filler_share"] = 0.25, 0.05
+    header, body = verdict_table(table, ["ac", "lc-noap", "lc"])
+    assert header[-2:] == ["pauses %", "fillers %"]
+    assert body[2][-2:] == ["25.0", "5.0"]
 
 
 @pytest.mark.parametrize("column", STOP_COLUMNS)

@@ -32,22 +32,50 @@ E_P, E_A, E_PDOT, E_TIME, E_TA, E_EM, E_PACE, E_VMAX = 0, 1, 2, 3, 4, 5, 6, 7
 E_POS, E_ST, E_SA, E_MARK, E_U, E_COOPI, E_F = 8, 9, 10, 11, 12, 13, 14
 # settings
 E_KP, E_KA, E_PMIN, E_PMAX, E_AMIN, E_AMAX, E_DT, E_USTEP = 17, 18, 19, 20, 21, 22, 23, 24
-N_ENV = 25
+E_SLOT = 25  # the current vertex's slot length (a pause vertex: its length as planned now)
+E_TFAC = 26  # the pause rule's target over t_x (the target-duration action's factor)
+N_ENV = 27
 
 # run()'s answers
 R_DONE, R_PYTHON, R_CONTROL, R_STOP, R_OVER = 0, 1, 2, 3, 4
 
 
 def pack_graph(graph: Any, order: tuple[str, ...]) -> tuple[np.ndarray, ...]:
-    """A phrase graph as arrays for :func:`eta`: ``mid``, ``slot`` (by index in ``order``), the
+    """A phrase graph as arrays for :func:`eta`: ``mid`` (n), ``slot`` (n, 3: the nominal slot,
+    its minimum and maximum, which differ for a pause only), by index in ``order``, the
     children's offsets ``kid_ptr`` (n + 1) and indexes ``kids``, in the graph's order."""
     index = {u: i for i, u in enumerate(order)}
     mid = np.array([graph._mid[u] for u in order])
-    slot = np.array([graph.slot(u) for u in order])
+    slot = np.array([(graph.slot(u), *graph.slot_range(u)) for u in order]).reshape(-1, 3)
     kids = [index[v] for u in order for v in graph.children(u)]
     counts = [len(graph.children(u)) for u in order]
     kid_ptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     return mid, slot, kid_ptr, np.array(kids, dtype=np.int64)
+
+
+@jit
+def _fill(
+    v: int, left: float, mid: np.ndarray, slot: np.ndarray, kid_ptr: np.ndarray, kids: np.ndarray
+) -> float:
+    """:meth:`PhraseGraph.pause_length <langenv.speech.graph.PhraseGraph.pause_length>` of the
+    pause of index ``v`` (the same operations in the same order)."""
+    y = left - slot[v, 0]
+    rest = 0.0
+    lo, hi = kid_ptr[v], kid_ptr[v + 1]
+    while hi > lo:
+        w = kids[lo]
+        err = abs(y - mid[w])
+        for j in range(lo + 1, hi):
+            x = kids[j]
+            e = abs(y - mid[x])
+            if e < err:
+                w, err = x, e
+        rest += slot[w, 0]
+        y -= slot[w, 0]
+        lo, hi = kid_ptr[w], kid_ptr[w + 1]
+    length = left - rest
+    s_lo, s_hi = slot[v, 1], slot[v, 2]
+    return s_lo if length < s_lo else (s_hi if length > s_hi else length)
 
 
 @jit
@@ -60,7 +88,7 @@ def eta(
     kid_ptr: np.ndarray,
     kids: np.ndarray,
 ) -> float:
-    """:meth:`PhraseGraph.eta <langenv.speech.graph.PhraseGraph.eta>` of phrase index ``u``."""
+    """:meth:`PhraseGraph.eta <langenv.speech.graph.PhraseGraph.eta>` of vertex index ``u``."""
     total = remaining
     left = t_x - remaining
     lo, hi = kid_ptr[u], kid_ptr[u + 1]
@@ -72,8 +100,11 @@ def eta(
             e = abs(left - mid[w])
             if e < err:
                 v, err = w, e
-        total += slot[v]
-        left -= slot[v]
+        length = (
+            slot[v, 0] if slot[v, 1] == slot[v, 2] else _fill(v, left, mid, slot, kid_ptr, kids)
+        )
+        total += length
+        left -= length
         lo, hi = kid_ptr[v], kid_ptr[v + 1]
     return total
 
@@ -180,7 +211,12 @@ def run(
             es[E_SA] = a
             es[E_POS] += adv
             es[E_ST] += dt
-            t_a = eta(u, slot[u] - es[E_POS], t_x, mid, slot, kid_ptr, kids)
+            pos = es[E_POS]
+            if slot[u, 1] < slot[u, 2]:  # an open pause: its length planned again
+                length = _fill(u, pos + t_x * es[E_TFAC], mid, slot, kid_ptr, kids)
+                es[E_SLOT] = length if length > pos else pos
+                es[E_MARK] = es[E_SLOT]
+            t_a = eta(u, es[E_SLOT] - pos, t_x, mid, slot, kid_ptr, kids)
         es[E_TIME] = t + dt
         ci = int(es[E_COOPI])
         hist[ci % size] = ws[tk.S_C]
@@ -257,6 +293,8 @@ class CompiledSteps:
             -1.0 if u is None else self.index[u], env._coop_i,
         )  # fmt: skip
         es[E_USTEP] = step
+        es[E_SLOT] = speech.slot_length
+        es[E_TFAC] = env._pause_factor
         t = env.motion._compiled
         return (
             t.ws, t.path, t.aw, t.ai, t.jac, t.xpos, t.xmat, t.qpos, t.qvel, t.ctrl, t.qfrc,
@@ -270,9 +308,12 @@ class CompiledSteps:
         paces, speech, motion = env.paces, env.speech, env.motion
         (
             paces.p, paces.a, paces.p_dot, env.time, env.t_a, em_int, pace_int,
-            env._max_speed, speech._pos, speech._t, speech._a, _, _, coop_i,
+            env._max_speed, speech._pos, speech._t, speech._a, mark, _, coop_i,
         ) = es[E_P : E_COOPI + 1].tolist()  # fmt: skip
         env._coop_i = int(coop_i)
+        if speech._elastic:  # an open pause's length, planned again at each tick
+            speech._mark = mark
+            speech._cur_slot = float(es[E_SLOT])
         motion.f_user = es[E_F : E_F + 3].copy()
         motion._compiled.sync()
         return em_int, pace_int

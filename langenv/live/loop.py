@@ -177,7 +177,11 @@ class RealTimeLoop:
     def _record(self) -> None:
         speech = self.base.speech
         self.stream.record(
-            float(self.info["time"]), float(self.info["a"]), speech.path, speech.done
+            float(self.info["time"]),
+            float(self.info["a"]),
+            speech.path,
+            speech.done,
+            speech.pause_lengths,
         )
 
     def _step(self) -> None:

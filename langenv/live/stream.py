@@ -2,7 +2,8 @@
 
 A :class:`SpeechStream` follows one session. As the session's :class:`SpeechTimeline` starts a
 phrase, its clip is pushed to a :class:`~langenv.speech.vocoder.VariableRateVocoder`, followed by
-the graph's pause when the phrase has a successor; the loop records the audio pace of every
+the graph's pause when the phrase has a successor (a pause vertex: its silence, pushed as it
+elapses, since its length is chosen as it goes); the loop records the audio pace of every
 step. Output sample ``j`` (at ``j / sr`` s into the session) is rendered in blocks of
 :data:`BLOCK` samples at the session's audio pace at the middle of its block (linear between the
 recorded steps), exactly as :func:`langenv.speech.render.render_history` renders a finished
@@ -68,15 +69,26 @@ class SpeechStream:
         self._voc = VariableRateVocoder(self.sr)
         self._gap = np.zeros(round(graph.pause * self.sr), np.float32)
         self._pushed = 0  # phrases of the timeline's path pushed so far
+        self._pauses_pushed = 0  # pause vertices among them
+        self._silence = 0  # samples of the current pause vertex pushed so far
         self._t = np.zeros(1024)
         self._a = np.ones(1024)
         self._n = 0
         self._k = 0  # trace interval of the last pace looked up
 
     # ------------------------------------------------------------------ input
-    def record(self, t: float, a: float, path: tuple[str, ...], speech_done: bool) -> None:
-        """The session at its time ``t`` (s, increasing): audio pace ``a``, phrases started so far
-        (the timeline's ``path``) and whether the speech is over."""
+    def record(
+        self,
+        t: float,
+        a: float,
+        path: tuple[str, ...],
+        speech_done: bool,
+        pause_lengths: tuple[float, ...] = (),
+    ) -> None:
+        """The session at its time ``t`` (s, increasing): audio pace ``a``, vertices started so
+        far (the timeline's ``path``), whether the speech is over, and the lengths of the pause
+        vertices of ``path`` (the timeline's ``pause_lengths``: a pause that lasts counts with
+        what has elapsed of it, and its silence is pushed as it elapses)."""
         if self._n and t <= self._t[self._n - 1]:
             last = self._t[self._n - 1]
             raise ConfigError(f"SpeechStream.record: t must increase, got {t} after {last}")
@@ -87,9 +99,25 @@ class SpeechStream:
         self._n += 1
         while self._pushed < len(path):
             phrase = path[self._pushed]
-            self._voc.push(self.clips.clip(self.graph.phrases[phrase]))
-            if self.graph.children(phrase) and self._gap.size:
-                self._voc.push(self._gap)
+            if phrase in self.graph.pauses:  # a pause vertex: its silence, as it elapses
+                k = self._pauses_pushed
+                if k >= len(pause_lengths):
+                    raise ConfigError(
+                        f"SpeechStream.record: pause {phrase!r} entered without its length "
+                        "(pass the timeline's pause_lengths)"
+                    )
+                want = round(pause_lengths[k] * self.sr)
+                if want > self._silence:
+                    self._voc.push(np.zeros(want - self._silence, np.float32))
+                    self._silence = want
+                if self._pushed + 1 == len(path):
+                    break  # the pause goes on
+                self._pauses_pushed += 1
+                self._silence = 0
+            else:
+                self._voc.push(self.clips.clip(self.graph.phrases[phrase]))
+                if self.graph.children(phrase) and self._gap.size:
+                    self._voc.push(self._gap)
             self._pushed += 1
         if speech_done and not self._voc.finished:
             self._voc.finish()

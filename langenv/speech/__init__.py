@@ -1,26 +1,35 @@
 """Speech: phrase graphs, phrase audio, the variable-rate phase vocoder and the speech timeline.
 
-* :class:`PhraseGraph` (``graph.py``): the YAML phrase DAG, validated, with ``t_min``/``t_max``,
-  the paper's choice rule and the speech ETC ``t_a``;
+* :class:`PhraseGraph` (``graph.py``): the YAML phrase DAG of phrases, fillers and pauses,
+  validated, with ``t_min``/``t_max``, the paper's choice rule, the pause rule and the speech ETC
+  ``t_a``; :data:`SHIPPED_GRAPHS` names the shipped graphs;
+* :func:`author` (``author.py``): phrase graphs written from plain-text scripts;
+  :func:`coverage` (``coverage.py``): the motion durations a graph can end together with;
 * :class:`ClipLibrary` (``audio.py``): phrase audio from recorded files or eSpeak NG, cached;
 * :class:`SpeechTimeline` (``timeline.py``): playback position at audio pace ``a``;
 * :func:`render_speech`, :func:`render_history` (``render.py``): audio of a session's speech
   through the variable-rate phase vocoder (``vocoder.py``);
-* ``python -m langenv.speech check|render`` (``__main__.py``).
+* ``python -m langenv.speech check|author|render`` (``__main__.py``).
 """
 
 from langenv.speech.audio import ClipLibrary
-from langenv.speech.graph import Phrase, PhraseGraph, default_graph_path
+from langenv.speech.author import author, parse_script
+from langenv.speech.coverage import coverage
+from langenv.speech.graph import SHIPPED_GRAPHS, Phrase, PhraseGraph, default_graph_path
 from langenv.speech.render import plan_speech, render_history, render_speech
 from langenv.speech.timeline import SpeechTimeline, Utterance
 
 __all__ = [
+    "SHIPPED_GRAPHS",
     "ClipLibrary",
     "Phrase",
     "PhraseGraph",
     "SpeechTimeline",
     "Utterance",
+    "author",
+    "coverage",
     "default_graph_path",
+    "parse_script",
     "plan_speech",
     "render_history",
     "render_speech",

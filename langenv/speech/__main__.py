@@ -1,6 +1,8 @@
-"""Command line: check a phrase graph, or render a session's speech to a sound file.
+"""Command line: check a phrase graph, write one from a plain-text script, or render a
+session's speech to a sound file.
 
-    python -m langenv.speech check GRAPH.yaml
+    python -m langenv.speech check GRAPH.yaml [--coverage]
+    python -m langenv.speech author SCRIPT.txt --out GRAPH.yaml
     python -m langenv.speech render GRAPH.yaml TRACE.csv OUT.wav
 
 Exit status 0 on success, 1 on a bad graph, trace or audio (messages on stderr), 2 on bad usage.
@@ -21,6 +23,8 @@ import numpy as np
 
 from langenv.errors import LangEnvError, SessionDataError
 from langenv.speech.audio import DEFAULT_RATE, DEFAULT_SR, DEFAULT_VOICE, ClipLibrary
+from langenv.speech.author import author
+from langenv.speech.coverage import coverage, format_coverage
 from langenv.speech.graph import SHIPPED_GRAPHS, PhraseGraph, graph_path
 from langenv.speech.render import MAX_AUDIO_PACE, MIN_AUDIO_PACE
 from langenv.validation import check_time_axis
@@ -56,7 +60,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     g.add_argument("--no-cache", action="store_true", help="do not read or write the TTS cache")
 
-    sub = p.add_subparsers(dest="command", required=True, metavar="{check,render}")
+    sub = p.add_subparsers(dest="command", required=True, metavar="{check,author,render}")
     c = sub.add_parser(
         "check",
         parents=[tts],
@@ -67,6 +71,25 @@ def _parser() -> argparse.ArgumentParser:
     )
     c.add_argument("graph", metavar="GRAPH", help="phrase graph YAML file or shipped graph name")
     c.add_argument("--paths", action="store_true", help="also list every path with its length")
+    c.add_argument(
+        "--coverage",
+        action="store_true",
+        help="also print the motion durations the speech can end together with",
+    )
+
+    w = sub.add_parser(
+        "author",
+        parents=[tts],
+        help="write a phrase graph from a plain-text script",
+        description="Write the phrase graph of a plain-text script (one line per step; "
+        "alternatives separated by '|', optional words in [...], pauses as (pause MIN-MAX), "
+        "fillers as {okay|so}; see docs/speech.md), synthesise and time every clip, validate "
+        "it, and print its coverage: the motion durations the speech can end together with at "
+        "|a - 1| <= 0.1 and within the pace limits. Nothing is written unless the graph is valid.",
+    )
+    w.add_argument("script", metavar="SCRIPT", type=Path, help="plain-text script")
+    w.add_argument("--out", required=True, type=Path, help="phrase graph YAML to write")
+    w.add_argument("--overwrite", action="store_true", help="replace an existing OUT")
 
     r = sub.add_parser(
         "render",
@@ -165,22 +188,40 @@ def _clips(args: argparse.Namespace) -> ClipLibrary:
 
 def _check(args: argparse.Namespace) -> int:
     graph = PhraseGraph.load(_graph_path(args.graph), _clips(args))
-    start = graph.start
-    unreachable = sorted(set(graph.phrases) - graph.reachable())
-    if unreachable:
-        print(
-            f"warning: {graph.path}: phrases never said (not reachable from {start!r}): "
-            f"{unreachable}",
-            file=sys.stderr,
-        )
     if args.paths:
         for path in graph.paths(limit=10_000):
-            print(f"{graph.path_length(path):6.2f} s  {' > '.join(path)}")
-    print(
-        f"{graph.path}: OK, {_n(len(graph), 'phrase')}, {_n(graph.count_paths(), 'path')}, speech "
+            lo, hi = graph.path_range(path)
+            span = f"{lo:6.2f} s" if lo == hi else f"{lo:6.2f}-{hi:.2f} s"
+            print(f"{span}  {' > '.join(path)}")
+    print(_summary(graph))
+    if args.coverage:
+        print(format_coverage(coverage(graph)))
+    return 0
+
+
+def _summary(graph: PhraseGraph) -> str:
+    start = graph.start
+    kinds = [_n(len(graph) - len(graph.pauses) - len(graph.fillers), "phrase")]
+    if graph.fillers:
+        kinds.append(_n(len(graph.fillers), "filler"))
+    if graph.pauses:
+        kinds.append(_n(len(graph.pauses), "pause"))
+    return (
+        f"{graph.path}: OK, {', '.join(kinds)}, {_n(graph.count_paths(), 'path')}, speech "
         f"{graph.t_min(start):.2f}-{graph.t_max(start):.2f} s at a = 1 "
         f"(shortest-longest, pause {graph.pause:g} s)"
     )
+
+
+def _author(args: argparse.Namespace) -> int:
+    out: Path = args.out
+    if out.exists() and not args.overwrite:
+        print(f"error: {out}: exists; give --overwrite to replace it", file=sys.stderr)
+        return 1
+    graph = author(args.script, out, _clips(args))
+    print(f"wrote {out} from {args.script}")
+    print(_summary(graph))
+    print(format_coverage(coverage(graph)))
     return 0
 
 
@@ -212,7 +253,7 @@ def _render(args: argparse.Namespace) -> int:
 
     plan = plan_speech(graph, t, a, t_x)
     progress = None if t[-1] - t[0] > _PROGRESS_AFTER else False
-    y = render_history(graph, clips, [u.phrase for u in plan], t, a, progress=progress)
+    y = render_history(graph, clips, plan, t, a, progress=progress)
     y = np.clip(y, -1.0, 1.0)
 
     import soundfile as sf
@@ -225,7 +266,7 @@ def _render(args: argparse.Namespace) -> int:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
-    said = " > ".join(u.phrase for u in plan)
+    said = " > ".join(u.phrase if u.length is None else f"({u.length:.2f} s)" for u in plan)
     end = f"speech ends at {plan[-1].t_end:.2f} s" if plan else "nothing said"
     print(f"wrote {out}: {y.size / clips.sr:.2f} s at {clips.sr} Hz, {end}; said: {said}")
     return 0
@@ -235,7 +276,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
     args = _parser().parse_args(argv)
     try:
-        return _check(args) if args.command == "check" else _render(args)
+        commands = {"check": _check, "author": _author, "render": _render}
+        return commands[args.command](args)
     except (LangEnvError, OSError) as exc:
         for line in str(exc).splitlines():
             print(f"error: {line}", file=sys.stderr)

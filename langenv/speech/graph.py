@@ -1,23 +1,33 @@
-"""Phrase graphs: what the robot may say, as a DAG of phrases, and the paper's choice rule.
+"""Phrase graphs: what the robot may say, as a DAG of vertices, and the paper's choice rule.
 
-A phrase graph (SPEC §4) is a directed acyclic graph whose vertices are phrases (a text and/or a
-recorded clip) and whose edges say which phrase may follow which. Speech starts at ``start`` and
-ends at a terminal phrase (no ``next``). Between two phrases there is ``pause`` seconds of silence
-at audio pace 1; there is none after the final phrase: the speech is over when its last word ends.
+A phrase graph (SPEC §4) is a directed acyclic graph whose edges say which vertex may follow which.
+Speech starts at ``start`` and ends at a terminal vertex (no ``next``). A vertex is one of:
+
+* a *phrase*: a text and/or a recorded clip;
+* a *filler*: a short spoken clip ("okay", "so") that an edge may take or skip (the graph lists
+  the filler and the vertex after it side by side in a ``next``); at most ``MAX_FILLER`` s long;
+* a *pause*: silence whose length the controller chooses within ``[min, max]`` s when the pause
+  is entered (:meth:`PhraseGraph.pause_length`). A pause neither starts nor ends the speech and
+  never follows another pause.
+
+Between a clip (phrase or filler) and the vertex after it there is ``pause`` seconds of silence at
+audio pace 1 (a pause vertex lengthens that gap); there is none after the final phrase: the speech
+is over when its last word ends.
 
 Time conventions (all at audio pace ``a = 1``, in seconds):
 
-* ``duration[u]``: length of ``u``'s clip, measured from the audio itself;
-* ``slot(u)``: from the start of ``u`` to the start of the phrase after it, i.e.
-  ``duration[u] + pause`` (just ``duration[u]`` for a terminal phrase);
+* ``duration[u]``: length of ``u``'s clip, measured from the audio itself (0 for a pause);
+* ``slot(u)``: from the start of ``u`` to the start of the vertex after it, i.e.
+  ``duration[u] + pause`` (just ``duration[u]`` for a terminal phrase); a pause's slot is the
+  length chosen for it, within ``slot_range(u) = (min, max)``;
 * ``t_min(u)``, ``t_max(u)``: shortest/longest speech from the start of ``u`` to the end of the
   speech, computed in reverse topological order:
-  ``t_min(u) = slot(u) + min over children v of t_min(v)`` (``duration[u]`` for a terminal).
+  ``t_min(u) = min slot(u) + min over children v of t_min(v)`` (``duration[u]`` for a terminal).
 
-The next phrase is chosen when the current phrase's slot ends (its pause is over), with the paper's
-rule ``argmin over children v of |t_x - (t_min(v) + t_max(v)) / 2|`` (ties: the child listed
-first in ``next``); at that instant the remaining speech is exactly ``t_min(v)..t_max(v)``, which is
-what the rule compares with the motion's time to completion ``t_x``.
+The next vertex is chosen when the current one's slot ends, with the paper's rule
+``argmin over children v of |t_x - (t_min(v) + t_max(v)) / 2|`` (ties: the child listed first in
+``next``); at that instant the remaining speech is exactly ``t_min(v)..t_max(v)``, which is what
+the rule compares with the motion's time to completion ``t_x``. The rule never looks at the paces.
 """
 
 from __future__ import annotations
@@ -36,6 +46,8 @@ from langenv.speech.audio import ClipLibrary
 __all__ = [
     "DEFAULT_PAUSE",
     "GRAPHS_DIR",
+    "KINDS",
+    "MAX_FILLER",
     "SHIPPED_GRAPHS",
     "Phrase",
     "PhraseGraph",
@@ -44,24 +56,37 @@ __all__ = [
 ]
 
 DEFAULT_PAUSE = 1.0
-"""Silence between two phrases at a = 1 (s) when a graph file gives no ``pause`` (SPEC §2)."""
+"""Silence after each clip at a = 1 (s) when a graph file gives no ``pause`` (SPEC §2)."""
+
+MAX_FILLER = 1.5
+"""Longest clip a filler may have at a = 1 (s): fillers are short words."""
+
+KINDS = ("phrase", "filler", "pause")
+"""The kinds of phrase-graph vertices."""
 
 GRAPHS_DIR = Path(__file__).resolve().parents[1] / "assets" / "graphs"
 """Directory of the phrase graphs shipped with the package."""
 
 SHIPPED_GRAPHS: Mapping[str, Path] = MappingProxyType(
     {
-        "lc": GRAPHS_DIR / "lc.yaml",
+        # The product's graph for the default exercise: the study's wordings, shorter late
+        # wordings, pauses and fillers (written from default.txt by `python -m langenv.speech
+        # author`). LC speaks it unless told otherwise.
+        "default": GRAPHS_DIR / "default.yaml",
+        "lc": GRAPHS_DIR / "default.yaml",
+        # The study's LC graph, unchanged: what eval.fidelity compares with the recordings.
+        "study": GRAPHS_DIR / "study.yaml",
         "lc-noap": GRAPHS_DIR / "lc_noap.yaml",
         # AC says the same single wording as LC-noAP, at a = 1 (the study's AC and LC-noAP
         # speech both lasted about 13.4 s): one prerecorded utterance with its pauses.
         "ac": GRAPHS_DIR / "lc_noap.yaml",
     }
 )
-"""The shipped phrase graphs of the default exercise, by name (the one place names resolve)."""
+"""The shipped phrase graphs of the default exercise, by name (the one place names resolve):
+``default`` (also ``lc``, LC's graph), ``study`` (the study's LC graph), ``lc-noap`` and ``ac``."""
 
 _TOP_KEYS = frozenset({"start", "pause", "phrases"})
-_PHRASE_KEYS = frozenset({"text", "audio", "next"})
+_PHRASE_KEYS = frozenset({"text", "audio", "next", "filler", "pause"})
 _MAX_PAUSE = 10.0
 
 
@@ -69,7 +94,7 @@ def default_graph_path(name: str) -> Path:
     """Path of a shipped phrase graph.
 
     Args:
-        name: ``"lc"``, ``"lc-noap"`` (or ``"lc_noap"``) or ``"ac"``.
+        name: A key of :data:`SHIPPED_GRAPHS` (``_`` for ``-`` also accepted).
 
     Raises:
         ConfigError: naming ``name`` when no such graph ships with the package.
@@ -90,58 +115,104 @@ def graph_path(spec: str | Path) -> Path:
 
 @dataclass(frozen=True)
 class Phrase:
-    """One vertex of a phrase graph.
+    """One vertex of a phrase graph: a phrase, a filler or a pause.
 
     Attributes:
-        id: Unique name of the phrase in its graph.
-        text: What it says (used for TTS when ``audio`` is None, and for subtitles).
-        audio: Recorded clip (absolute path, or relative to the working directory); None: TTS.
-        next: Ids of the phrases that may follow, in preference order for ties; empty: terminal.
+        id: Unique name of the vertex in its graph.
+        text: What it says (used for TTS when ``audio`` is None, and for subtitles); None for a
+            pause.
+        audio: Recorded clip (absolute path, or relative to the working directory); None: TTS
+            (and always for a pause).
+        next: Ids of the vertices that may follow, in preference order for ties; empty: terminal.
+        kind: ``"phrase"``, ``"filler"`` (a short clip an edge may take or skip) or ``"pause"``.
+        bounds: A pause's ``(min, max)`` length of silence at a = 1 (s, ``0 <= min <= max <= 10``);
+            None for a phrase or filler.
     """
 
     id: str
     text: str | None
     audio: Path | None
     next: tuple[str, ...] = ()
+    kind: str = "phrase"
+    bounds: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.id, str) or not self.id:
             raise PhraseGraphError(f"Phrase.id must be a non-empty str, got {self.id!r}")
+        if self.kind not in KINDS:
+            raise PhraseGraphError(
+                f"vertex {self.id!r}: kind must be one of {KINDS}, got {self.kind!r}"
+            )
         if self.text is not None and (not isinstance(self.text, str) or not self.text.strip()):
-            raise PhraseGraphError(f"phrase {self.id!r}: text must be a non-empty str or None")
+            raise PhraseGraphError(f"{self.kind} {self.id!r}: text must be a non-empty str or None")
         if self.audio is not None and not isinstance(self.audio, Path):
             object.__setattr__(self, "audio", Path(self.audio))
-        if self.text is None and self.audio is None:
-            raise PhraseGraphError(f"phrase {self.id!r}: has neither 'text' nor 'audio'")
+        if self.kind == "pause":
+            if self.text is not None or self.audio is not None:
+                raise PhraseGraphError(f"pause {self.id!r}: a pause has no 'text' or 'audio'")
+            problem = _bounds_problem(self.bounds)
+            if problem:
+                raise PhraseGraphError(f"pause {self.id!r}: {problem}")
+            lo, hi = self.bounds  # type: ignore[misc]
+            object.__setattr__(self, "bounds", (float(lo), float(hi)))
+        else:
+            if self.bounds is not None:
+                raise PhraseGraphError(f"{self.kind} {self.id!r}: only a pause has bounds")
+            if self.text is None and self.audio is None:
+                what = "no audio: give 'text' (spoken by TTS) or 'audio'"
+                reason = what if self.kind == "filler" else "has neither 'text' nor 'audio'"
+                raise PhraseGraphError(f"{self.kind} {self.id!r}: {reason}")
         nxt = (self.next,) if isinstance(self.next, str) else tuple(self.next)
         if not all(isinstance(v, str) for v in nxt):
-            raise PhraseGraphError(f"phrase {self.id!r}: next must be a list of phrase ids")
+            raise PhraseGraphError(f"{self.kind} {self.id!r}: next must be a list of vertex ids")
         object.__setattr__(self, "next", nxt)
 
     @property
     def terminal(self) -> bool:
-        """True when nothing follows this phrase."""
+        """True when nothing follows this vertex."""
         return not self.next
+
+    @property
+    def is_pause(self) -> bool:
+        """True for a pause (silence of a chosen length)."""
+        return self.kind == "pause"
+
+
+def _bounds_problem(bounds: object) -> str:
+    """Why ``bounds`` are not a pause's ``[min, max]`` seconds ('' when they are)."""
+    if not isinstance(bounds, list | tuple) or len(bounds) != 2:
+        return f"'pause' must be [min, max] seconds of silence, got {bounds!r}"
+    lo, hi = bounds
+    if not (_is_number(lo) and _is_number(hi)):
+        return f"pause bounds must be numbers of seconds, got {list(bounds)!r}"
+    if lo < 0.0 or hi < 0.0:
+        return f"pause bounds must not be negative, got [{lo}, {hi}]"
+    if lo > hi:
+        return f"pause bounds are reversed: min {lo} > max {hi}"
+    if hi > _MAX_PAUSE:
+        return f"pause max must be at most {_MAX_PAUSE} s, got {hi}"
+    return ""
 
 
 class PhraseGraph:
     """A validated phrase DAG with clip durations, ``t_min``/``t_max`` and the choice rule.
 
-    Build one with :meth:`load` from a YAML file (SPEC §4), or directly from phrases and
+    Build one with :meth:`load` from a YAML file (SPEC §4), or directly from vertices and
     durations (tests, programmatic graphs).
 
     Args:
-        phrases: The phrases (a mapping id -> phrase, or an iterable of phrases).
+        phrases: The vertices (a mapping id -> :class:`Phrase`, or an iterable of them).
         start: Id of the first phrase.
-        duration: Clip length at a = 1 of every phrase (s, > 0).
-        pause: Silence between two phrases at a = 1 (s, in [0, 10]).
+        duration: Clip length at a = 1 of every phrase and filler (s, > 0; pauses need none).
+        pause: Silence after each clip at a = 1 (s, in [0, 10]).
         path: File the graph came from, named in error messages (None: built in memory).
 
     Raises:
         PhraseGraphError: listing every problem, one per line, each naming the file and the
-            phrase: unknown ``start`` or ``next`` id, duplicate ``next`` entries, a cycle (with the
-            phrases on it), a phrase that cannot reach a terminal, a missing or bad duration, a bad
-            pause.
+            vertex: unknown ``start`` or ``next`` id, duplicate ``next`` entries, a cycle (with the
+            vertices on it), a vertex that cannot reach a terminal, a pause that starts or ends
+            the speech or follows a pause, a missing or bad duration,
+            a filler longer than ``MAX_FILLER``, a bad pause.
     """
 
     def __init__(
@@ -162,7 +233,7 @@ class PhraseGraph:
             if not isinstance(ph, Phrase):
                 raise PhraseGraphError(f"{label}: phrases must be Phrase objects, got {ph!r}")
             if ph.id in table:
-                problems.append(f"{label}: phrase {ph.id!r}: defined twice")
+                problems.append(f"{label}: {ph.kind} {ph.id!r}: defined twice")
             table[ph.id] = ph
         if isinstance(phrases, Mapping):
             for key, ph in phrases.items():
@@ -176,12 +247,21 @@ class PhraseGraph:
             )
         problems += _structure_problems(label, table, start)
         if not problems:
-            for pid in table:
+            for pid, ph in table.items():
+                if ph.is_pause:
+                    continue
                 d = duration.get(pid)
                 if d is None:
-                    problems.append(f"{label}: phrase {pid!r}: no duration")
+                    problems.append(f"{label}: {ph.kind} {pid!r}: no duration")
                 elif not _is_number(d) or not 0.0 < float(d) < math.inf:
-                    problems.append(f"{label}: phrase {pid!r}: duration must be > 0 s, got {d!r}")
+                    problems.append(
+                        f"{label}: {ph.kind} {pid!r}: duration must be > 0 s, got {d!r}"
+                    )
+                elif ph.kind == "filler" and float(d) > MAX_FILLER:
+                    problems.append(
+                        f"{label}: filler {pid!r}: its clip lasts {float(d):.2f} s; a filler is "
+                        f"at most {MAX_FILLER} s (make it a phrase)"
+                    )
         if problems:
             raise PhraseGraphError("\n".join(problems))
 
@@ -189,28 +269,43 @@ class PhraseGraph:
         self.pause: float = float(pause)
         self.phrases: Mapping[str, Phrase] = MappingProxyType(table)
         self.duration: Mapping[str, float] = MappingProxyType(
-            {pid: float(duration[pid]) for pid in table}
+            {pid: 0.0 if ph.is_pause else float(duration[pid]) for pid, ph in table.items()}
         )
         self.order: tuple[str, ...] = _topological_order(table)
-        """Phrase ids in topological order (every phrase before the phrases that follow it)."""
+        """Vertex ids in topological order (every vertex before the vertices that follow it)."""
         self._children = {pid: ph.next for pid, ph in table.items()}
-        self._slot = {
-            pid: self.duration[pid] + (self.pause if ph.next else 0.0) for pid, ph in table.items()
-        }
+        self._lo: dict[str, float] = {}
+        self._hi: dict[str, float] = {}
+        for pid, ph in table.items():
+            if ph.bounds is not None:
+                self._lo[pid], self._hi[pid] = ph.bounds
+            else:
+                self._lo[pid] = self._hi[pid] = self.duration[pid] + (
+                    self.pause if ph.next else 0.0
+                )
+        # a pause's nominal slot (its middle length) is what plans beyond the next pause assume
+        self._slot = {pid: 0.5 * (self._lo[pid] + self._hi[pid]) for pid in table}
         t_min: dict[str, float] = {}
         t_max: dict[str, float] = {}
         for pid in reversed(self.order):
             kids = self._children[pid]
             if kids:
-                t_min[pid] = self._slot[pid] + min(t_min[v] for v in kids)
-                t_max[pid] = self._slot[pid] + max(t_max[v] for v in kids)
+                t_min[pid] = self._lo[pid] + min(t_min[v] for v in kids)
+                t_max[pid] = self._hi[pid] + max(t_max[v] for v in kids)
             else:
-                t_min[pid] = t_max[pid] = self._slot[pid]
+                t_min[pid] = self._lo[pid]
+                t_max[pid] = self._hi[pid]
         self._t_min = t_min
         self._t_max = t_max
         self._mid = {pid: 0.5 * (t_min[pid] + t_max[pid]) for pid in table}
         self.max_children: int = max(len(k) for k in self._children.values())
-        """Largest number of children of any phrase (0 for a single-phrase graph)."""
+        """Largest number of children of any vertex (0 for a single-phrase graph)."""
+        self.pauses: frozenset[str] = frozenset(p for p, ph in table.items() if ph.is_pause)
+        """Ids of the pause vertices."""
+        self.fillers: frozenset[str] = frozenset(
+            p for p, ph in table.items() if ph.kind == "filler"
+        )
+        """Ids of the filler vertices."""
 
     # ------------------------------------------------------------------ loading
     @classmethod
@@ -230,9 +325,12 @@ class PhraseGraph:
         Raises:
             PhraseGraphError: listing every problem found, one per line, each naming the file and
                 (where it applies) the phrase: unreadable file, bad YAML, unknown keys, bad
-                ``pause``, unknown ``start``/``next`` ids, a phrase with neither ``text`` nor
-                ``audio``, a cycle, a phrase that cannot reach a terminal, a missing or
-                unreadable audio file.
+                ``pause``, unknown ``start``/``next`` ids, a phrase or filler with neither
+                ``text`` nor ``audio``, pause bounds that are not ``[min, max]`` with
+                ``0 <= min <= max <= 10``, a cycle, a vertex that cannot reach a terminal or
+                that ``start`` never reaches, a pause that starts or ends the speech or follows
+                another, a filler clip longer than ``MAX_FILLER``, a missing or unreadable
+                audio file.
         """
         path = Path(path)
         try:
@@ -248,6 +346,8 @@ class PhraseGraph:
             raise PhraseGraphError(f"{path}: invalid YAML: {exc}") from None
         start, pause, phrases = _parse(path, data)
         problems = _structure_problems(str(path), phrases, start)
+        if not problems:
+            problems = _unreachable_problems(str(path), phrases, start)
         if problems:
             raise PhraseGraphError("\n".join(problems))
 
@@ -255,8 +355,10 @@ class PhraseGraph:
             clips = ClipLibrary()
         durations: dict[str, float] = {}
         for pid, ph in phrases.items():
+            if ph.is_pause:
+                continue
             if ph.audio is not None and not ph.audio.is_file():
-                problems.append(f"{path}: phrase {pid!r}: audio file {ph.audio} does not exist")
+                problems.append(f"{path}: {ph.kind} {pid!r}: audio file {ph.audio} does not exist")
                 continue
             try:
                 durations[pid] = clips.duration(ph)
@@ -281,10 +383,26 @@ class PhraseGraph:
     def slot(self, u: str) -> float:
         """Time from the start of ``u`` to the start of its successor at a = 1 (s).
 
-        ``duration[u] + pause``; ``duration[u]`` alone for a terminal phrase.
+        ``duration[u] + pause``; ``duration[u]`` alone for a terminal phrase; for a pause, the
+        middle of its bounds (its length is chosen when it is entered: :meth:`pause_length`).
         """
         try:
             return self._slot[u]
+        except KeyError:
+            raise PhraseGraphError(f"{self._label}: no phrase {u!r}") from None
+
+    def slot_range(self, u: str) -> tuple[float, float]:
+        """Shortest and longest slot of ``u`` at a = 1 (s): a pause's bounds, else ``slot(u)``
+        twice."""
+        try:
+            return self._lo[u], self._hi[u]
+        except KeyError:
+            raise PhraseGraphError(f"{self._label}: no phrase {u!r}") from None
+
+    def kind(self, u: str) -> str:
+        """``"phrase"``, ``"filler"`` or ``"pause"``."""
+        try:
+            return self.phrases[u].kind
         except KeyError:
             raise PhraseGraphError(f"{self._label}: no phrase {u!r}") from None
 
@@ -330,12 +448,13 @@ class PhraseGraph:
     def eta(self, u: str, remaining_in_u: float, t_x: float) -> float:
         """Speech time to completion ``t_a`` at a = 1 (SPEC §1).
 
-        The rest of the current phrase's slot plus the slots of the phrases that repeated use of
+        The rest of the current vertex's slot plus the slots of the vertices that repeated use of
         :meth:`choose` would take, each choice evaluated with the ``t_x`` left at that moment
-        (``t_x`` minus the base-pace time until the choice).
+        (``t_x`` minus the base-pace time until the choice), each pause at the length
+        :meth:`pause_length` would give it then.
 
         Args:
-            u: The current phrase.
+            u: The current vertex.
             remaining_in_u: Base-pace time until ``u``'s slot ends (its pause included) (s).
             t_x: Motion time to completion now (s).
 
@@ -345,7 +464,7 @@ class PhraseGraph:
         kids = self.children(u)
         total = remaining_in_u
         left = t_x - remaining_in_u
-        slot, mid, children = self._slot, self._mid, self._children
+        slot, mid, children, lo, hi = self._slot, self._mid, self._children, self._lo, self._hi
         while kids:
             v = kids[0]
             err = abs(left - mid[v])
@@ -353,10 +472,53 @@ class PhraseGraph:
                 e = abs(left - mid[w])
                 if e < err:
                     v, err = w, e
-            total += slot[v]
-            left -= slot[v]
+            length = slot[v] if lo[v] == hi[v] else self._fill(v, left)
+            total += length
+            left -= length
             kids = children[v]
         return total
+
+    def pause_length(self, u: str, target: float) -> float:
+        """Length of silence (s at a = 1) for the pause ``u`` entered with ``target`` seconds of
+        speech wanted from its start (the analytic rule passes the motion's ``t_x``).
+
+        The aligner's logic applied to the pause: the length that makes the speech from here end
+        at ``target`` — ``target`` minus the speech after the pause as the choice rule would
+        take it (its choices made as if this pause took its middle length, later pauses at
+        theirs) — clipped to the pause's bounds. Like :meth:`choose`, it never looks at the
+        paces.
+
+        Raises:
+            PhraseGraphError: if ``u`` is not a pause of this graph.
+        """
+        ph = self.phrases.get(u)
+        if ph is None or not ph.is_pause:
+            raise PhraseGraphError(f"{self._label}: {u!r} is not a pause of this graph")
+        if not math.isfinite(target):
+            raise PhraseGraphError(
+                f"{self._label}: pause {u!r}: target must be finite, got {target!r}"
+            )
+        return self._fill(u, float(target))
+
+    def _fill(self, v: str, left: float) -> float:
+        """:meth:`pause_length` without checks (mirrored by ``langenv.kernels.steps.eta``)."""
+        slot, mid, children = self._slot, self._mid, self._children
+        y = left - slot[v]
+        rest = 0.0
+        kids = children[v]
+        while kids:
+            w = kids[0]
+            err = abs(y - mid[w])
+            for x in kids[1:]:
+                e = abs(y - mid[x])
+                if e < err:
+                    w, err = x, e
+            rest += slot[w]
+            y -= slot[w]
+            kids = children[w]
+        length = left - rest
+        lo, hi = self._lo[v], self._hi[v]
+        return lo if length < lo else (hi if length > hi else length)
 
     def shortest_path(self, u: str | None = None) -> tuple[str, ...]:
         """A path from ``u`` (default: start) to a terminal whose speech lasts ``t_min(u)``."""
@@ -367,19 +529,38 @@ class PhraseGraph:
         return self._extreme_path(self.start if u is None else u, self._t_max, max)
 
     def path_length(self, path: Iterable[str]) -> float:
-        """Speech length of a path of phrases at a = 1 (s): slots, without a trailing pause.
+        """Speech length of a path at a = 1 (s): slots, without a trailing pause; each pause at
+        the middle of its bounds (:meth:`path_range` gives the extremes).
 
         Raises:
-            PhraseGraphError: if ``path`` is empty, names an unknown phrase or skips an edge.
+            PhraseGraphError: if ``path`` is empty, names an unknown vertex or skips an edge.
+        """
+        lo, hi = self.path_range(path)
+        return 0.5 * (lo + hi)
+
+    def path_range(self, path: Iterable[str]) -> tuple[float, float]:
+        """Shortest and longest speech along a path at a = 1 (s): its pauses at their bounds.
+
+        Raises:
+            PhraseGraphError: if ``path`` is empty, names an unknown vertex or skips an edge.
         """
         ids = list(path)
         if not ids:
             raise PhraseGraphError(f"{self._label}: empty path")
+        for u in ids:
+            self.children(u)  # validates u
         for u, v in itertools.pairwise(ids):
             if v not in self.children(u):
                 raise PhraseGraphError(f"{self._label}: phrase {v!r} does not follow {u!r}")
         last = ids[-1]
-        return sum(self.slot(u) for u in ids[:-1]) + self.duration[last]
+        end_lo, end_hi = (
+            (self._lo[last], self._hi[last])
+            if last in self.pauses
+            else (self.duration[last], self.duration[last])
+        )
+        lo = sum(self._lo[u] for u in ids[:-1]) + end_lo
+        hi = sum(self._hi[u] for u in ids[:-1]) + end_hi
+        return lo, hi
 
     def count_paths(self, u: str | None = None) -> int:
         """Number of distinct paths from ``u`` (default: start) to a terminal."""
@@ -478,45 +659,81 @@ def _parse(path: Path, data: object) -> tuple[str, float, dict[str, Phrase]]:
         if not isinstance(pid, str) or not pid:
             problems.append(f"{path}: phrase id {pid!r} must be a non-empty string (quote it)")
             continue
-        where = f"{path}: phrase {pid!r}"
-        if not isinstance(spec, dict):
-            problems.append(f"{where}: must be a mapping with 'text' and/or 'audio' and 'next'")
-            continue
-        bad = sorted(str(k) for k in spec if k not in _PHRASE_KEYS)
-        if bad:
-            problems.append(f"{where}: unknown key(s) {bad}; allowed: {sorted(_PHRASE_KEYS)}")
-        text = spec.get("text")
-        audio = spec.get("audio")
-        ok = True
-        if text is not None and (not isinstance(text, str) or not text.strip()):
-            problems.append(f"{where}: 'text' must be a non-empty string, got {text!r}")
-            ok = False
-        if audio is not None and (not isinstance(audio, str) or not audio.strip()):
-            problems.append(f"{where}: 'audio' must be a file path, got {audio!r}")
-            ok = False
-        if text is None and audio is None:
-            problems.append(f"{where}: has neither 'text' nor 'audio'")
-            ok = False
-        if "next" not in spec:
-            problems.append(f"{where}: missing 'next' (write next: [] for a final phrase)")
-            ok = False
-        nxt = spec.get("next")
-        nxt = [] if nxt is None else [nxt] if isinstance(nxt, str) else nxt
-        if not isinstance(nxt, list) or not all(isinstance(v, str) and v for v in nxt):
-            problems.append(f"{where}: 'next' must be a list of phrase ids, got {spec['next']!r}")
-            ok = False
-        if not ok:
-            continue
-        audio_path = None if audio is None else (path.parent / Path(audio).expanduser())
-        phrases[pid] = Phrase(id=pid, text=text, audio=audio_path, next=tuple(nxt))
+        ph, found = _parse_vertex(path, pid, spec)
+        problems += found
+        if ph is not None:
+            phrases[pid] = ph
     if problems:
         raise PhraseGraphError("\n".join(problems))
     assert isinstance(start, str)
     return start, float(pause), phrases
 
 
+def _parse_vertex(path: Path, pid: str, spec: object) -> tuple[Phrase | None, list[str]]:
+    """One vertex of the YAML (phrase, filler or pause) and the problems found in it."""
+    if not isinstance(spec, dict):
+        return None, [
+            f"{path}: phrase {pid!r}: must be a mapping with 'text' and/or 'audio' (or 'pause') "
+            "and 'next'"
+        ]
+    is_pause = "pause" in spec
+    filler = spec.get("filler", False)
+    kind = "pause" if is_pause else ("filler" if filler is True else "phrase")
+    where = f"{path}: {kind} {pid!r}"
+    problems: list[str] = []
+    bad = sorted(str(k) for k in spec if k not in _PHRASE_KEYS)
+    if bad:
+        problems.append(f"{where}: unknown key(s) {bad}; allowed: {sorted(_PHRASE_KEYS)}")
+    if not isinstance(filler, bool):
+        problems.append(f"{where}: 'filler' must be true or false, got {filler!r}")
+    text = spec.get("text")
+    audio = spec.get("audio")
+    bounds = None
+    if is_pause:
+        for key in ("text", "audio", "filler"):
+            if key in spec:
+                problems.append(f"{where}: a pause is silence: it has no {key!r}")
+        found = _bounds_problem(spec["pause"])
+        if found:
+            problems.append(f"{where}: {found}")
+        else:
+            bounds = (float(spec["pause"][0]), float(spec["pause"][1]))
+    else:
+        if text is not None and (not isinstance(text, str) or not text.strip()):
+            problems.append(f"{where}: 'text' must be a non-empty string, got {text!r}")
+        if audio is not None and (not isinstance(audio, str) or not audio.strip()):
+            problems.append(f"{where}: 'audio' must be a file path, got {audio!r}")
+        if text is None and audio is None:
+            problems.append(
+                f"{where}: no audio: give 'text' (spoken by TTS) or 'audio'"
+                if kind == "filler"
+                else f"{where}: has neither 'text' nor 'audio'"
+            )
+    if "next" not in spec:
+        problems.append(f"{where}: missing 'next' (write next: [] for a final phrase)")
+    nxt = spec.get("next")
+    nxt = [] if nxt is None else [nxt] if isinstance(nxt, str) else nxt
+    if not isinstance(nxt, list) or not all(isinstance(v, str) and v for v in nxt):
+        problems.append(f"{where}: 'next' must be a list of phrase ids, got {spec.get('next')!r}")
+    if problems:
+        return None, problems
+    audio_path = None if audio is None else (path.parent / Path(audio).expanduser())
+    return (
+        Phrase(
+            id=pid,
+            text=None if is_pause else text,
+            audio=None if is_pause else audio_path,
+            next=tuple(nxt),
+            kind=kind,
+            bounds=bounds,
+        ),
+        [],
+    )
+
+
 def _structure_problems(label: str, phrases: Mapping[str, Phrase], start: object) -> list[str]:
-    """Unknown ids, duplicate edges, cycles and dead ends, one message per problem."""
+    """Unknown ids, duplicate edges, cycles, dead ends and misplaced pauses, one message per
+    problem."""
     problems: list[str] = []
     if not phrases:
         return [f"{label}: the graph has no phrases"]
@@ -539,7 +756,8 @@ def _structure_problems(label: str, phrases: Mapping[str, Phrase], start: object
         if len(comp) > 1 or comp[0] in phrases[comp[0]].next:
             cycle = _a_cycle(phrases, set(comp))
             problems.append(
-                f"{label}: phrase {cycle[0]!r}: on a cycle {' -> '.join(repr(c) for c in cycle)}"
+                f"{label}: {phrases[cycle[0]].kind} {cycle[0]!r}: on a cycle "
+                f"{' -> '.join(repr(c) for c in cycle)}"
                 + (
                     f" (phrases on cycles here: {sorted(comp)})"
                     if len(comp) > len(cycle) - 1
@@ -560,7 +778,50 @@ def _structure_problems(label: str, phrases: Mapping[str, Phrase], start: object
                 stack.append(w)
     for pid in phrases:
         if pid not in alive:
-            problems.append(f"{label}: phrase {pid!r}: dead end, no final phrase can be reached")
+            problems.append(
+                f"{label}: {phrases[pid].kind} {pid!r}: dead end, no final phrase can be reached"
+            )
+    assert isinstance(start, str)
+    problems += _pause_problems(label, phrases, start)
+    return problems
+
+
+def _unreachable_problems(label: str, phrases: Mapping[str, Phrase], start: str) -> list[str]:
+    """Vertices that no speech from ``start`` says (an error in a graph file)."""
+    problems: list[str] = []
+    seen = {start}
+    stack = [start]
+    while stack:
+        for v in phrases[stack.pop()].next:
+            if v not in seen:
+                seen.add(v)
+                stack.append(v)
+    for pid, ph in phrases.items():
+        if pid not in seen:
+            problems.append(
+                f"{label}: {ph.kind} {pid!r}: unreachable, no speech from {start!r} says it"
+            )
+    return problems
+
+
+def _pause_problems(label: str, phrases: Mapping[str, Phrase], start: str) -> list[str]:
+    """Pauses where silence cannot be: at the start, at the end, right after another pause."""
+    problems: list[str] = []
+    for pid, ph in phrases.items():
+        if not ph.is_pause:
+            continue
+        if pid == start:
+            problems.append(f"{label}: pause {pid!r}: the speech cannot start with a pause")
+        if not ph.next:
+            problems.append(
+                f"{label}: pause {pid!r}: the speech cannot end with a pause (it ends with its "
+                "last word)"
+            )
+        for v in ph.next:
+            if phrases[v].is_pause:
+                problems.append(
+                    f"{label}: pause {v!r}: follows pause {pid!r}; merge the two into one"
+                )
     return problems
 
 

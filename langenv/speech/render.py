@@ -10,8 +10,11 @@ until it is.
   graph's rule with the trace's ``t_x`` at that time, or the shortest path without ``t_x``.
 * :func:`render_history` renders phrases already chosen (a finished env session's history).
 
-Both stream the content (clips and pauses, at base pace) block by block through
-:class:`~langenv.speech.vocoder.VariableRateVocoder`.
+Both stream the content (clips and silences, at base pace) block by block through
+:class:`~langenv.speech.vocoder.VariableRateVocoder`. Silence goes through the vocoder like a clip
+(zeros), so it lasts its base-pace length divided by the pace, as in the speech timeline: a
+pause vertex sounds as the length chosen for it (:attr:`SpeechTimeline.pause_lengths
+<langenv.speech.timeline.SpeechTimeline.pause_lengths>`, or the ``length`` of its utterance).
 """
 
 from __future__ import annotations
@@ -28,7 +31,14 @@ from langenv.speech.graph import PhraseGraph
 from langenv.speech.timeline import SpeechTimeline, Utterance
 from langenv.validation import check_time_axis
 
-__all__ = ["MAX_AUDIO_PACE", "MIN_AUDIO_PACE", "plan_speech", "render_history", "render_speech"]
+__all__ = [
+    "MAX_AUDIO_PACE",
+    "MIN_AUDIO_PACE",
+    "plan_speech",
+    "render_history",
+    "render_speech",
+    "silence",
+]
 
 MIN_AUDIO_PACE = 0.25
 """Slowest audio pace a trace may ask for (the env keeps ``a`` within [0.6, 1.4]); it bounds how
@@ -82,7 +92,8 @@ def plan_speech(
     """The phrases a live session would say along a trace, with their times.
 
     At each phrase boundary the next phrase follows the graph's rule with the trace's ``t_x``
-    (linearly interpolated) at that time; without ``t_x``, the shortest path. The pace over each
+    (linearly interpolated) at that time, and a pause entered takes the length of the graph's
+    rule; without ``t_x``, the shortest path, pauses at their minimum. The pace over each
     interval ``[t_i, t_{i+1}]`` is the mean of its end values (exact for the linear pace).
 
     Args:
@@ -93,13 +104,15 @@ def plan_speech(
         max_extra: Longest time the speech may go on after ``t[-1]`` at the last pace (s).
 
     Returns:
-        The utterances in order, times in the trace's clock (the first starts at ``t[0]``).
+        The utterances in order (pause vertices with their ``length``), times in the trace's
+        clock (the first starts at ``t[0]``).
 
     Raises:
         ConfigError: naming the argument, for a malformed trace.
     """
     tt, aa, xx = _trace(t, a, t_x)
     tl = SpeechTimeline(graph)
+
     shortest = graph.shortest_path()
     on_shortest = dict(itertools.pairwise(shortest))
 
@@ -111,6 +124,7 @@ def plan_speech(
         return min(kids, key=graph.t_min)
 
     choice = shortest_child if xx is None else None
+    pause = 0.0 if xx is None else None  # no target: every pause at its minimum
     for i in range(tt.size - 1):
         if tl.done:
             break
@@ -119,19 +133,33 @@ def plan_speech(
             0.5 * float(aa[i] + aa[i + 1]),
             choice,
             None if xx is None else float(xx[i]),
+            pause,
         )
     extra = 0.0
     while not tl.done and extra < max_extra:
-        tl.step(_PLAN_DT, float(aa[-1]), choice, None if xx is None else float(xx[-1]) - extra)
+        t_x_now = None if xx is None else float(xx[-1]) - extra
+        tl.step(_PLAN_DT, float(aa[-1]), choice, t_x_now, pause)
         extra += _PLAN_DT
     t0 = float(tt[0])
-    return [Utterance(u.phrase, u.t_start + t0, u.t_end + t0) for u in tl.utterances()]
+    return [Utterance(u.phrase, u.t_start + t0, u.t_end + t0, u.length) for u in tl.utterances()]
 
 
-def _content(graph: PhraseGraph, clips: ClipLibrary, ids: Sequence[str]) -> Iterator[np.ndarray]:
-    """Base-pace content: each clip, with the graph's pause between consecutive phrases."""
-    gap = np.zeros(round(graph.pause * clips.sr), np.float32)
+def silence(seconds: float, sr: int) -> np.ndarray:
+    """``seconds`` of silence at ``sr`` Hz (float32 zeros; a pause vertex's sound)."""
+    return np.zeros(max(0, round(seconds * sr)), np.float32)
+
+
+def _content(
+    graph: PhraseGraph, clips: ClipLibrary, ids: Sequence[str], pauses: Sequence[float]
+) -> Iterator[np.ndarray]:
+    """Base-pace content: each clip, with the graph's pause between a clip and the vertex after
+    it; each pause vertex as its silence (``pauses``: their lengths, in order)."""
+    gap = silence(graph.pause, clips.sr)
+    lengths = iter(pauses)
     for k, u in enumerate(ids):
+        if u in graph.pauses:
+            yield silence(next(lengths), clips.sr)
+            continue
         yield clips.clip(graph.phrases[u])
         if k + 1 < len(ids) and gap.size:
             yield gap
@@ -144,6 +172,7 @@ def render_history(
     t: Any,
     a: Any,
     *,
+    pause_lengths: Sequence[float] | None = None,
     progress: bool | None = False,
     vocoder_kw: dict[str, Any] | None = None,
 ) -> np.ndarray:
@@ -152,9 +181,14 @@ def render_history(
     Args:
         graph: The phrase graph the phrases come from.
         clips: Their audio (its sample rate is the output's).
-        history: Phrase ids said, in order, or objects with a ``phrase`` attribute
-            (:class:`~langenv.speech.timeline.Utterance`, the evaluation's utterances); they must
-            form a path from ``graph.start`` (it may stop before a final phrase).
+        history: Vertex ids said, in order, or objects with a ``phrase`` attribute
+            (:class:`~langenv.speech.timeline.Utterance`, the evaluation's utterances, whose
+            ``length`` gives a pause vertex's length); they must form a path from
+            ``graph.start`` (it may stop before a final phrase), pause vertices included.
+        pause_lengths: The lengths chosen for the pause vertices of ``history``, in order (s at
+            a = 1; :attr:`SpeechTimeline.pause_lengths
+            <langenv.speech.timeline.SpeechTimeline.pause_lengths>`); None: from the history's
+            objects.
         t: Sample times (s), shape ``(n,)``, strictly increasing.
         a: Audio pace at those times, shape ``(n,)``, > 0.
         progress: Show a tqdm bar (None: only on a terminal).
@@ -173,19 +207,56 @@ def render_history(
     tt, aa, _ = _trace(t, a)
     ids = [h if isinstance(h, str) else h.phrase for h in history]
     _check_path(graph, ids)
+    pauses = _pause_lengths(graph, history, ids, pause_lengths)
     from langenv.speech.vocoder import VariableRateVocoder
 
     sr = clips.sr
     voc = VariableRateVocoder(sr, **(vocoder_kw or {}))
-    total = float(sum(clips.clip(graph.phrases[u]).size for u in ids)) / sr
-    total += graph.pause * max(0, len(ids) - 1)
+    clip_ids = [u for u in ids if u not in graph.pauses]
+    total = float(sum(clips.clip(graph.phrases[u]).size for u in clip_ids)) / sr
+    total += graph.pause * max(0, len(clip_ids) - 1) + sum(pauses)
     # content kept pushed ahead of the vocoder's read position: its window plus two blocks
     lookahead = 4.0 * (vocoder_kw or {}).get("n_fft", 1024) / sr + 3.0 * _BLOCK / sr
-    feeder = _Feeder(voc, _content(graph, clips, ids), sr, lookahead)
+    feeder = _Feeder(voc, _content(graph, clips, ids, pauses), sr, lookahead)
     n_trace = round((tt[-1] - tt[0]) * sr)
     # the speech may outlast the trace: at most its content at the last pace, plus slack
     n_cap = n_trace + int((total / float(aa[-1]) + 1.0) * sr)
     return _render_blocks(voc, feeder, tt, aa, n_trace, n_cap, progress)
+
+
+def _pause_lengths(
+    graph: PhraseGraph,
+    history: Sequence[str | _HasPhrase],
+    ids: Sequence[str],
+    given: Sequence[float] | None,
+) -> list[float]:
+    """The lengths of the pause vertices of ``ids``: ``given``, else the history's ``length``s;
+    each within its pause's bounds."""
+    at = [k for k, u in enumerate(ids) if u in graph.pauses]
+    if given is not None:
+        lengths = [float(x) for x in given]
+        if len(lengths) != len(at):
+            raise ConfigError(
+                f"pause_lengths: {len(lengths)} lengths for the {len(at)} pauses of the history"
+            )
+    else:
+        lengths = []
+        for k in at:
+            length = getattr(history[k], "length", None)
+            if length is None:
+                raise ConfigError(
+                    f"history[{k}]: pause {ids[k]!r} has no length; pass pause_lengths "
+                    "(SpeechTimeline.pause_lengths) or utterances with their length"
+                )
+            lengths.append(float(length))
+    for k, length in zip(at, lengths, strict=True):
+        lo, hi = graph.slot_range(ids[k])
+        if not lo - 1e-9 <= length <= hi + 1e-9:
+            raise ConfigError(
+                f"history[{k}]: pause {ids[k]!r} length {length!r} is outside its bounds "
+                f"[{lo:g}, {hi:g}] s"
+            )
+    return lengths
 
 
 def _check_path(graph: PhraseGraph, ids: Sequence[str]) -> None:
@@ -310,6 +381,4 @@ def render_speech(
         Mono ``float32`` audio at ``clips.sr`` (see :func:`render_history` for its length).
     """
     plan = plan_speech(graph, t, a, t_x)
-    return render_history(
-        graph, clips, [u.phrase for u in plan], t, a, progress=progress, vocoder_kw=vocoder_kw
-    )
+    return render_history(graph, clips, plan, t, a, progress=progress, vocoder_kw=vocoder_kw)

@@ -1,11 +1,16 @@
 """The speech timeline: where the robot is in its speech, played at a varying audio pace.
 
 Speech starts with the graph's ``start`` phrase at ``reset``. Playback content advances at the
-audio pace ``a`` (``a`` seconds of base-pace content per second). Each phrase occupies a *slot*:
-its clip, then (unless it is final) the graph's pause, which also elapses at pace ``a``. When a
-slot ends — this is the *phrase boundary* — the next phrase starts at once: the caller's choice
-if it gave one, else the graph's rule with the motion ETC ``t_x`` the caller passed. Speech is over
-when the clip of a final phrase ends.
+audio pace ``a`` (``a`` seconds of base-pace content per second). Each vertex occupies a *slot*:
+a phrase's or filler's clip, then (unless it is final) the graph's pause, which also elapses at
+pace ``a``. A pause vertex's slot is silence whose length the graph's rule
+(:meth:`PhraseGraph.pause_length <langenv.speech.graph.PhraseGraph.pause_length>`) chooses within
+its bounds for a *target*, the speech time wanted from now (the caller's, else ``t_x``): when the
+pause is entered, and again at every step while it lasts (never below what has elapsed), as a
+person who waits for the arm goes on waiting while it is slow. When a slot ends — this is the
+*phrase boundary* — the next vertex starts at once: the caller's choice if it gave one, else the
+graph's rule with the motion ETC ``t_x`` the caller passed. Speech is over when the clip of a
+final phrase ends.
 
 Stepping costs a few additions per tick except at the (rare) clip and slot ends, so it can run
 inside a 500 Hz control loop.
@@ -21,25 +26,30 @@ from dataclasses import dataclass
 from langenv.errors import ActionError, ConfigError
 from langenv.speech.graph import PhraseGraph
 
-__all__ = ["Choice", "SpeechTimeline", "Utterance"]
+__all__ = ["Choice", "PauseTarget", "SpeechTimeline", "Utterance"]
 
 Choice = str | Callable[[tuple[str, ...]], str] | None
 """The next phrase at a boundary: a phrase id, a function of the candidate ids, or None."""
 
+PauseTarget = float | None
+"""The speech time (s) wanted from the start of a step, for the pause rule; None: ``t_x``."""
+
 
 @dataclass(frozen=True)
 class Utterance:
-    """One phrase said.
+    """One vertex said: a phrase's or filler's clip, or a pause vertex's silence.
 
     Attributes:
-        phrase: Phrase id.
-        t_start: Time its clip started (s since the timeline's reset).
-        t_end: Time its clip ended (s), pause excluded.
+        phrase: Vertex id.
+        t_start: Time its clip (or silence) started (s since the timeline's reset).
+        t_end: Time its clip ended (s), the graph's pause after it excluded.
+        length: A pause vertex's length at a = 1 (s; so far, while it lasts); None for a clip.
     """
 
     phrase: str
     t_start: float
     t_end: float
+    length: float | None = None
 
     @property
     def duration(self) -> float:
@@ -62,13 +72,17 @@ class SpeechTimeline:
         "_a",
         "_children",
         "_content_done",
+        "_cur_slot",
         "_done",
         "_dur",
+        "_elastic",
         "_graph",
         "_history",
         "_in_pause",
         "_mark",
         "_path",
+        "_pause_lengths",
+        "_pauses",
         "_phrase",
         "_pos",
         "_slot",
@@ -84,6 +98,7 @@ class SpeechTimeline:
         self._dur = dict(graph.duration)
         self._slot = {u: graph.slot(u) for u in graph.phrases}
         self._children = {u: graph.children(u) for u in graph.phrases}
+        self._pauses = graph.pauses
         self.reset()
 
     def reset(self) -> None:
@@ -100,31 +115,48 @@ class SpeechTimeline:
         self._content_done = 0.0  # base-pace seconds of finished slots
         self._history: list[Utterance] = []
         self._path: list[str] = [start]
+        self._pause_lengths: list[float] = []
+        self._cur_slot = self._slot[start]  # the current vertex's slot (a pause: its length)
+        self._elastic = False  # in a pause vertex whose length is still open
         self._mark = self._dur[start]  # next content position where something happens
 
     # ------------------------------------------------------------------ stepping
-    def step(self, dt: float, a: float, choice: Choice = None, t_x: float | None = None) -> None:
+    def step(
+        self,
+        dt: float,
+        a: float,
+        choice: Choice = None,
+        t_x: float | None = None,
+        pause: PauseTarget = None,
+    ) -> None:
         """Advance by ``dt`` seconds at audio pace ``a``.
 
-        If the current phrase's slot ends during the step, the next phrase is ``choice`` (an id,
+        If the current vertex's slot ends during the step, the next vertex is ``choice`` (an id,
         or ``choice(candidates)`` when it is callable, evaluated only then), else
         ``graph.choose(phrase, t_x')`` with ``t_x'`` the given ``t_x`` minus the time from the
-        start of the step to the boundary. A phrase with a single child needs neither (``choice``
+        start of the step to the boundary. A vertex with a single child needs neither (``choice``
         is then not consulted, so a callable is only called when there is a real choice). A second
         boundary inside the same step (only with slots shorter than ``a * dt``) calls a callable
-        ``choice`` again, else uses the rule, else the first child. After the speech is over,
-        only the time advances.
+        ``choice`` again, else uses the rule, else the first child. A pause entered takes the
+        length ``graph.pause_length(id, target')`` with ``target'`` the target (``pause``, else
+        ``t_x``) minus the time to the boundary (at a second boundary without either: the
+        pause's minimum); while it lasts, each step sets it again to
+        ``graph.pause_length(id, elapsed + target)``, never below what has elapsed. After the
+        speech is over, only the time advances.
 
         Args:
             dt: Step length (s, > 0).
             a: Audio pace over the step (>= 0; 1 is the recorded pace).
-            choice: Next phrase at a boundary (see above).
-            t_x: Motion time to completion at the start of the step (s), for the rule.
+            choice: Next vertex at a boundary (see above).
+            t_x: Motion time to completion at the start of the step (s), for the rules.
+            pause: Speech time wanted from the start of the step (s), for the pause rule; None:
+                ``t_x``.
 
         Raises:
             ActionError: naming the argument, for a non-finite or out-of-range ``dt``/``a``, a
-                choice that is not a child of the ending phrase, or a boundary with several
-                candidates and neither ``choice`` nor ``t_x``. The timeline is unchanged then.
+                choice that is not a child of the ending vertex, a non-finite target, or a
+                boundary with several candidates (or a pause to enter) and neither ``choice``
+                (``pause``) nor ``t_x``. The timeline is unchanged then.
         """
         if not 0.0 < dt < math.inf:
             raise ActionError(f"SpeechTimeline.step: dt must be finite and > 0, got {dt!r}")
@@ -138,15 +170,42 @@ class SpeechTimeline:
         if self._pos + adv < self._mark:  # the common case: nothing happens in this tick
             self._pos += adv
             self._t += dt
+            if self._elastic:
+                target = pause if pause is not None else t_x
+                if target is not None:
+                    self._replan(target)
             return
-        self._advance(dt, a, adv, choice, t_x)
+        self._advance(dt, a, adv, choice, t_x, pause)
 
-    def _advance(self, dt: float, a: float, adv: float, choice: Choice, t_x: float | None) -> None:
+    def _replan(self, target: float) -> None:
+        """The open pause's length for ``target`` s of speech wanted from now (mirrored by
+        ``langenv.kernels.steps.run``)."""
+        if not math.isfinite(target):
+            raise ActionError(
+                f"SpeechTimeline.step: the pause target must be finite, got {target!r}"
+            )
         u = self._phrase
         assert u is not None
-        dur, slot, kids = self._dur[u], self._slot[u], self._children[u]
+        pos = self._pos
+        length = self._graph._fill(u, pos + target)
+        self._cur_slot = length if length > pos else pos
+        self._mark = self._cur_slot
+
+    def _advance(
+        self,
+        dt: float,
+        a: float,
+        adv: float,
+        choice: Choice,
+        t_x: float | None,
+        pause: PauseTarget,
+    ) -> None:
+        u = self._phrase
+        assert u is not None
+        dur, slot, kids = self._dur[u], self._cur_slot, self._children[u]
         # Resolve the first boundary's choice before changing anything (errors leave no trace).
         nxt: str | None = None
+        nxt_len = 0.0
         if kids:
             rem, pos = adv, self._pos
             if not self._in_pause:
@@ -155,6 +214,8 @@ class SpeechTimeline:
             if rem >= slot - pos:
                 tau = (adv - rem + (slot - pos)) / a if a > 0.0 else 0.0
                 nxt = self._resolve(u, kids, choice, t_x, tau)
+                if nxt in self._pauses:
+                    nxt_len = self._pause_length(nxt, pause, t_x, tau)
 
         t0 = self._t
         tau = 0.0  # time from the start of the step
@@ -162,7 +223,7 @@ class SpeechTimeline:
         while True:
             u = self._phrase
             assert u is not None
-            dur, slot, kids = self._dur[u], self._slot[u], self._children[u]
+            dur, slot, kids = self._dur[u], self._cur_slot, self._children[u]
             if not self._in_pause:
                 need = dur - self._pos
                 if rem < need:
@@ -186,18 +247,54 @@ class SpeechTimeline:
                 break
             tau += need / a if need > 0.0 else 0.0
             rem -= need
+            if u in self._pauses:
+                self._history.append(Utterance(u, self._t_start, t0 + tau, slot))
+                self._pause_lengths.append(slot)
             if nxt is None:  # a second boundary in the same step
                 nxt = self._resolve(u, kids, choice if callable(choice) else None, t_x, tau, True)
+                if nxt in self._pauses:
+                    nxt_len = self._pause_length(nxt, pause, t_x, tau, True)
             self._content_done += slot
             self._phrase = nxt
             self._path.append(nxt)
             self._pos = 0.0
-            self._in_pause = False
             self._t_start = t0 + tau
+            if nxt in self._pauses:
+                self._in_pause = True
+                self._cur_slot = nxt_len
+                lo, hi = self._graph.slot_range(nxt)
+                self._elastic = lo < hi
+            else:
+                self._in_pause = False
+                self._cur_slot = self._slot[nxt]
+                self._elastic = False
             nxt = None
         self._t = t0 + dt
         if self._phrase is not None:
-            self._mark = self._slot[self._phrase] if self._in_pause else self._dur[self._phrase]
+            self._mark = self._cur_slot if self._in_pause else self._dur[self._phrase]
+
+    def _pause_length(
+        self, v: str, pause: PauseTarget, t_x: float | None, tau: float, fallback: bool = False
+    ) -> float:
+        """The length of the pause ``v`` being entered (see :meth:`step`)."""
+        lo, hi = self._graph.slot_range(v)
+        target = pause if pause is not None else t_x
+        if target is not None:
+            if isinstance(target, bool) or not isinstance(target, int | float):
+                raise ActionError(
+                    f"SpeechTimeline.step: pause target must be a number, got {target!r}"
+                )
+            if not math.isfinite(target):
+                raise ActionError(
+                    f"SpeechTimeline.step: the pause target must be finite, got {target!r}"
+                )
+            return self._graph.pause_length(v, target - tau)
+        if fallback:
+            return lo
+        raise ActionError(
+            f"SpeechTimeline.step: pause {v!r} is entered and its length is open "
+            f"[{lo:g}, {hi:g}] s; pass `pause` or `t_x`"
+        )
 
     def _resolve(
         self,
@@ -240,31 +337,36 @@ class SpeechTimeline:
         if u is None or not self._children[u]:
             return False
         pace = self._a if a is None else a
-        return self._slot[u] - self._pos <= pace * horizon
+        return self._cur_slot - self._pos <= pace * horizon
 
     def eta(self, t_x: float) -> float:
         """Speech time to completion ``t_a`` at a = 1 (s): see :meth:`PhraseGraph.eta`."""
         u = self._phrase
         if u is None:
             return 0.0
-        return self._graph.eta(u, self._slot[u] - self._pos, t_x)
+        return self._graph.eta(u, self._cur_slot - self._pos, t_x)
 
     def said_at(self, t: float) -> str | None:
-        """Id of the phrase audible at time ``t`` (s); None in pauses, before 0, after the end."""
+        """Id of the phrase or filler audible at time ``t`` (s); None in pauses, before 0, after
+        the end."""
         u = self._phrase
         if u is not None and not self._in_pause and self._t_start <= t <= self._t:
             return u
         h = self._history
         i = bisect.bisect_right(h, t, key=lambda x: x.t_start) - 1
-        if i >= 0 and t < h[i].t_end:
+        if i >= 0 and t < h[i].t_end and h[i].length is None:
             return h[i].phrase
         return None
 
     def utterances(self) -> list[Utterance]:
-        """The history plus the phrase playing now (its ``t_end`` is the current time)."""
+        """The history plus the vertex playing now (its ``t_end`` is the current time): clips
+        and pause vertices (with their chosen ``length``), in order."""
         out = list(self._history)
-        if self._phrase is not None and not self._in_pause:
-            out.append(Utterance(self._phrase, self._t_start, self._t))
+        u = self._phrase
+        if u is not None and u in self._pauses:
+            out.append(Utterance(u, self._t_start, self._t, self._pos))
+        elif u is not None and not self._in_pause:
+            out.append(Utterance(u, self._t_start, self._t))
         return out
 
     @property
@@ -306,7 +408,7 @@ class SpeechTimeline:
     def remaining_in_phrase(self) -> float:
         """Base-pace seconds until the current slot ends: clip rest + pause (0 when done)."""
         u = self._phrase
-        return 0.0 if u is None else self._slot[u] - self._pos
+        return 0.0 if u is None else self._cur_slot - self._pos
 
     @property
     def remaining_audio(self) -> float:
@@ -335,8 +437,22 @@ class SpeechTimeline:
 
     @property
     def path(self) -> tuple[str, ...]:
-        """Phrases started so far, in order."""
+        """Vertices started so far, in order (pauses included)."""
         return tuple(self._path)
+
+    @property
+    def pause_lengths(self) -> tuple[float, ...]:
+        """Lengths of the pause vertices of :attr:`path`, in order (s at a = 1); a pause that
+        lasts still counts with what has elapsed of it."""
+        if self._phrase is not None and self._phrase in self._pauses:
+            return (*self._pause_lengths, self._pos)
+        return tuple(self._pause_lengths)
+
+    @property
+    def slot_length(self) -> float:
+        """Base-pace length of the current vertex's slot (s; a pause's length as planned now;
+        0 when done)."""
+        return 0.0 if self._phrase is None else self._cur_slot
 
     @property
     def t_end(self) -> float | None:

@@ -1,0 +1,439 @@
+"""Phrase graphs written from plain text: ``python -m langenv.speech author SCRIPT.txt``.
+
+A *script* says what the robot may say, one line per step of the exercise, in order::
+
+    # shoulder external rotation (lines starting with '#' are comments)
+    @pause 0.4
+    I want you to move your hand away from your body this way.
+    (pause 0.3-1.5)
+    [Glide really smoothly.] | Slide, slide, slide.
+    {okay|so} I want you to retract your arm. | Move your arm back.
+    And you're done.
+
+* A line is one step; the speech says one of its *alternatives* (separated by ``|``) after one
+  of the previous step's, so every alternative of a line may follow every alternative of the line
+  before it. The first line is the start: exactly one wording.
+* ``[...]`` marks words that may be left out: ``[Good,] and to the middle.`` is two wordings.
+  An alternative that is all optional lets the speech skip the step.
+* ``(pause MIN-MAX)`` (seconds, e.g. ``(pause 0.5-2)``; ``(pause 1)`` for a fixed length) is a
+  pause vertex: silence whose length the controller chooses within the bounds. It may stand on
+  its own line (between two steps) or inside an alternative (between two phrases).
+* ``{okay|so}`` is a choice of fillers the speech may say or skip before what follows.
+* ``@pause S`` (once, before the first step) sets the silence after every clip (default 1 s).
+
+:func:`parse_script` turns a script into a :class:`Script` (its vertices, with the line and column
+each came from), :func:`graph_yaml` writes the YAML of a phrase graph (SPEC §4), deterministic
+byte for byte, and :func:`author` does both, then synthesises and times every clip (the TTS
+cache) through :meth:`PhraseGraph.load <langenv.speech.graph.PhraseGraph.load>`, which validates
+the graph. Errors are :class:`~langenv.errors.ScriptError` naming the file, the line and the
+column; nothing is written unless the whole graph is valid.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from langenv.errors import PhraseGraphError, ScriptError
+from langenv.speech.audio import ClipLibrary
+from langenv.speech.graph import _MAX_PAUSE, DEFAULT_PAUSE, PhraseGraph
+
+__all__ = ["Script", "Vertex", "author", "graph_yaml", "parse_script"]
+
+_PAUSE_RE = re.compile(r"pause\s+([0-9]*\.?[0-9]+)(?:\s*-\s*([0-9]*\.?[0-9]+))?\s*$")
+_OPEN = {"[": "]", "{": "}", "(": ")"}
+_CLOSE = {v: k for k, v in _OPEN.items()}
+
+
+@dataclass
+class Vertex:
+    """A vertex of the graph a script describes.
+
+    Attributes:
+        id: Its id in the YAML.
+        kind: ``"phrase"``, ``"filler"`` or ``"pause"``.
+        text: What it says (None for a pause).
+        bounds: A pause's ``(min, max)`` (s).
+        line, column: Where the script wrote it (1-based).
+        next: Ids of the vertices that may follow.
+    """
+
+    id: str
+    kind: str
+    text: str | None
+    bounds: tuple[float, float] | None
+    line: int
+    column: int
+    next: list[str] = field(default_factory=list)
+
+
+@dataclass
+class Script:
+    """A parsed script: its vertices in order (the first is the start) and the clip pause."""
+
+    path: Path
+    pause: float
+    vertices: dict[str, Vertex]
+
+    @property
+    def start(self) -> str:
+        """Id of the first vertex."""
+        return next(iter(self.vertices))
+
+    def where(self, vertex: str) -> str:
+        """``FILE:LINE:COL`` of a vertex."""
+        v = self.vertices[vertex]
+        return f"{self.path}:{v.line}:{v.column}"
+
+
+# ---------------------------------------------------------------------------------- tokens
+@dataclass(frozen=True)
+class _Unit:
+    """One unit of an alternative: a phrase (its wordings), a pause or a filler choice."""
+
+    kind: str  # "phrase", "pause", "filler"
+    column: int
+    words: tuple[str, ...] = ()  # phrase: its wordings ("" = left out); filler: the fillers
+    bounds: tuple[float, float] | None = None
+
+
+class _Line:
+    """Splits and reads one script line, raising errors that name its line and column."""
+
+    def __init__(self, path: Path, number: int, text: str) -> None:
+        self.path, self.number, self.text = path, number, text
+
+    def error(self, column: int, message: str) -> ScriptError:
+        return ScriptError(f"{self.path}:{self.number}:{column}: {message}")
+
+    def alternatives(self) -> list[tuple[int, str]]:
+        """``(column, text)`` of each ``|``-separated alternative (``|`` inside ``{}`` kept)."""
+        out: list[tuple[int, str]] = []
+        depth: list[tuple[str, int]] = []
+        start = 0
+        for i, ch in enumerate(self.text):
+            if ch in _OPEN:
+                if depth:
+                    raise self.error(i + 1, f"{ch!r} inside {depth[-1][0]!r}: brackets do not nest")
+                depth.append((ch, i + 1))
+            elif ch in _CLOSE:
+                if not depth or depth[-1][0] != _CLOSE[ch]:
+                    raise self.error(i + 1, f"{ch!r} closes nothing")
+                depth.pop()
+            elif ch == "|" and not depth:
+                out.append((start + 1, self.text[start:i]))
+                start = i + 1
+        if depth:
+            ch, col = depth[-1]
+            raise self.error(col, f"{ch!r} is not closed (expected {_OPEN[ch]!r})")
+        out.append((start + 1, self.text[start:]))
+        for col, alt in out:
+            if not alt.strip():
+                raise self.error(col, "empty alternative (two '|' in a row, or one at an end)")
+        return out
+
+    def units(self, column: int, alt: str) -> list[_Unit]:
+        """The units of one alternative starting at ``column``."""
+        units: list[_Unit] = []
+        pieces: list[tuple[str, bool]] = []  # (text, optional) of the phrase being read
+        piece_col = 0
+        i = 0
+
+        def flush() -> None:
+            nonlocal pieces
+            if pieces:
+                words = _wordings(pieces)
+                for w in words:
+                    if w and not re.search(r"[^\W\d_]", w):
+                        raise self.error(piece_col, f"{w!r} has no words to say")
+                if any(words):
+                    units.append(_Unit("phrase", piece_col, tuple(dict.fromkeys(words))))
+            pieces = []
+
+        while i < len(alt):
+            ch = alt[i]
+            col = column + i
+            if ch in _OPEN:
+                end = alt.index(_OPEN[ch], i)
+                inner = alt[i + 1 : end]
+                if ch == "[":
+                    if not inner.strip():
+                        raise self.error(
+                            col, "empty '[]': put the words that may be left out in it"
+                        )
+                    if not pieces:
+                        piece_col = col
+                    pieces.append((inner, True))
+                else:
+                    flush()
+                    units.append(
+                        self._pause(col, inner) if ch == "(" else self._fillers(col, inner)
+                    )
+                i = end + 1
+                continue
+            j = i
+            while j < len(alt) and alt[j] not in _OPEN:
+                j += 1
+            text = alt[i:j]
+            if text.strip() and not pieces:
+                piece_col = column + i + (len(text) - len(text.lstrip()))
+            if text.strip() or pieces:  # whitespace between two bracketed parts separates them
+                pieces.append((text, False))
+            i = j
+        flush()
+        return units
+
+    def _pause(self, col: int, inner: str) -> _Unit:
+        m = _PAUSE_RE.match(inner.strip())
+        if m is None:
+            raise self.error(
+                col,
+                f"'({inner})' is not a pause; write (pause MIN-MAX) in seconds, e.g. (pause 0.5-2)",
+            )
+        lo = float(m.group(1))
+        hi = float(m.group(2)) if m.group(2) is not None else lo
+        if lo > hi:
+            raise self.error(col, f"pause bounds are reversed: {lo:g} > {hi:g}")
+        if hi > _MAX_PAUSE:
+            raise self.error(col, f"a pause lasts at most {_MAX_PAUSE:g} s, got {hi:g}")
+        return _Unit("pause", col, bounds=(lo, hi))
+
+    def _fillers(self, col: int, inner: str) -> _Unit:
+        words = [w.strip() for w in inner.split("|")]
+        if not inner.strip() or any(not w for w in words):
+            raise self.error(
+                col, f"'{{{inner}}}': fillers are words separated by '|', e.g. {{okay|so}}"
+            )
+        for w in words:
+            if not re.search(r"[^\W\d_]", w):
+                raise self.error(col, f"filler {w!r} has no word to say")
+        return _Unit("filler", col, tuple(dict.fromkeys(_capital(w) for w in words)))
+
+
+def _wordings(pieces: list[tuple[str, bool]]) -> list[str]:
+    """Every wording of a run of text pieces, optional ones with and without (in that order)."""
+    out = [""]
+    for text, optional in pieces:
+        out = [w + text for w in out] + ([*out] if optional else [])
+    return [_capital(" ".join(w.split())) for w in out]
+
+
+def _capital(text: str) -> str:
+    return text[:1].upper() + text[1:] if text else text
+
+
+_FILLER_WORDS = frozenset(
+    "i im a an and are gonna let me the this to we you your youre".split()
+)  # left out of vertex ids, which name a phrase by its first words that say something
+
+
+def _slug(text: str, words: int = 3) -> str:
+    tokens = re.findall(r"[a-z0-9]+", text.lower().replace("'", ""))
+    content = [t for t in tokens if t not in _FILLER_WORDS] or tokens
+    return "_".join(content[:words]) or "v"
+
+
+# ---------------------------------------------------------------------------------- parsing
+class _Builder:
+    """Builds the vertices step by step, keeping the *frontier*: the vertices whose successors
+    the next unit provides."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.vertices: dict[str, Vertex] = {}
+
+    def add(self, kind: str, text: str | None, bounds: tuple[float, float] | None, line: int,
+            col: int, parents: list[str]) -> str:  # fmt: skip
+        base = (
+            f"pause_{line}" if kind == "pause" else _slug(text or "", 1 if kind == "filler" else 3)
+        )
+        vid, k = base, 2
+        while vid in self.vertices:
+            vid, k = f"{base}_{k}", k + 1
+        self.vertices[vid] = Vertex(vid, kind, text, bounds, line, col)
+        for p in parents:
+            nxt = self.vertices[p].next
+            if vid not in nxt:
+                nxt.append(vid)
+        return vid
+
+    def unit(self, line: _Line, unit: _Unit, frontier: list[str]) -> list[str]:
+        """Attach ``unit`` after ``frontier``; returns the new frontier."""
+        if not frontier:
+            if unit.kind != "phrase" or len(unit.words) != 1 or "" in unit.words:
+                raise line.error(
+                    unit.column,
+                    "the speech starts with one wording: the first step must be a single phrase "
+                    "(no alternatives, optional words, pauses or fillers before it)",
+                )
+            return [self.add("phrase", unit.words[0], None, line.number, unit.column, [])]
+        if unit.kind == "pause":
+            after = [p for p in frontier if self.vertices[p].kind == "pause"]
+            if after:
+                first = self.vertices[after[0]]
+                raise line.error(
+                    unit.column,
+                    f"this pause can follow the pause of line {first.line} (the steps between "
+                    "may be skipped); merge them or make a step between them required",
+                )
+            bounds = unit.bounds
+            return [self.add("pause", None, bounds, line.number, unit.column, frontier)]
+        made = [
+            self.add(unit.kind, w, None, line.number, unit.column, frontier)
+            for w in unit.words
+            if w
+        ]
+        skip = unit.kind == "filler" or "" in unit.words
+        return _union(made, frontier) if skip else made
+
+
+def _union(*lists: list[str]) -> list[str]:
+    return list(dict.fromkeys(v for lst in lists for v in lst))
+
+
+def parse_script(source: str, path: str | Path = "<script>") -> Script:
+    """Parse a script (see the module docstring).
+
+    Args:
+        source: The script's text.
+        path: Its file, named in errors.
+
+    Raises:
+        ScriptError: naming the file, line and column: unbalanced or nested brackets, an empty
+            alternative, ``[]`` or filler, a bad ``(pause ...)`` or ``@pause``, an unknown
+            ``@`` directive, a first step that is not a single phrase, two pauses that can
+            follow each other, a script that can end with a pause, a script with no steps.
+    """
+    path = Path(path)
+    b = _Builder(path)
+    pause = DEFAULT_PAUSE
+    frontier: list[str] = []
+    for number, raw in enumerate(source.splitlines(), start=1):
+        text = raw.rstrip()
+        if not text.strip() or text.lstrip().startswith("#"):
+            continue
+        line = _Line(path, number, text)
+        if text.lstrip().startswith("@"):
+            pause = _directive(line, text, bool(frontier))
+            continue
+        outs: list[list[str]] = []
+        alternatives = line.alternatives()
+        if not b.vertices and len(alternatives) > 1:
+            col, alt = alternatives[1]
+            raise line.error(
+                col + len(alt) - len(alt.lstrip()),
+                "the speech starts with one wording: the first step must be a single phrase "
+                "(no alternatives)",
+            )
+        for col, alt in alternatives:
+            cur = frontier
+            for unit in line.units(col, alt):
+                cur = b.unit(line, unit, cur)
+            outs.append(cur)
+        frontier = _union(*outs)
+    if not b.vertices:
+        raise ScriptError(f"{path}: the script has no steps (one line per step of the exercise)")
+    ends = [v for v in frontier if b.vertices[v].kind == "pause"]
+    if ends:
+        v = b.vertices[ends[0]]
+        raise ScriptError(
+            f"{path}:{v.line}:{v.column}: the speech can end with this pause; it must end with "
+            "its last words (move the pause before a step, or make the last step required)"
+        )
+    return Script(path, pause, b.vertices)
+
+
+def _directive(line: _Line, text: str, started: bool) -> float:
+    col = len(text) - len(text.lstrip()) + 1
+    parts = text.split()
+    if parts[0] != "@pause":
+        raise line.error(col, f"unknown directive {parts[0]!r}; known: @pause SECONDS")
+    if started:
+        raise line.error(col, "@pause must come before the first step")
+    try:
+        value = float(parts[1]) if len(parts) == 2 else float("nan")
+    except ValueError:
+        value = float("nan")
+    if not 0.0 <= value <= _MAX_PAUSE:
+        raise line.error(col, f"@pause takes seconds in [0, {_MAX_PAUSE:g}], got {text.strip()!r}")
+    return value
+
+
+# ---------------------------------------------------------------------------------- writing
+def _num(x: float) -> str:
+    return f"{x:g}"
+
+
+def graph_yaml(script: Script, source_name: str) -> str:
+    """The phrase graph YAML (SPEC §4) of a parsed script, the same bytes for the same script."""
+    out = [
+        f"# Written by `python -m langenv.speech author {source_name}` from its plain-text script:",
+        "# edit the script and run the command again rather than editing this file.",
+        f"start: {script.start}",
+        f"pause: {_num(script.pause)}   # s of silence after each clip at a = 1",
+        "phrases:",
+    ]
+    for v in script.vertices.values():
+        out.append(f"  {v.id}:   # line {v.line}")
+        if v.kind == "pause":
+            assert v.bounds is not None
+            out.append(f"    pause: [{_num(v.bounds[0])}, {_num(v.bounds[1])}]")
+        else:
+            if v.kind == "filler":
+                out.append("    filler: true")
+            out.append(f"    text: {json.dumps(v.text, ensure_ascii=False)}")
+        out.append(f"    next: [{', '.join(v.next)}]")
+    return "\n".join(out) + "\n"
+
+
+def author(
+    script_path: str | Path, out: str | Path, clips: ClipLibrary | None = None
+) -> PhraseGraph:
+    """Write the phrase graph of a script to ``out`` and return it, loaded and validated.
+
+    The YAML is written to a temporary file beside ``out`` and loaded from there (every clip
+    synthesised and timed, the TTS cache used); only a valid graph replaces ``out``.
+
+    Raises:
+        ScriptError: for a bad script (file, line, column) or a graph the script makes that is
+            invalid (the vertex and the line it came from), e.g. a filler clip that is too long.
+        PhraseGraphError: when the script cannot be read.
+    """
+    script_path, out = Path(script_path), Path(out)
+    try:
+        source = script_path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        reason = getattr(exc, "strerror", None) or exc
+        raise PhraseGraphError(f"{script_path}: cannot read script: {reason}") from None
+    script = parse_script(source, script_path)
+    text = graph_yaml(script, script_path.name)
+    if not out.parent.is_dir():
+        raise ScriptError(f"{out}: directory {out.parent} does not exist")
+    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.stem}.", suffix=".yaml")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        try:
+            graph = PhraseGraph.load(tmp, clips)
+        except PhraseGraphError as exc:
+            raise ScriptError(_located(str(exc), script, tmp)) from None
+        os.replace(tmp, out)
+    finally:
+        Path(tmp).unlink(missing_ok=True)
+    graph.path = out
+    return graph
+
+
+def _located(message: str, script: Script, tmp: str) -> str:
+    """A graph's error messages with the script's file, line and column of each vertex named."""
+    lines = []
+    for msg in message.splitlines():
+        msg = msg.replace(f"{tmp}: ", "")
+        ids = [i for i in re.findall(r"'([^']+)'", msg) if i in script.vertices]
+        where = script.where(ids[0]) if ids else str(script.path)
+        lines.append(f"{where}: {msg}")
+    return "\n".join(lines)

@@ -1,0 +1,165 @@
+"""Phrase graphs written from plain-text scripts: parsing, named errors, the shipped round trip."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from langenv.errors import ScriptError
+from langenv.speech.__main__ import main
+from langenv.speech.audio import ClipLibrary
+from langenv.speech.author import author, graph_yaml, parse_script
+from langenv.speech.coverage import coverage
+from langenv.speech.graph import GRAPHS_DIR, PhraseGraph, default_graph_path
+
+
+@pytest.fixture(autouse=True)
+def tts_cache(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("LANGCTRL_CACHE", str(tmp_path_factory.getbasetemp() / "tts-cache"))
+
+
+SCRIPT = """\
+# a comment
+@pause 0.5
+Move your hand away from your body.
+(pause 0.5-2)
+[Glide really smoothly.] | Slide, slide.
+{okay|so} [Good,] and back to the middle.
+And you're done.
+"""
+
+
+def test_a_script_becomes_the_graph_it_describes() -> None:
+    s = parse_script(SCRIPT, "s.txt")
+    v = s.vertices
+    assert s.pause == 0.5 and s.start == "move_hand_away"
+    assert [x.kind for x in v.values()].count("pause") == 1
+    pause = v["pause_4"]
+    assert pause.bounds == (0.5, 2.0)
+    # line 5 may be skipped ("[Glide really smoothly.]" is all optional): the pause may go
+    # straight on to line 6's fillers and wordings
+    assert pause.next == ["glide_really_smoothly", "slide_slide", *v["slide_slide"].next]
+    assert v["slide_slide"].next == v["glide_really_smoothly"].next
+    assert v["glide_really_smoothly"].next == ["okay", "so", "good_back_middle", "back_middle"]
+    assert v["okay"].kind == "filler" and v["okay"].text == "Okay"
+    assert v["okay"].next == ["good_back_middle", "back_middle"]
+    assert v["back_middle"].text == "And back to the middle."
+    assert v["good_back_middle"].text == "Good, and back to the middle."
+    assert v["done"].next == [] and (v["done"].line, v["done"].column) == (7, 1)
+    text = graph_yaml(s, "s.txt")
+    assert text == graph_yaml(parse_script(SCRIPT, "s.txt"), "s.txt")  # deterministic
+    assert "filler: true" in text and "pause: [0.5, 2]" in text
+
+
+BAD_SCRIPTS = {
+    "unclosed bracket": ("Go.\n[Glide really\n", "s.txt:2:1: '[' is not closed"),
+    "bracket closing nothing": ("Go.\nGlide] here.\n", "s.txt:2:6: ']' closes nothing"),
+    "nested brackets": ("Go.\n[Glide [really]]\n", "s.txt:2:8: '[' inside '['"),
+    "empty alternative": ("Go.\nSlide. |  | Glide.\n", "s.txt:2:9: empty alternative"),
+    "empty optional": ("Go.\nSlide [] now.\n", "s.txt:2:7: empty '[]'"),
+    "pause without bounds": ("Go.\n(pause)\nDone.\n", "s.txt:2:1: '(pause)' is not a pause"),
+    "reversed pause": ("Go.\n(pause 3-1)\nDone.\n", "s.txt:2:1: pause bounds are reversed"),
+    "pause too long": ("Go.\n(pause 1-30)\nDone.\n", "s.txt:2:1: a pause lasts at most 10 s"),
+    "not a pause": ("Go.\n(slowly)\nDone.\n", "s.txt:2:1: '(slowly)' is not a pause"),
+    "empty filler": ("Go.\n{okay|} Done.\n", "s.txt:2:1: '{okay|}': fillers are words"),
+    "first line with alternatives": ("Go. | Move.\nDone.\n", "s.txt:1:7: the speech starts"),
+    "script starting with a pause": ("(pause 1-2)\nDone.\n", "s.txt:1:1: the speech starts"),
+    "two pauses in a row": (
+        "Go.\n(pause 1-2)\n[Slide.]\n(pause 0.5-1)\nDone.\n",
+        "s.txt:4:1: this pause can follow the pause of line 2",
+    ),
+    "ends with a pause": ("Go.\nDone.\n(pause 1-2)\n", "s.txt:3:1: the speech can end with"),
+    "no steps": ("# nothing\n\n", "s.txt: the script has no steps"),
+    "unknown directive": ("@gap 1\nGo.\n", "s.txt:1:1: unknown directive '@gap'"),
+    "late directive": ("Go.\n@pause 1\n", "s.txt:2:1: @pause must come before"),
+    "bad directive value": ("@pause fast\nGo.\n", "s.txt:1:1: @pause takes seconds"),
+    "no words": ("Go.\n... | Slide.\n", "s.txt:2:1: '...' has no words to say"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_SCRIPTS))
+def test_bad_scripts_are_named_errors_with_line_and_column(case: str) -> None:
+    source, message = BAD_SCRIPTS[case]
+    with pytest.raises(ScriptError) as err:
+        parse_script(source, "s.txt")
+    assert message in str(err.value)
+
+
+@pytest.mark.parametrize("case", ["unclosed bracket", "reversed pause", "ends with a pause"])
+def test_the_command_line_reports_a_bad_script_and_writes_nothing(
+    case: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    script = tmp_path / "s.txt"
+    script.write_text(BAD_SCRIPTS[case][0])
+    out = tmp_path / "g.yaml"
+    assert main(["author", str(script), "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "Traceback" not in err
+    assert f"{script}:" in err and BAD_SCRIPTS[case][1].split(": ", 1)[1] in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.txt"]  # no file, no temporary
+
+
+def test_a_graph_error_the_script_makes_names_its_line(tmp_path: Path) -> None:
+    script = tmp_path / "s.txt"
+    long = "this is far too long to be a filler word"
+    script.write_text(f"Go.\n{{{long}}} Done.\n")
+    with pytest.raises(ScriptError, match=r"s.txt:2:1: filler '\w+': its clip lasts"):
+        author(script, tmp_path / "g.yaml", ClipLibrary(cache_dir=tmp_path / "tts"))
+    assert not (tmp_path / "g.yaml").exists()
+
+
+def test_author_writes_a_valid_graph_and_prints_its_coverage(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    script = tmp_path / "s.txt"
+    script.write_text(SCRIPT)
+    out = tmp_path / "g.yaml"
+    assert main(["author", str(script), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "3 fillers" not in printed and "2 fillers" in printed and "1 pause" in printed
+    assert "at |a - 1| <= 0.1:" in printed and "at a in [0.6, 1.4]:" in printed
+    g = PhraseGraph.load(out)
+    assert g.pauses == {"pause_4"} and g.fillers == {"okay", "so"}
+    assert main(["author", str(script), "--out", str(out)]) == 1  # no silent overwrite
+    assert "--overwrite" in capsys.readouterr().err
+    assert main(["check", str(out), "--coverage"]) == 0
+    assert "coverage:" in capsys.readouterr().out
+
+
+def test_the_shipped_default_graph_is_what_author_makes_of_its_script() -> None:
+    script = GRAPHS_DIR / "default.txt"
+    made = graph_yaml(parse_script(script.read_text(encoding="utf-8"), script), script.name)
+    assert made == default_graph_path("default").read_text(encoding="utf-8")
+
+
+def test_the_default_graph_covers_8_to_16_s_of_motion_at_a_natural_pace() -> None:
+    cov = coverage(PhraseGraph.load(default_graph_path("default")))
+    lo, hi = cov.natural_range
+    assert lo <= 8.0 and hi >= 16.0, cov
+    assert cov.covers(8.0, 16.0)
+    assert cov.full_range[0] < lo and cov.full_range[1] > hi
+
+
+def test_author_runs_as_a_module(tmp_path: Path) -> None:
+    script = tmp_path / "s.txt"
+    script.write_text("Go.\n(pause 0.5-1)\nDone.\n")
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "langenv.speech",
+            "author",
+            str(script),
+            "--out",
+            str(tmp_path / "g.yaml"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert res.returncode == 0, res.stderr
+    assert "wrote" in res.stdout and "coverage:" in res.stdout
