@@ -137,6 +137,7 @@ def _analytic(
     seed: int,
     admittance: AdmittanceParams | None = None,
     gains: AlignerGains | None = None,
+    graph: str | None = None,
 ) -> Episode:
     policy = load_policy(name)
     if gains is not None:
@@ -144,7 +145,7 @@ def _analytic(
     policy.decision_hz = hz
     env = gym.make(
         langenv.ENV_ID,
-        phrase_graph=policy.phrase_graph,
+        phrase_graph=graph or policy.phrase_graph,
         decision_hz=hz,
         max_episode_steps=60 * hz,
         admittance=admittance,
@@ -153,8 +154,14 @@ def _analytic(
     return _episode(env, lambda obs, _k: policy.act(obs), seed)
 
 
-def _random_scores(seed: int) -> Episode:
-    env = gym.make(langenv.ENV_ID, decision_hz=50, choice_mode="scores", max_episode_steps=3000)
+def _random_scores(seed: int, graph: str = "default") -> Episode:
+    env = gym.make(
+        langenv.ENV_ID,
+        phrase_graph=graph,
+        decision_hz=50,
+        choice_mode="scores",
+        max_episode_steps=3000,
+    )
     env.action_space.seed(seed)
     return _episode(env, lambda _obs, _k: env.action_space.sample(), seed)
 
@@ -162,7 +169,7 @@ def _random_scores(seed: int) -> Episode:
 def _residual(seed: int) -> Episode:
     """The residual map (features included) under a fixed, varying correction."""
     env = ResidualLCWrapper(
-        gym.make(langenv.ENV_ID, decision_hz=25, max_episode_steps=1500),
+        gym.make(langenv.ENV_ID, phrase_graph="study", decision_hz=25, max_episode_steps=1500),
         pace_scale=0.3,
         audio_scale=0.1,
         choice_scale=0.5,
@@ -177,11 +184,15 @@ def _residual(seed: int) -> Episode:
 
 
 CASES: dict[str, Callable[[], Episode]] = {
-    "lc-500hz-seed3": lambda: _analytic("lc", 500, 3),
-    "lc-end-25hz-seed5": lambda: _analytic("lc-end", 25, 5),
+    # the study's phrase graphs
+    "lc-500hz-seed3": lambda: _analytic("lc", 500, 3, graph="study"),
+    "lc-end-25hz-seed5": lambda: _analytic("lc-end", 25, 5, graph="study"),
     "ac-25hz-seed1": lambda: _analytic("ac", 25, 1),
-    "random-scores-50hz-seed2": lambda: _random_scores(2),
+    "random-scores-50hz-seed2": lambda: _random_scores(2, graph="study"),
     "residual-25hz-seed4": lambda: _residual(4),
+    # the default graph (pauses whose length the env plans, shorter late wordings)
+    "lc-default-graph-25hz-seed6": lambda: _analytic("lc", 25, 6),
+    "random-scores-default-graph-50hz-seed2": lambda: _random_scores(2),
 }
 
 
@@ -228,7 +239,10 @@ def test_episode_matches_its_recorded_reference(case: str) -> None:
     ("case", "changed"),
     [
         ("ac-25hz-seed1", lambda: _analytic("ac", 25, 1, AdmittanceParams(damping=80.8))),
-        ("lc-end-25hz-seed5", lambda: _analytic("lc-end", 25, 5, gains=AlignerGains(k_c=10.1))),
+        (
+            "lc-end-25hz-seed5",
+            lambda: _analytic("lc-end", 25, 5, None, AlignerGains(k_c=10.1), "study"),
+        ),
     ],
     ids=["admittance-damping+1%", "lc-k_c+1%"],
 )
