@@ -207,7 +207,13 @@ class RobotLoop:
             for step in range(self.max_steps):
                 obs, _, terminated, truncated, info = env.step(self.policy.act(obs))
                 speech = env.speech
-                stream.record(float(info["time"]), float(info["a"]), speech.path, speech.done)
+                stream.record(
+                    float(info["time"]),
+                    float(info["a"]),
+                    speech.path,
+                    speech.done,
+                    speech.pause_lengths,
+                )
                 if terminated or truncated:
                     break
                 if self.sink is not None:
