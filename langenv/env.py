@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import numbers
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
@@ -263,7 +263,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self.graph = PhraseGraph.load(graph_path(graph), clips=self.clips)
         self.max_children = max(1, self.graph.max_children)
 
-        params = admittance if admittance is not None else _exercise_admittance(self.exercise)
+        params = admittance if admittance is not None else self.exercise.admittance()
         self.motion = GuidedArm(
             Arm(model_path, handle_site),
             trajectory if trajectory is not None else self.exercise.trajectory,
@@ -660,14 +660,6 @@ def make_env(**kwargs: Any) -> LangCtrlEnv:
     which names a mode it does not support, instead of wrapping it for ``"human"`` on its own.
     """
     return LangCtrlEnv(**kwargs)
-
-
-def _exercise_admittance(exercise: Exercise) -> AdmittanceParams:
-    """The study's virtual dynamics with the propelling force that gives the exercise's nominal
-    speed as the guided plateau ``F_prop / D0`` (10 N for the study's 0.125 m/s)."""
-    params = AdmittanceParams()
-    force = exercise.speed * params.damping
-    return params if force == params.propel_force else replace(params, propel_force=force)
 
 
 def _non_negative(name: str, value: Any) -> float:

@@ -27,7 +27,7 @@ UNITS = {"length": "m", "angle": "deg", "time": "s"}
 _TOP = frozenset({"name", "title", "units", "start", "speed", "script", "legs"})
 _REQUIRED = ("name", "title", "start", "legs")
 _SCRIPT = frozenset({"graph", "single"})
-_LEG = frozenset({"name", "tool", *LEG_KINDS})
+_LEG = frozenset({"name", "tool", "waypoint", *LEG_KINDS})
 _FIELDS = {
     "line": frozenset({"to"}),
     "arc": frozenset({"center", "axis", "angle"}),
@@ -260,6 +260,8 @@ def _leg(item: Any, i: int, found: _Problems, start: np.ndarray | None) -> Leg |
     else:
         args.update(_spline(body, name, found))
     args.update(_tool(item.get("tool"), name, found))
+    if "waypoint" in item:
+        args["waypoint"] = _vector(item["waypoint"], "waypoint (m)", found, name)
     if len(found) > n_before:
         return None
     if isinstance(args.get("end"), str):  # line.to: start

@@ -28,7 +28,9 @@ A leg is a map with ``name`` (unique) and exactly one of:
 | ``arc`` | ``center: [x, y, z]`` (m), ``axis: [x, y, z]``, ``angle`` (deg, signed, 0 < abs <= 360) | rotation of the leg's start about the axis through ``center`` (right-handed) |
 | ``spline`` | ``through: [[x, y, z], ...]`` (m, last = end), ``tolerance`` (m, default 0.001) | cubic spline through the points, fitted with lines and arcs within ``tolerance`` (:mod:`~langenv.exercise.curves`) |
 
-and optionally ``tool: {turn: deg, axis: [x, y, z]}``: how far the handle turns over the leg
+optionally ``waypoint: [x, y, z]`` (m), where the leg is meant to end (``check`` refuses a leg
+that ends more than 1 mm away: an arc's angle or a spline's last point written wrong), and
+optionally ``tool: {turn: deg, axis: [x, y, z]}``: how far the handle turns over the leg
 (signed, about ``axis``). An arc's tool turns with it by default (``turn = angle`` about its
 axis); a line or spline keeps the tool still unless ``tool`` says otherwise. The simulated arm
 holds the handle's home orientation (as in the study's simulation); the turn enters the lab's
@@ -47,6 +49,7 @@ from types import MappingProxyType
 
 import numpy as np
 
+from langenv.control.admittance import AdmittanceParams
 from langenv.control.trajectory import ArcSegment, LineSegment, Segment, Trajectory
 from langenv.errors import ExerciseError, TrajectoryError
 
@@ -163,6 +166,8 @@ class Leg:
         tolerance: Spline: fitting tolerance (m).
         tool_turn: Signed tool rotation over the leg (rad); None: an arc's ``angle``, else 0.
         tool_axis: Axis of the tool's turn, shape (3,); None: an arc's axis.
+        waypoint: Where the author means the leg to end, shape (3,), m, or None: checked
+            (``gap``), not used to build the path.
 
     Raises:
         ExerciseError: a field missing for its kind, or a value out of range.
@@ -178,6 +183,7 @@ class Leg:
     tolerance: float = 1e-3
     tool_turn: float | None = None
     tool_axis: np.ndarray | None = None
+    waypoint: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         bad = []
@@ -189,7 +195,7 @@ class Leg:
                 bad.append(Problem("missing_key", self.name, None, f"{self.kind} needs {key!r}"))
         if bad:
             raise ExerciseError(bad)
-        for key in ("end", "center", "axis", "tool_axis"):
+        for key in ("end", "center", "axis", "tool_axis", "waypoint"):
             value = getattr(self, key)
             if value is not None:
                 object.__setattr__(self, key, _vec(value, f"leg {self.name!r}: {key}"))
@@ -329,6 +335,13 @@ class Exercise:
             raise ExerciseError([Problem("gap", None, None, str(exc))], self.path) from None
         object.__setattr__(self, "trajectory", traj)
         object.__setattr__(self, "leg_segments", tuple(spans))
+
+    def admittance(self) -> AdmittanceParams:
+        """The study's virtual dynamics (SPEC §2) with the propelling force that makes the
+        exercise's nominal speed the guided plateau ``F_prop / D0`` (10 N at 0.125 m/s)."""
+        params = AdmittanceParams()
+        force = self.speed * params.damping
+        return params if force == params.propel_force else replace(params, propel_force=force)
 
     @property
     def leg_names(self) -> tuple[str, ...]:

@@ -2,17 +2,11 @@
 
 from __future__ import annotations
 
-import os
-import sys
+from langenv.robot.gl import default_backend
 
-# MuJoCo chooses its OpenGL backend when first imported: default to EGL on headless Linux.
-if (
-    sys.platform.startswith("linux")
-    and "MUJOCO_GL" not in os.environ
-    and not os.environ.get("DISPLAY")
-    and not os.environ.get("WAYLAND_DISPLAY")
-):
-    os.environ["MUJOCO_GL"] = "egl"
+# MuJoCo chooses its OpenGL backend when first imported: default to EGL on headless Linux
+# (``import langenv`` did so already; this keeps ``import langenv.robot`` alone right too).
+default_backend()
 
 from langenv.robot.arm import UR5_JOINTS, UR5_XML, Arm
 from langenv.robot.force_sensor import ForceSensor
