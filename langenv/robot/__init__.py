@@ -2,12 +2,8 @@
 
 from __future__ import annotations
 
-from langenv.robot.gl import default_backend
-
-# MuJoCo chooses its OpenGL backend when first imported: default to EGL on headless Linux
-# (``import langenv`` did so already; this keeps ``import langenv.robot`` alone right too).
-default_backend()
-
+# MuJoCo's OpenGL backend (EGL on headless Linux) is chosen by ``langenv/__init__.py``, which
+# runs before any of its subpackages imports MuJoCo (langenv.robot.gl).
 from langenv.robot.arm import UR5_JOINTS, UR5_XML, Arm
 from langenv.robot.force_sensor import ForceSensor
 
