@@ -237,10 +237,9 @@ def _check_options(args: CompareArgs) -> None:
 
 def _check_exercise(spec: str) -> None:
     """--exercise: loaded and checked (reach, margins, contacts, speed...) before any episode."""
-    from langenv.exercise.check import check_exercise
-
     from langenv.errors import LangEnvError
     from langenv.exercise import resolve_exercise
+    from langenv.exercise.check import check_exercise
 
     try:
         check_exercise(resolve_exercise(spec))
@@ -319,7 +318,7 @@ def _check_out(out: Path, overwrite: bool) -> None:
         raise UsageError(f"--out {out}: {parent} is a file, not a directory")
 
 
-_ENVS: dict[tuple[str, int, str], Any] = {}
+_ENVS: dict[tuple[str, int, str, str | None], Any] = {}
 
 
 def run_episode(job: Job) -> dict[str, Any]:

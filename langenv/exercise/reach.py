@@ -84,7 +84,7 @@ class ReachReport:
 
 def _samples(exercise: Exercise) -> list[tuple[int, int, float]]:
     """``(leg, point, s)`` for every sample of the path."""
-    out = []
+    out: list[tuple[int, int, float]] = []
     for k in range(len(exercise.legs)):
         a, b = exercise.leg_span(k)
         n = max(2, math.ceil((b - a) / SAMPLE_SPACING) + 1)

@@ -101,8 +101,8 @@ def render_exercise(
     draw.text((10, y), "o start", fill=(255, 255, 255))
     for k, leg in enumerate(exercise.legs):
         y += 16
-        rgb = tuple(int(255 * c) for c in LEG_COLOURS[k % len(LEG_COLOURS)])
-        draw.text((10, y), f"- leg {k + 1}: {leg.name} ({leg.kind})", fill=rgb)
+        r, g, b = (int(255 * c) for c in LEG_COLOURS[k % len(LEG_COLOURS)])
+        draw.text((10, y), f"- leg {k + 1}: {leg.name} ({leg.kind})", fill=(r, g, b))
     out = Path(out)
     image.save(out, format="PNG", dpi=(100, 100))
     return out
