@@ -24,7 +24,7 @@ __all__ = ["UNITS", "load_exercise"]
 UNITS = {"length": "m", "angle": "deg", "time": "s"}
 """The units of an exercise file (the ``units`` key may state them; no others are accepted)."""
 
-_TOP = frozenset({"name", "title", "units", "start", "speed", "script", "legs"})
+_TOP = frozenset({"name", "title", "units", "start", "speed", "switch_tol", "script", "legs"})
 _REQUIRED = ("name", "title", "start", "legs")
 _SCRIPT = frozenset({"graph", "single"})
 _LEG = frozenset({"name", "tool", "waypoint", *LEG_KINDS})
@@ -102,10 +102,11 @@ def load_exercise(path: str | Path) -> Exercise:
         start = _vector(data["start"], "start", found, None)
         if start is not None:
             fields["start"] = start
-    if "speed" in data:
-        speed = _number(data["speed"], "speed (m/s)", found, None)
-        if speed is not None:
-            fields["speed"] = speed
+    for key, what in (("speed", "speed (m/s)"), ("switch_tol", "switch_tol (m, rad)")):
+        if key in data:
+            value = _number(data[key], what, found, None)
+            if value is not None:
+                fields[key] = value
     fields.update(_script(data.get("script", {}), path, found))
     fields["description"] = _comment_block(source)
     legs = _legs(data.get("legs"), found, lines, fields.get("start")) if "legs" in data else []

@@ -16,6 +16,7 @@ load. Coordinates are the robot's base frame (z up, the table top at z = 0).
 | ``units`` | map | | ``{length: m, angle: deg, time: s}`` | must be exactly that when given |
 | ``start`` | [x, y, z] | m | required | where the hand starts, at rest |
 | ``speed`` | float | m/s | 0.125 | nominal hand speed: the guide's plateau ``F_prop / D0`` (0.02–0.25) |
+| ``switch_tol`` | float | m, rad | 0.1 | the guide moves on to the next leg when the hand's pose is this close to the leg's end pose, in the lab's 6-D norm (SPEC §2); with a tool that does not turn that is this many metres before the end: 0.035 gives the study's 3.5 cm (0.01–0.1) |
 | ``script.graph`` | str | | ``lc`` | phrase graph of the aligners that choose phrases: a shipped graph name or a YAML path relative to the file |
 | ``script.single`` | str | | ``lc-noap`` | the one-wording graph AC and LC-noAP say |
 | ``legs`` | list | | required | 1–40 legs, in order, each starting where the previous ends |
@@ -58,6 +59,7 @@ __all__ = [
     "MAX_LEGS",
     "PROBLEM_KINDS",
     "SPEED_RANGE",
+    "SWITCH_TOL_RANGE",
     "Exercise",
     "Leg",
     "Problem",
@@ -100,6 +102,8 @@ MAX_LEGS = 40
 SPEED_RANGE = (0.02, 0.25)
 """Nominal hand speeds accepted (m/s): the guided plateau ``F_prop / D0``; above 0.25 m/s a
 therapy motion is no longer slow, and the safety limit (0.5 m/s) is near."""
+SWITCH_TOL_RANGE = (0.01, 0.1)
+"""Leg-switch tolerances accepted: from 1 cm to the lab's 0.1."""
 TOLERANCE_RANGE = (1e-5, 0.01)
 """Spline fitting tolerances accepted (m)."""
 _NAME = re.compile(r"[a-z0-9_]{1,64}")
@@ -265,6 +269,8 @@ class Exercise:
         start: Where the hand starts, shape (3,), m (base frame).
         legs: The legs, in order (1 to :data:`MAX_LEGS`).
         speed: Nominal hand speed (m/s), in :data:`SPEED_RANGE`: the guide's plateau speed.
+        switch_tol: The guide's leg-switch tolerance (6-D norm of m and rad), in
+            :data:`SWITCH_TOL_RANGE` (the study's: 0.1).
         graph: Phrase graph of the aligners that choose phrases: a shipped graph's name or a
             YAML path.
         single: The one-wording graph that AC and LC-noAP say (a name or a path).
@@ -284,6 +290,7 @@ class Exercise:
     start: np.ndarray
     legs: tuple[Leg, ...]
     speed: float = 0.125
+    switch_tol: float = 0.1
     graph: str = "lc"
     single: str = "lc-noap"
     description: str = ""
@@ -298,6 +305,11 @@ class Exercise:
         lo, hi = SPEED_RANGE
         if not (isinstance(self.speed, int | float) and lo <= float(self.speed) <= hi):
             problems.append(Problem("bad_value", None, None, f"speed must lie in [{lo}, {hi}] m/s"))
+        lo, hi = SWITCH_TOL_RANGE
+        if not (isinstance(self.switch_tol, int | float) and lo <= float(self.switch_tol) <= hi):
+            problems.append(
+                Problem("bad_value", None, None, f"switch_tol must lie in [{lo}, {hi}]")
+            )
         legs = tuple(self.legs)
         if not 1 <= len(legs) <= MAX_LEGS:
             problems.append(
@@ -312,6 +324,7 @@ class Exercise:
         object.__setattr__(self, "start", start)
         object.__setattr__(self, "legs", legs)
         object.__setattr__(self, "speed", float(self.speed))
+        object.__setattr__(self, "switch_tol", float(self.switch_tol))
         segments: list[Segment] = []
         spans: list[tuple[int, int]] = []
         cursor = start
@@ -338,10 +351,13 @@ class Exercise:
 
     def admittance(self) -> AdmittanceParams:
         """The study's virtual dynamics (SPEC §2) with the propelling force that makes the
-        exercise's nominal speed the guided plateau ``F_prop / D0`` (10 N at 0.125 m/s)."""
+        exercise's nominal speed the guided plateau ``F_prop / D0`` (10 N at 0.125 m/s), and the
+        exercise's leg-switch tolerance."""
         params = AdmittanceParams()
         force = self.speed * params.damping
-        return params if force == params.propel_force else replace(params, propel_force=force)
+        if force == params.propel_force and self.switch_tol == params.switch_tol:
+            return params
+        return replace(params, propel_force=force, switch_tol=self.switch_tol)
 
     @property
     def leg_names(self) -> tuple[str, ...]:
