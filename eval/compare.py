@@ -407,17 +407,15 @@ def run_episode(job: Job) -> dict[str, Any]:
 
 def _episode_graph(job: Job, own: str) -> str:
     """The phrase graph ``job``'s policy speaks: ``--phrase-graph`` for the policies that choose
-    phrases, else the exercise's script (``graph`` for those, ``single`` for the others), else
-    the policy's own."""
-    chooses = _chooses_phrases(job.policy)
-    if job.phrase_graph is not None and chooses:
+    phrases, else the exercise's script for the policy's own graph
+    (:meth:`~langenv.exercise.Exercise.script_for`), else the policy's own."""
+    if job.phrase_graph is not None and _chooses_phrases(job.policy):
         return job.phrase_graph
     if job.exercise is None:
         return own
     from langenv.exercise import resolve_exercise
 
-    ex = resolve_exercise(job.exercise)
-    return ex.graph if chooses else ex.single
+    return resolve_exercise(job.exercise).script_for(own)
 
 
 def _run_law(

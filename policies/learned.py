@@ -446,6 +446,7 @@ class PPOPolicy:
         hz = int(env_kwargs.pop("decision_hz", spec.decision_hz))
         graph = str(env_kwargs.pop("phrase_graph", "lc"))
         env_kwargs.pop("max_episode_steps", None)
+        env_kwargs.pop("exercise", None)  # trained on one or several: the caller chooses
         digest = config.get("phrase_graph_sha256")
         if digest and digest != graph_digest(graph):
             warnings.warn(

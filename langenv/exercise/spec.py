@@ -359,6 +359,15 @@ class Exercise:
             return params
         return replace(params, propel_force=force, switch_tol=self.switch_tol)
 
+    def script_for(self, own: str) -> str:
+        """The phrase graph a policy speaks on this exercise, from the graph it speaks on the
+        study's (``policy.phrase_graph``): the one-wording ``single`` for ``"ac"`` and
+        ``"lc-noap"``, the exercise's ``graph`` for ``"lc"``; any other graph (a file) is kept."""
+        key = str(own).replace("_", "-")
+        if key in ("ac", "lc-noap"):
+            return self.single
+        return self.graph if key == "lc" else str(own)
+
     @property
     def leg_names(self) -> tuple[str, ...]:
         """The legs' names, in order."""
