@@ -1,10 +1,11 @@
-"""Checks of an exercise's path alone: continuity, turns, bends at the nominal speed, the motion.
+"""Checks of an exercise's path alone: waypoints, leg lengths, bends at its speed, the motion.
 
-None of these needs the arm. Each returns :class:`~langenv.exercise.spec.Problem` records:
+None of these needs the arm. Each returns :class:`~langenv.exercise.spec.Problem` records. The path
+is continuous by construction (each leg starts where the previous one ends) and tangent-continuous
+inside a leg (a spline's biarcs, :mod:`~langenv.exercise.curves`); between legs it may turn
+sharply, even reverse: the guide switches legs there and the hand dips (as in the study).
 
 * ``gap``: a leg's stated ``waypoint`` farther than :data:`WAYPOINT_TOL` from where the leg ends;
-* ``kink``: inside a leg, the tangent turns by more than :data:`MAX_KINK_DEG` from one segment to
-  the next (between legs a reversal is normal: the guide switches legs and the hand dips);
 * ``short_leg``: a leg not longer than twice its switch distance (the guide would move on before
   the hand has set off);
 * ``curvature``: a bend of radius ``R`` whose centripetal acceleration at the nominal speed,
@@ -33,7 +34,6 @@ from langenv.exercise.spec import Exercise, Problem
 __all__ = [
     "DURATION_RANGE",
     "ETC_AGREEMENT",
-    "MAX_KINK_DEG",
     "PATH_TOL",
     "WAYPOINT_TOL",
     "GuidedRun",
@@ -43,8 +43,6 @@ __all__ = [
 
 WAYPOINT_TOL = 1e-3
 """Largest distance (m) between a leg's stated ``waypoint`` and where its path ends."""
-MAX_KINK_DEG = 10.0
-"""Largest turn of the tangent (deg) between two segments of one leg."""
 PATH_TOL = 0.05
 """Largest distance (m) of the guided hand from the path at cooperation 1: half the protective
 stop's ``max_deviation`` (0.10 m), so a person's push keeps room before a stop. The study's
@@ -153,21 +151,6 @@ def _shape_problems(exercise: Exercise, params: AdmittanceParams) -> list[Proble
                         None,
                         f"the leg ends at {np.round(end, 4).tolist()}, {miss:.4f} m from its "
                         f"waypoint {leg.waypoint.tolist()} (at most {WAYPOINT_TOL} m)",
-                    )
-                )
-        for j in range(1, len(segs)):
-            a, b = segs[j - 1], segs[j]
-            t_in = np.array(a.unit_tangent(a.length))
-            t_out = np.array(b.unit_tangent(0.0))
-            turn = math.degrees(math.acos(max(-1.0, min(1.0, float(t_in @ t_out)))))
-            if turn > MAX_KINK_DEG:
-                out.append(
-                    Problem(
-                        "kink",
-                        leg.name,
-                        j,
-                        f"the path turns {turn:.0f} deg at {np.round(b.start, 4).tolist()} "
-                        f"(at most {MAX_KINK_DEG:.0f} deg inside a leg; end the leg there instead)",
                     )
                 )
         span = exercise.leg_span(k)

@@ -101,6 +101,11 @@ class _Contacts:
         m.geom_contype[arm_geoms] = 2
         m.geom_conaffinity[arm_geoms] = 3
         m.geom_margin[arm_geoms] = CLEARANCE
+        bodies = np.unique(m.geom_bodyid[arm_geoms])  # the broad phase filters body pairs first
+        m.body_contype[bodies] |= 2
+        m.body_conaffinity[bodies] |= 3
+        if hasattr(m, "body_margin"):
+            m.body_margin[bodies] = np.maximum(m.body_margin[bodies], CLEARANCE)
         self.data = mujoco.MjData(m)
         self.ignored = {pair for pair, _ in self.contacts(home_qpos)}
 

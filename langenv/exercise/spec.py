@@ -80,8 +80,7 @@ PROBLEM_KINDS = MappingProxyType(
         "degenerate": "a zero-length line, an arc whose start lies on its axis, a zero angle",
         "spline_fit": "a spline not fitted with lines and arcs within its tolerance",
         "bad_graph": "the script's phrase graph is missing or invalid",
-        "gap": "a leg that does not start where the previous one ends",
-        "kink": "a sharp turn of the path inside a leg (the guide would not follow it)",
+        "gap": "a leg that does not end at its stated waypoint (where the next one starts)",
         "curvature": "a bend too tight to follow at the nominal speed",
         "path_error": "the guided hand would leave the path by more than the tolerance",
         "short_leg": "a leg shorter than the guide's switch distance",
@@ -116,8 +115,9 @@ class Problem:
     Attributes:
         kind: One of :data:`PROBLEM_KINDS`.
         leg: The leg's name, or None when the problem is not a leg's.
-        point: Index of the sampled point along the leg (checks) or of the spline point
-            (format), or None.
+        point: Where in the leg: the sample along it (the arm's checks, one every 1 cm from
+            its start), its segment (a bend too tight), or the spline's point (the format);
+            None for the whole leg.
         detail: What is wrong and what is allowed, in words.
     """
 
