@@ -17,7 +17,14 @@ from typing import Any
 import numpy as np
 
 from langenv.errors import ExerciseError
-from langenv.exercise.spec import LEG_KINDS, Exercise, Leg, Problem
+from langenv.exercise.spec import (
+    LEG_KINDS,
+    SPEED_RANGE,
+    SWITCH_TOL_RANGE,
+    Exercise,
+    Leg,
+    Problem,
+)
 
 __all__ = ["UNITS", "load_exercise"]
 
@@ -102,10 +109,15 @@ def load_exercise(path: str | Path) -> Exercise:
         start = _vector(data["start"], "start", found, None)
         if start is not None:
             fields["start"] = start
-    for key, what in (("speed", "speed (m/s)"), ("switch_tol", "switch_tol (m, rad)")):
+    for key, what, (lo, hi) in (
+        ("speed", "speed (m/s)", SPEED_RANGE),
+        ("switch_tol", "switch_tol (m, rad)", SWITCH_TOL_RANGE),
+    ):
         if key in data:
             value = _number(data[key], what, found, None)
-            if value is not None:
+            if value is not None and not lo <= value <= hi:
+                found.add("bad_value", f"{what} must lie in [{lo}, {hi}], got {value}")
+            elif value is not None:
                 fields[key] = value
     fields.update(_script(data.get("script", {}), path, found))
     fields["description"] = _comment_block(source)

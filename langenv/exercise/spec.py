@@ -332,9 +332,7 @@ class Exercise:
             try:
                 segs = leg.segments(cursor)
             except TrajectoryError as exc:
-                kind = (
-                    "spline_fit" if leg.kind == "spline" and "within" in str(exc) else "degenerate"
-                )
+                kind = "spline_fit" if leg.kind == "spline" else "degenerate"
                 problems.append(Problem(kind, leg.name, None, str(exc)))
                 continue
             spans.append((len(segments), len(segments) + len(segs) - 1))
