@@ -1,4 +1,4 @@
-"""Checks before motion: every shipped exercise passes, unsafe ones are refused with leg and reason."""
+"""Checks before motion: the shipped exercises pass, unsafe ones are refused with leg and reason."""
 
 from __future__ import annotations
 
@@ -74,7 +74,9 @@ def test_self_contacts_are_seen_and_none_at_home() -> None:
 
 
 def test_a_joint_near_its_limit_is_refused(tmp_path: Path) -> None:
-    xml = UR5_XML.read_text().replace('<joint name="elbow"/>', '<joint name="elbow" range="-1.6 1.6"/>')
+    xml = UR5_XML.read_text().replace(
+        '<joint name="elbow"/>', '<joint name="elbow" range="-1.6 1.6"/>'
+    )
     model = tmp_path / "ur5_narrow.xml"
     model.write_text(xml)
     kinds = _kinds(_ex(_line("out", [-0.10, -0.55, 0.06]), _line("back", START)), model)
@@ -121,6 +123,10 @@ def test_a_graph_that_does_not_load_is_refused(tmp_path: Path) -> None:
     graph = tmp_path / "g.yaml"
     graph.write_text("start: a\nphrases:\n  a: {text: hi, next: [b]}\n")  # b unknown
     ex = Exercise(
-        "g", "G", START, (_line("out", [-0.05, -0.55, 0.06]), _line("back", START)), graph=str(graph)
+        "g",
+        "G",
+        START,
+        (_line("out", [-0.05, -0.55, 0.06]), _line("back", START)),
+        graph=str(graph),
     )
     assert "bad_graph" in _kinds(ex)

@@ -65,7 +65,9 @@ def test_render_draws_the_path_over_the_arm(tmp_path: Path) -> None:
 
     out = tmp_path / "ex.png"
     try:
-        code = main(["render", "shoulder_abduction", "--out", str(out), "--width", "320", "--height", "240"])
+        code = main(
+            ["render", "shoulder_abduction", "--out", str(out), "--width", "320", "--height", "240"]
+        )
     except Exception as exc:  # no off-screen OpenGL on this machine
         pytest.skip(f"no off-screen rendering: {exc}")
     if code != 0:

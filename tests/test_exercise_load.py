@@ -180,5 +180,5 @@ def test_exercises_in_code_are_checked_at_construction() -> None:
         Exercise("fast", "Fast", start, legs, speed=1.0)
     with pytest.raises(ExerciseError, match="missing_key"):
         Leg("arc", "arc", center=start)
-    with pytest.raises(ExerciseError, match="tool.axis"):
+    with pytest.raises(ExerciseError, match=r"tool\.axis"):
         Leg("line", "line", end=start, tool_turn=0.3)
