@@ -59,7 +59,7 @@ def test_an_exercise_by_name_path_or_object(tmp_path: Path) -> None:
         assert base.exercise.name == "hand_to_mouth"
         assert base.motion.trajectory is base.exercise.trajectory
         assert base.motion.params.propel_force == pytest.approx(0.125 * 80.0)
-        assert base.graph.path.name == "lc.yaml"  # the exercise's script
+        assert base.graph.path.name == "hand_to_mouth_lc.yaml"  # the exercise's script
         env.close()
 
 

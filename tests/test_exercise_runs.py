@@ -28,6 +28,8 @@ def test_compare_runs_an_exercise_with_its_script(
     assert compare([*args, "--out", str(out), "--workers", "1", "--decision-hz", "50"]) == 0
     rows = list(csv.DictReader((out / "sessions.csv").open()))
     assert [r["policy"] for r in rows] == ["ac", "lc"]
+    ac_log = EpisodeLog.load_npz(out / "sessions" / "ac_s0.npz")
+    assert ac_log.phrase_graph.endswith("forearm_rotation_single.yaml")
     for r in rows:
         assert r["protective_stop"] == "0.0" and r["truncated"] == "0.0"
         assert np.isfinite(float(r["am"]))
@@ -35,7 +37,7 @@ def test_compare_runs_an_exercise_with_its_script(
     ex = resolve_exercise("forearm_rotation")
     assert log.path is not None
     np.testing.assert_allclose(log.path, ex.trajectory.sample(200), atol=1e-6)  # float32
-    assert log.phrase_graph == "lc"
+    assert log.phrase_graph.endswith("forearm_rotation_lc.yaml")  # the exercise's script
     assert (out / "sessions" / "lc_s0.wav").stat().st_size > 10_000
     assert '"exercise": "forearm_rotation"' in (out / "config.json").read_text()
     capsys.readouterr()
