@@ -75,6 +75,10 @@ class CompareArgs:
             per-user differences) or ``mean``.
         video: Render each session's video (MP4 with the speech as its sound track).
         overwrite: Replace the outputs of an earlier run in a non-empty ``out``.
+        exercise: The exercise (a shipped name or a YAML path; ``python -m langenv.exercise
+            list``), checked before any episode runs; None: the study's. Its script's graphs
+            are spoken: ``graph`` by the policies that choose phrases (unless ``phrase_graph``),
+            ``single`` by AC and LC-noAP.
     """
 
     policies: str = "ac,lc-noap,lc"
@@ -91,6 +95,7 @@ class CompareArgs:
     stat: str = "median"
     video: bool = False
     overwrite: bool = False
+    exercise: str | None = None
 
 
 #: Most synthetic users one run accepts (``--users synthetic:N``).
@@ -113,6 +118,7 @@ class Job:
     name: str | None = None  # the policy's name in outputs (default: its own name)
     video: bool = False
     user_params: Any = None  # SyntheticUserParams for synthetic users (default: calibrated)
+    exercise: str | None = None  # a shipped exercise or an exercise YAML (default: the study's)
 
 
 class UsageError(Exception):
@@ -159,6 +165,12 @@ def parse_args(argv: Sequence[str] | None = None) -> CompareArgs:
         "shipped graph (default: theirs; 'study' is the study's graph)",
     )
     p.add_argument(
+        "--exercise",
+        default=None,
+        help="exercise: a shipped name (python -m langenv.exercise list) or a YAML path "
+        "(default: the study's external_rotation)",
+    )
+    p.add_argument(
         "--stat",
         choices=("median", "mean"),
         default="median",
@@ -189,6 +201,7 @@ def parse_args(argv: Sequence[str] | None = None) -> CompareArgs:
         stat=ns.stat,
         video=ns.video,
         overwrite=ns.overwrite,
+        exercise=ns.exercise,
     )
 
 
@@ -221,6 +234,20 @@ def _check_options(args: CompareArgs) -> None:
             PhraseGraph.load(graph_path(args.phrase_graph))
         except LangEnvError as exc:
             raise UsageError(f"--graph: {exc}") from None
+    if args.exercise is not None:
+        _check_exercise(args.exercise)
+
+
+def _check_exercise(spec: str) -> None:
+    """--exercise: loaded and checked (reach, margins, contacts, speed...) before any episode."""
+    from langenv.errors import LangEnvError
+    from langenv.exercise import resolve_exercise
+    from langenv.exercise.check import check_exercise
+
+    try:
+        check_exercise(resolve_exercise(spec))
+    except LangEnvError as exc:
+        raise UsageError(f"--exercise: {exc}") from None
 
 
 def _check_video() -> None:
@@ -294,7 +321,7 @@ def _check_out(out: Path, overwrite: bool) -> None:
         raise UsageError(f"--out {out}: {parent} is a file, not a directory")
 
 
-_ENVS: dict[tuple[str, int, str], Any] = {}
+_ENVS: dict[tuple[str, int, str, str | None], Any] = {}
 
 
 def run_episode(job: Job) -> dict[str, Any]:
@@ -314,18 +341,19 @@ def run_episode(job: Job) -> dict[str, Any]:
     if job.name is not None:
         policy.name = job.name
     hz = job.decision_hz or policy.decision_hz
-    graph = policy.phrase_graph
-    if job.phrase_graph is not None and _chooses_phrases(job.policy):
-        graph = job.phrase_graph
-    key = (job.policy, hz, str(graph))
+    graph = _episode_graph(job, policy.phrase_graph)
+    key = (job.policy, hz, str(graph), job.exercise)
     env = _ENVS.get(key)
     if env is None:  # one env per policy and worker process: building one costs ~0.3 s
+        kwargs = dict(policy.env_kwargs)
+        if job.exercise is not None:
+            kwargs["exercise"] = job.exercise
         env = _ENVS[key] = gym.make(
             langenv.ENV_ID,
             phrase_graph=graph,
             decision_hz=hz,
             max_episode_steps=int(60 * hz),
-            **policy.env_kwargs,
+            **kwargs,
         )
     options: dict[str, Any] | None = None
     if job.session:
@@ -381,6 +409,19 @@ def run_episode(job: Job) -> dict[str, Any]:
     row["protective_stop"] = float(info.get("safety_stop") is not None)
     row["stop_limit"] = info.get("safety_stop") or ""
     return row
+
+
+def _episode_graph(job: Job, own: str) -> str:
+    """The phrase graph ``job``'s policy speaks: ``--phrase-graph`` for the policies that choose
+    phrases, else the exercise's script for the policy's own graph
+    (:meth:`~langenv.exercise.Exercise.script_for`), else the policy's own."""
+    if job.phrase_graph is not None and _chooses_phrases(job.policy):
+        return job.phrase_graph
+    if job.exercise is None:
+        return own
+    from langenv.exercise import resolve_exercise
+
+    return resolve_exercise(job.exercise).script_for(own)
 
 
 def _run_law(
@@ -456,6 +497,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 str(args.phrase_graph) if args.phrase_graph else None,
                 labels[n],
                 args.video,
+                exercise=args.exercise,
             )
             for n in names
             for (u, s, sess) in users

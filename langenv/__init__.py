@@ -13,7 +13,11 @@ from __future__ import annotations
 
 from importlib.metadata import PackageNotFoundError, version
 
-from gymnasium.envs.registration import register, registry
+from langenv.robot.gl import default_backend
+
+default_backend()  # before anything imports MuJoCo: EGL on a headless Linux machine
+
+from gymnasium.envs.registration import register, registry  # noqa: E402
 
 __all__ = ["ENV_ID", "__version__"]
 

@@ -15,8 +15,9 @@ from gymnasium import spaces
 
 from langenv.control.admittance import AdmittanceParams
 from langenv.control.cooperation import CooperationFilter
-from langenv.control.trajectory import Trajectory, default_exercise
+from langenv.control.trajectory import Trajectory
 from langenv.errors import ActionError, ConfigError
+from langenv.exercise import Exercise, resolve_exercise
 from langenv.kernels import pacer, steps
 from langenv.kernels.steps import CompiledSteps
 from langenv.motion import GuidedArm
@@ -51,8 +52,11 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
 
     ## The plant (measured against the study's recordings: ``python -m eval.fidelity``)
 
-    * Exercise (:func:`~langenv.control.trajectory.default_exercise`): an arc of 43 deg out,
-      straight back, the arc again; one leg each (the arc angle is fitted to the recorded legs).
+    * Exercise (``exercise``, a file of :mod:`langenv.exercise`; by default the study's
+      ``external_rotation``, the same path as :func:`~langenv.control.trajectory.default_exercise`):
+      an arc of 43 deg out, straight back, the arc again; one leg each (the arc angle is fitted to
+      the recorded legs). Any checked exercise works the same way (``python -m langenv.exercise
+      list``): its legs, its nominal speed (the guide's plateau) and its phrase graph.
     * Legs (:mod:`langenv.control.guide`), as in the study's lab code: the full propelling force
       up to a leg's end, and the next leg as soon as the hand's 6-D pose is within 0.1 of the
       leg's end pose (3.5 cm before it), without slowing down; the last leg ends the motion the
@@ -173,13 +177,15 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     |---|---|---|
     | ``users`` | ``"synthetic"`` | ``"synthetic"``, ``"replay"`` (with ``session``), a :class:`~langenv.users.User` or a callable ``f(t, hand_velocity, tangent) -> (3,)`` N |
     | ``session`` | ``None`` | session CSV (``t, cooperation``) for ``users="replay"`` |
-    | ``phrase_graph`` | ``"lc"`` | YAML path or a shipped graph: ``"default"`` (= ``"lc"``, LC's graph with pauses and fillers), ``"study"`` (the study's LC graph), ``"lc-noap"``, ``"ac"`` |
+    | ``exercise`` | ``"external_rotation"`` | a shipped exercise's name (``python -m langenv.exercise list``), an exercise YAML path or an :class:`~langenv.exercise.Exercise` |
+    | ``phrase_graph`` | the exercise's (``script.graph``: for the study's exercise ``"default"``) | YAML path or a shipped graph: ``"default"`` (= ``"lc"``, LC's graph with pauses and fillers), ``"study"`` (the study's LC graph), ``"lc-noap"``, ``"ac"`` |
+    | ``trajectory`` | ``None`` | a :class:`~langenv.control.trajectory.Trajectory` instead of the exercise's path (not with ``exercise``) |
     | ``decision_hz`` | 25 | agent decisions per second; must divide 500 |
     | ``choice_mode`` | ``"target"`` | next-phrase action design: ``"target"`` or ``"scores"`` |
     | ``w_em``, ``w_pace``, ``w_am`` | 1, 1, 1 | reward weights |
     | ``sensor_noise`` | 0 | force sensor noise std (N) |
     | ``deadband`` | 5 | force sensor deadband (N) |
-    | ``admittance`` | SPEC §2 | :class:`~langenv.control.admittance.AdmittanceParams` |
+    | ``admittance`` | SPEC §2, ``propel_force = speed * D0`` | :class:`~langenv.control.admittance.AdmittanceParams` (given: its own propelling force, not the exercise's speed) |
     | ``paces`` | SPEC §2 | :class:`~langenv.pacing.PaceLimits` (bounds, ``k_p``, ``k_a``) |
     | ``safety`` | see Safety | :class:`~langenv.safety.SafetyLimits` |
     | ``model_path``, ``handle_site`` | our UR5, ``"handle"`` | another arm MJCF and its handle site |
@@ -192,8 +198,10 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
 
     ## Version history
 
-    * v0 (langctrl 0.5): ``robot`` (a :class:`~langenv.robot.io.RobotIO`) and ``robot_acceleration``
-      added; episodes without them unchanged.
+    * v0 (langctrl 0.5): ``exercise`` added (exercises as data), ``robot`` (a
+      :class:`~langenv.robot.io.RobotIO`) and ``robot_acceleration`` added, the default phrase
+      graph has pauses and fillers (the study's is ``"study"``); the study's exercise with the
+      study's graph gives the episodes it gave.
     * v0 (langctrl 0.4): ``run_law`` and ``observation()`` added; episodes unchanged.
     * v0 (langctrl 0.2): plant, speech and synthetic users fitted to the study's recordings (the
       lab's leg switching instead of a rest at each end, the acceleration-limited command, a 43 deg
@@ -209,7 +217,8 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         *,
         users: str | User | Callable[..., np.ndarray] = "synthetic",
         session: str | Path | None = None,
-        phrase_graph: str | Path = "lc",
+        exercise: str | Path | Exercise | None = None,
+        phrase_graph: str | Path | None = None,
         decision_hz: int = 25,
         choice_mode: Literal["target", "scores"] = "target",
         w_em: float = 1.0,
@@ -255,6 +264,11 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         if safety is not None and not isinstance(safety, SafetyLimits):
             raise ConfigError(f"safety must be SafetyLimits or None, got {type(safety).__name__}")
 
+        if exercise is not None and trajectory is not None:
+            raise ConfigError("give exercise or trajectory, not both")
+        self.exercise: Exercise = resolve_exercise(exercise)
+        if trajectory is not None and not isinstance(trajectory, Trajectory):
+            raise ConfigError(f"trajectory must be a Trajectory, got {type(trajectory).__name__}")
         arm: Arm | IOArm
         if robot is None:
             arm = Arm(model_path, handle_site)
@@ -265,13 +279,14 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             arm = IOArm(robot, acceleration=robot_acceleration)
             self.user = MeasuredUser(arm)
         self.clips = clips if clips is not None else ClipLibrary()
-        self.graph = PhraseGraph.load(graph_path(phrase_graph), clips=self.clips)
+        graph = phrase_graph if phrase_graph is not None else self.exercise.graph
+        self.graph = PhraseGraph.load(graph_path(graph), clips=self.clips)
         self.max_children = max(1, self.graph.max_children)
 
-        params = admittance if admittance is not None else AdmittanceParams()
+        params = admittance if admittance is not None else self.exercise.admittance()
         self.motion = GuidedArm(
             arm,
-            trajectory if trajectory is not None else default_exercise(),
+            trajectory if trajectory is not None else self.exercise.trajectory,
             params,
             ForceSensor(noise_std=sensor_noise, deadband=deadband),
             CooperationFilter(),

@@ -6,6 +6,9 @@ catch the package's errors in one place. Messages name the file, field or argume
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+from typing import Any
+
 
 class LangEnvError(Exception):
     """Base class of every error langenv raises on bad input."""
@@ -41,3 +44,21 @@ class ActionError(LangEnvError, ValueError):
 
 class DeviceError(LangEnvError, OSError):
     """A device the live mode needs is missing: a display, a sound card or its library."""
+
+
+class ExerciseError(ConfigError):
+    """An exercise file is malformed, or its exercise is unsafe for the arm (names the file).
+
+    Attributes:
+        problems: Every problem found, as :class:`~langenv.exercise.spec.Problem` records
+            ``(kind, leg, point, detail)``; ``kind`` is one of
+            :data:`~langenv.exercise.spec.PROBLEM_KINDS` (stable: tests assert on it).
+        path: The exercise file, or None for an exercise built in code.
+    """
+
+    def __init__(self, problems: Iterable[Any], path: object = None) -> None:
+        self.problems: tuple[Any, ...] = tuple(problems)
+        self.path = path
+        label = str(path) if path is not None else "<exercise>"
+        lines = [f"{label}: {p}" for p in self.problems] or [f"{label}: invalid exercise"]
+        super().__init__("\n".join(lines))

@@ -8,6 +8,7 @@ the phrase and the paces shown on screen::
     python -m langenv.play                          # LC, you are the person
     python -m langenv.play --policy ppo:models/ppo_aligner.zip
     python -m langenv.play --user synthetic --audio-out talk.wav   # watch a simulated person
+    python -m langenv.play --exercise hand_to_mouth  # another exercise (checked first)
 
 Headless (tests, servers): the same real-time loop with no window and no sound card, the audio
 written to a WAV at the sound card's pace; it prints one summary line (late ticks, underruns)::
@@ -52,7 +53,13 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
         dest="phrase_graph",
         default=None,
         help="phrase graph: a YAML file or a shipped graph such as 'study' (default: the "
-        "policy's own)",
+        "exercise's script for the policy)",
+    )
+    p.add_argument(
+        "--exercise",
+        default=None,
+        help="exercise: a shipped name (python -m langenv.exercise list) or a YAML path, checked "
+        "before anything moves (default: the study's external_rotation)",
     )
     p.add_argument(
         "--user",
@@ -127,6 +134,13 @@ def _make_env(ns: argparse.Namespace, policy: Any, user: Any) -> Any:
         kwargs.update(users="replay", session=ns.user.removeprefix("replay:"))
     hz = int(policy.decision_hz)
     graph = ns.phrase_graph if ns.phrase_graph is not None else policy.phrase_graph
+    if ns.exercise is not None:
+        from langenv.exercise import resolve_exercise
+
+        exercise = resolve_exercise(ns.exercise)
+        kwargs["exercise"] = exercise
+        if ns.phrase_graph is None:
+            graph = exercise.script_for(policy.phrase_graph)
     return gym.make(
         langenv.ENV_ID,
         phrase_graph=graph,
@@ -203,6 +217,11 @@ def run(ns: argparse.Namespace) -> str:
         from langenv.live.viewer import check_display
 
         check_display()  # before anything slow
+    if ns.exercise is not None:  # checked before anything moves
+        from langenv.exercise import resolve_exercise
+        from langenv.exercise.check import check_exercise
+
+        check_exercise(resolve_exercise(ns.exercise))
     policy = load_registered_policy(ns.policy)
     drag = DragUser() if ns.user == "drag" else None
     env = _make_env(ns, policy, drag)

@@ -465,6 +465,7 @@ class PPOPolicy:
         digest = config.get("phrase_graph_sha256")
         graph = str(env_kwargs.pop("phrase_graph", None) or _shipped_graph_of(digest) or "lc")
         env_kwargs.pop("max_episode_steps", None)
+        env_kwargs.pop("exercise", None)  # trained on one or several: the caller chooses
         if digest and digest != graph_digest(graph):
             warnings.warn(
                 f"{zip_path}: the phrase graph {graph!r} changed since this model was trained; "

@@ -38,6 +38,12 @@ where they were, the evaluation history and the best model carry over, and the r
 are reseeded from ``seed`` and the step count, so a resumed run is reproducible. Ctrl-C stops a
 run with one line (the resume point is already on disk) and exit status 130.
 
+Exercises: ``env_kwargs.exercise`` is one exercise (a shipped name or a YAML path; default the
+study's) or a list of them: training env ``i`` then guides exercise ``i mod k`` (give ``n_envs`` a
+multiple of ``k``), and the periodic evaluation runs one env per exercise, the held-out users
+spread over them. Every exercise is checked (``python -m langenv.exercise check``) before
+training starts; they must share the phrase graph (the observation's size depends on it).
+
 Seeds: training envs are seeded ``seed + i`` (``seed >= 1_000_000`` by default, far from the
 evaluation users of ``python -m eval.compare --seed 0``, which are 0..N-1); periodic evaluation
 meets the same held-out users ``eval_seed .. eval_seed + n_eval_episodes - 1`` every time
@@ -423,33 +429,87 @@ def _make_envs(run: _Run) -> tuple[Any, Any]:
 
     a = run.args
     cls = _SubprocVecEnv if use_subprocesses(a.vec_env, run.n_envs) else DummyVecEnv
-    env = make_vec_env(
-        a.env_id,
-        n_envs=run.n_envs,
-        seed=a.seed,
-        vec_env_cls=cls,
-        env_kwargs=run.env_kwargs,
-        wrapper_class=run.wrapper,
-    )
+    per_env = _exercise_kwargs(run.env_kwargs)
+    if len(per_env) == 1:
+        env = make_vec_env(
+            a.env_id,
+            n_envs=run.n_envs,
+            seed=a.seed,
+            vec_env_cls=cls,
+            env_kwargs=run.env_kwargs,
+            wrapper_class=run.wrapper,
+        )
+    else:  # make_vec_env gives every env the same kwargs: its loop, exercise i mod k
+        fns: list[Any] = [
+            _EnvFn(a.env_id, per_env[i % len(per_env)], run.wrapper, a.seed, i)
+            for i in range(run.n_envs)
+        ]
+        env = cls(fns)
+        env.seed(a.seed)
     if run.normalize is not None:
         env = VecNormalize(env, **run.normalize)
     eval_env: Any = None
     if a.n_eval_episodes > 0:
         seeds = [a.eval_seed + i for i in range(a.n_eval_episodes)]
         chain = run.wrapper.chain if run.wrapper is not None else []
-        eval_wrapper = _WrapperChain(chain, ((SeedCycle, {"seeds": seeds}),))
+        k = len(per_env)
 
-        def make_eval_env() -> gym.Env[Any, Any]:
-            return eval_wrapper(Monitor(gym.make(a.env_id, **run.env_kwargs)))
+        def make_eval_env(j: int) -> Any:
+            wrap = _WrapperChain(chain, ((SeedCycle, {"seeds": seeds[j::k] or seeds[:1]}),))
+            return lambda: wrap(Monitor(gym.make(a.env_id, **per_env[j])))
 
         # Not make_vec_env: it seeds the first reset at random even with seed=None, which would
         # override SeedCycle and make the first evaluation episode a random user. A bare
         # DummyVecEnv passes seed=None, so SeedCycle picks eval_seed, eval_seed + 1, ...
-        eval_env = DummyVecEnv([make_eval_env])
+        eval_env = DummyVecEnv([make_eval_env(j) for j in range(k)])
         if run.normalize is not None:
             kw = {k: v for k, v in run.normalize.items() if k != "norm_reward"}
             eval_env = VecNormalize(eval_env, training=False, norm_reward=False, **kw)
     return env, eval_env
+
+
+def _exercise_kwargs(env_kwargs: dict[str, Any]) -> list[dict[str, Any]]:
+    """The env kwargs of each exercise of ``env_kwargs["exercise"]`` (one or a list), checked.
+
+    Raises:
+        ConfigError: an empty list, or an exercise that does not load or fails its checks.
+    """
+    from langenv.exercise import resolve_exercise
+    from langenv.exercise.check import check_exercise
+
+    given = env_kwargs.get("exercise")
+    if not isinstance(given, list | tuple):
+        if given is not None:
+            check_exercise(resolve_exercise(given))
+        return [env_kwargs]
+    if not given:
+        raise ConfigError("env_kwargs.exercise: an empty list; give one exercise or several")
+    for ex in given:
+        check_exercise(resolve_exercise(ex))
+    return [{**env_kwargs, "exercise": ex} for ex in given]
+
+
+@dataclass(frozen=True)
+class _EnvFn:
+    """One training env of a list of exercises, made as ``make_vec_env`` makes each of its own
+    (the action space seeded ``seed + rank``, a Monitor, the wrappers); picklable for
+    subprocesses."""
+
+    env_id: str
+    kwargs: dict[str, Any]
+    wrapper: Any
+    seed: int | None
+    rank: int
+
+    def __call__(self) -> Any:
+        import gymnasium as gym
+        from stable_baselines3.common.monitor import Monitor
+
+        env = gym.make(self.env_id, **{"render_mode": "rgb_array", **self.kwargs})
+        if self.seed is not None:
+            env.action_space.seed(self.seed + self.rank)
+        env = Monitor(env)
+        return self.wrapper(env) if self.wrapper is not None else env
 
 
 def _residual_section(env: Any) -> dict[str, Any]:

@@ -269,8 +269,12 @@ class FastETC:
         self._q_sw = [guide.switch_distance(k) for k in range(len(ends))]
         self._cos: list[float] = []  # tangents arriving at / leaving the end of each leg
         for s in ends[:-1]:
-            (seg_in, t_in), (seg_out, t_out) = traj.locate(s, True), traj.locate(s, False)
-            b_in, b_out = seg_in.unit_tangent(t_in), seg_out.unit_tangent(t_out)
+            # the segment ending the leg and the next one, by index: the next segment's start
+            # arc length (an end minus a length) may differ from this end by a rounding error,
+            # which would make ``locate(s)`` return the arriving segment for both
+            i = traj.segment_index(s, "left")
+            seg_in, seg_out = traj.segments[i], traj.segments[i + 1]
+            b_in, b_out = seg_in.unit_tangent(seg_in.length), seg_out.unit_tangent(0.0)
             self._cos.append(sum(a * b for a, b in zip(b_in, b_out, strict=True)))
         self._inv_acc = 1.0 / law.acc
         n_u = math.ceil((u_range[1] - u_range[0]) / u_step) + 1

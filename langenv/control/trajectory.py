@@ -328,7 +328,10 @@ class Trajectory:
         lengths = np.array([seg.length for seg in segs])
         ends = np.cumsum(lengths)
         self.seg_end: np.ndarray = ends
-        self.seg_start: np.ndarray = ends - lengths
+        # each start is exactly the previous end: ``ends - lengths`` can differ from it by a
+        # rounding error, and a joint's arc length would then fall in the arriving segment
+        # (``locate`` and the packed path's ``S0`` column read these)
+        self.seg_start: np.ndarray = np.concatenate([[0.0], ends[:-1]])
         self.length: float = float(ends[-1])
         waypoints = [float(e) for seg, e in zip(segs, ends, strict=True) if seg.waypoint]
         if not waypoints or waypoints[-1] < self.length:

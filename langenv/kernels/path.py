@@ -58,18 +58,29 @@ def pack(trajectory: Trajectory) -> np.ndarray:
 
 
 @jit
+def _after(path: np.ndarray, col: int, s: float, strict: bool) -> int:
+    """Binary search of the sorted column ``col``: how many rows hold a value ``< s``
+    (``strict``: bisect_left) or ``<= s`` (bisect_right). Its cost grows with the log of the
+    number of segments, so a long path costs a tick about what a short one does."""
+    lo, hi = 0, path.shape[0]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        v = path[mid, col]
+        if v < s or (not strict and v == s):
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@jit
 def locate(path: np.ndarray, s: float, arriving: bool) -> tuple[int, float]:
     """``Trajectory.locate``: (segment index, local arc length)."""
     n = path.shape[0]
     if arriving:  # bisect_left on the ends
-        i = 0
-        while i < n and path[i, S1] < s:
-            i += 1
+        i = _after(path, S1, s, True)
     else:  # bisect_right on the starts, minus one
-        i = 0
-        while i < n and path[i, S0] <= s:
-            i += 1
-        i -= 1
+        i = _after(path, S0, s, False) - 1
     i = 0 if i < 0 else (n - 1 if i >= n else i)
     t = s - path[i, S0]
     length = path[i, LEN]
@@ -80,10 +91,7 @@ def locate(path: np.ndarray, s: float, arriving: bool) -> tuple[int, float]:
 def tool_angle(path: np.ndarray, s: float) -> float:
     """``Trajectory.tool_angle``: the tool's running turn at ``s`` (rad)."""
     n = path.shape[0]
-    i = 0
-    while i < n and path[i, S0] <= s:
-        i += 1
-    i -= 1
+    i = _after(path, S0, s, False) - 1
     i = 0 if i < 0 else (n - 1 if i >= n else i)
     t = s - path[i, S0]
     seg_len = path[i, S1] - path[i, S0]
@@ -192,10 +200,7 @@ def closest(
     """``Trajectory.closest_xyz``: the local closest point by descent from ``s_prev`` (m)."""
     n = path.shape[0]
     s_prev = lo if s_prev < lo else (hi if s_prev > hi else s_prev)
-    i = 0
-    while i < n and path[i, S0] <= s_prev:
-        i += 1
-    i -= 1
+    i = _after(path, S0, s_prev, False) - 1  # the search starts from s_prev's segment
     i = 0 if i < 0 else (n - 1 if i >= n else i)
     best_s, best_d2 = _dist2_on(path, i, x0, x1, x2, lo, hi)
     eps = 1e-12

@@ -7,18 +7,9 @@ Importing this package is light: ``Arm`` and ``ForceSensor`` (MuJoCo) load on fi
 
 from __future__ import annotations
 
-import os
-import sys
+# MuJoCo's OpenGL backend (EGL on headless Linux) is chosen by ``langenv/__init__.py``, which
+# runs before any of its subpackages imports MuJoCo (langenv.robot.gl).
 from typing import TYPE_CHECKING, Any
-
-# MuJoCo chooses its OpenGL backend when first imported: default to EGL on headless Linux.
-if (
-    sys.platform.startswith("linux")
-    and "MUJOCO_GL" not in os.environ
-    and not os.environ.get("DISPLAY")
-    and not os.environ.get("WAYLAND_DISPLAY")
-):
-    os.environ["MUJOCO_GL"] = "egl"
 
 if TYPE_CHECKING:
     from langenv.robot.arm import UR5_JOINTS, UR5_XML, Arm

@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from langenv.errors import ConfigError
+from langenv.robot.gl import ensure_headless_context
 
 PATH_RGBA = np.array([0.1, 0.75, 0.3, 0.9], dtype=np.float32)
 """Colour of the exercise path."""
@@ -109,6 +110,7 @@ class SceneRenderer:
             )
         self.model = model
         self.size = (width, height)
+        ensure_headless_context()  # MuJoCo imported before langenv on a headless machine
         self._renderer = mujoco.Renderer(model, height=height, width=width)
 
     def render(

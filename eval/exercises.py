@@ -1,0 +1,154 @@
+"""Every shipped exercise under AC, LC-noAP and LC: the table of ``docs/exercises.md``.
+
+Run::
+
+    python -m eval.exercises --users synthetic:12 --out out/exercises
+
+runs ``python -m eval.compare --exercise NAME --policies ac,lc-noap,lc`` for each shipped exercise
+(into ``OUT/NAME``, figures and WAVs as usual), then reads the runs back and prints, per exercise
+and controller, the medians of motion time, ``|AM|``, mean ``|EM|``, the share of speech time with
+``|a - 1| <= 0.1``, the protective stops, and the hand's largest distance from the path (from the
+logged joint positions: the handle's position by forward kinematics, its distance to the nearest
+point of the exercise's path). ``--table-only`` reads existing runs without running anything.
+Exit status 1 when an episode ended in a protective stop or left the path by more than the
+safety's ``max_deviation``, or LC's median ``|AM|`` is not below AC's.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["exercise_rows", "main", "path_deviation"]
+
+POLICIES = ("ac", "lc-noap", "lc")
+_LABEL = {"ac": "AC", "lc-noap": "LC-noAP", "lc": "LC"}
+_STRIDE = 5  # every 5th logged step (10 ms at 500 Hz)
+
+
+def path_deviation(qpos: np.ndarray, exercise: Any) -> float:
+    """Largest distance (m) of the handle from the exercise's path over logged joint positions."""
+    import mujoco
+
+    from langenv.robot.arm import Arm
+
+    arm = Arm()
+    m, d = arm.model, arm.data
+    site = arm.site_id
+    segs = exercise.trajectory.segments
+    worst = 0.0
+    for q in qpos[::_STRIDE]:
+        d.qpos[:] = q
+        mujoco.mj_kinematics(m, d)
+        x = d.site_xpos[site].tolist()
+        near = min(math.dist(x, s.point(s.project(*x))) for s in segs)
+        worst = max(worst, near)
+    return worst
+
+
+def exercise_rows(run_dir: Path, name: str) -> list[dict[str, Any]]:
+    """Per policy the figures of one exercise's compare run in ``run_dir``."""
+    from eval.episode import EpisodeLog
+    from eval.report import read_sessions_csv
+    from langenv.exercise import resolve_exercise
+
+    ex = resolve_exercise(name)
+    rows = read_sessions_csv(run_dir / "sessions.csv")
+    out = []
+    for pol in POLICIES:
+        mine = [r for r in rows if r["policy"] == pol]
+        if not mine:
+            continue
+        dev = 0.0
+        for r in mine:
+            log = EpisodeLog.load_npz(run_dir / "sessions" / f"{pol}_{r['user']}.npz")
+            dev = max(dev, path_deviation(np.asarray(log.qpos, np.float64), ex))
+        values = {k: [float(r[k]) for r in mine] for k in ("t_motion", "abs_am", "em_mean_abs")}
+        share = [float(r["a_within_0_1"]) for r in mine]
+        finite = all(math.isfinite(v) for vs in values.values() for v in vs)
+        out.append(
+            {
+                "exercise": name,
+                "policy": _LABEL[pol],
+                "episodes": len(mine),
+                "t_motion": float(np.median(values["t_motion"])),
+                "abs_am": float(np.median(values["abs_am"])),
+                "em": float(np.median(values["em_mean_abs"])),
+                "a_share": float(np.median(share)),
+                "stops": int(sum(float(r["protective_stop"]) for r in mine)),
+                "truncated": int(sum(float(r["truncated"]) for r in mine)),
+                "deviation": dev,
+                "finite": finite,
+            }
+        )
+    return out
+
+
+def table(rows: list[dict[str, Any]]) -> str:
+    """The rows as a Markdown table."""
+    lines = [
+        "| exercise | controller | motion time (s) | median abs(AM) (s) | median mean abs(EM) (s) "
+        "| share abs(a - 1) <= 0.1 | protective stops | max path deviation (mm) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['exercise']} | {r['policy']} | {r['t_motion']:.2f} | {r['abs_am']:.2f} | "
+            f"{r['em']:.2f} | {100 * r['a_share']:.0f} % | {r['stops']} | "
+            f"{1000 * r['deviation']:.0f} |"
+        )
+    return "\n".join(lines)
+
+
+def _verdict(rows: list[dict[str, Any]]) -> list[str]:
+    from langenv.safety import SafetyLimits
+
+    limit = SafetyLimits().max_deviation
+    bad = []
+    for r in rows:
+        if r["stops"] or r["truncated"] or not r["finite"] or r["deviation"] > limit:
+            bad.append(f"{r['exercise']} {r['policy']}: stops, truncation, NaN or off the path")
+    by = {(r["exercise"], r["policy"]): r["abs_am"] for r in rows}
+    for ex in {r["exercise"] for r in rows}:
+        if by.get((ex, "LC"), math.inf) >= by.get((ex, "AC"), -math.inf):
+            bad.append(f"{ex}: LC's median |AM| is not below AC's")
+    return bad
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point; returns the exit status."""
+    from langenv.exercise import SHIPPED_EXERCISES
+
+    p = argparse.ArgumentParser(prog="python -m eval.exercises", description=__doc__)
+    p.add_argument("--users", default="synthetic:12")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--table-only", action="store_true", help="read existing runs in --out")
+    ns = p.parse_args(argv)
+    rows: list[dict[str, Any]] = []
+    for name in SHIPPED_EXERCISES:
+        run_dir = ns.out / name
+        if not ns.table_only:
+            from eval.compare import main as compare
+
+            args = ["--exercise", name, "--policies", ",".join(POLICIES), "--users", ns.users]
+            args += ["--seed", str(ns.seed), "--workers", str(ns.workers), "--out", str(run_dir)]
+            if compare([*args, "--overwrite"]) != 0:
+                return 1
+        rows += exercise_rows(run_dir, name)
+    print(table(rows))
+    bad = _verdict(rows)
+    for line in bad:
+        print(f"FAIL {line}", file=sys.stderr)
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

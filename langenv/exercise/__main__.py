@@ -1,0 +1,104 @@
+"""Command line: list the shipped exercises, check one, or draw it.
+
+    python -m langenv.exercise list
+    python -m langenv.exercise check NAME|FILE [NAME|FILE ...]
+    python -m langenv.exercise render NAME|FILE --out F.png
+
+``check`` loads the file, validates it and runs every check before motion
+(:mod:`langenv.exercise.check`): it prints the figures of a passing exercise, and every problem
+(file, leg, point, why) of a failing one. Exit status 0 when everything passed, 1 on a bad or
+unsafe exercise (messages on stderr), 2 on bad usage (an unknown name included).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from langenv.errors import ConfigError, ExerciseError, LangEnvError
+from langenv.exercise.registry import SHIPPED_EXERCISES, exercise_path, resolve_exercise
+
+__all__ = ["main"]
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="python -m langenv.exercise",
+        description="List, check and draw LangCtrl therapy exercises (exercise YAML files).",
+        epilog="NAME is a shipped exercise (" + ", ".join(SHIPPED_EXERCISES) + ") and FILE an "
+        "exercise YAML (format: langenv/exercise/spec.py, docs/exercises.md).",
+    )
+    sub = p.add_subparsers(dest="command", required=True, metavar="{list,check,render}")
+    sub.add_parser("list", help="the shipped exercises, one a line")
+    c = sub.add_parser("check", help="load, validate and check exercises before any motion")
+    c.add_argument("exercises", nargs="+", metavar="NAME|FILE")
+    r = sub.add_parser("render", help="draw an exercise's path over the arm (PNG)")
+    r.add_argument("exercise", metavar="NAME|FILE")
+    r.add_argument("--out", type=Path, required=True, help="PNG file to write")
+    r.add_argument("--width", type=int, default=960)
+    r.add_argument("--height", type=int, default=720)
+    return p
+
+
+def _list() -> int:
+    for name, path in SHIPPED_EXERCISES.items():
+        try:
+            title = resolve_exercise(path).title
+        except LangEnvError as exc:
+            title = f"(invalid: {str(exc).splitlines()[0]})"
+        print(f"{name:24s} {title}")
+    return 0
+
+
+def _check(specs: Sequence[str]) -> int:
+    from langenv.exercise.check import check_exercise
+
+    status = 0
+    for spec in specs:
+        try:
+            report = check_exercise(resolve_exercise(spec))
+        except ExerciseError as exc:
+            status = 1
+            for line in str(exc).splitlines():
+                print(f"error: {line}", file=sys.stderr)
+            print(f"{spec}: REFUSED ({len(exc.problems)} problems)", file=sys.stderr)
+            continue
+        print(report.summary())
+        print(f"  OK (checked in {report.seconds:.2f} s)")
+    return status
+
+
+def _render(spec: str, out: Path, width: int, height: int) -> int:
+    from langenv.exercise.render import render_exercise
+
+    path = render_exercise(resolve_exercise(spec), out, width=width, height=height)
+    print(f"wrote {path}")
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit status."""
+    args = _parser().parse_args(argv)
+    try:
+        names = args.exercises if args.command == "check" else [getattr(args, "exercise", "")]
+        for spec in names if args.command != "list" else []:
+            exercise_path(spec)  # an unknown name or a missing file is a usage error
+    except ConfigError as exc:
+        print(f"python -m langenv.exercise: error: {exc}", file=sys.stderr)
+        return 2
+    try:
+        if args.command == "list":
+            return _list()
+        if args.command == "check":
+            return _check(args.exercises)
+        return _render(args.exercise, args.out, args.width, args.height)
+    except (LangEnvError, OSError) as exc:
+        for line in str(exc).splitlines():
+            print(f"error: {line}", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
