@@ -193,6 +193,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     | ``width``, ``height`` | 640, 480 | render size (pixels) |
     | ``robot`` | ``None`` | a :class:`~langenv.robot.io.RobotIO` to drive instead of the simulation (a real UR, its fake, or :class:`~langenv.robot.sim_io.MujocoRobot`): each tick sends ``speedL`` and waits for the robot's next period; the person's force is the wrist sensor's reading (``users`` is ignored); robot faults are stops too (:data:`~langenv.safety.ROBOT_STOPS`) |
     | ``robot_acceleration`` | 1.0 | ``speedL``'s acceleration (m/s^2) with ``robot`` |
+    | ``max_children`` | ``None`` | child blocks of the observation (and choices in ``"scores"`` mode), at least the graph's largest out-degree (the default): envs of different graphs then share one observation layout, the extra blocks empty |
 
     ``reset(options=...)`` accepts ``{"user": User}`` to swap the user for that episode.
 
@@ -238,6 +239,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         clips: ClipLibrary | None = None,
         robot: RobotIO | None = None,
         robot_acceleration: float = 1.0,
+        max_children: int | None = None,
     ) -> None:
         super().__init__()
         if (
@@ -282,6 +284,15 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         graph = phrase_graph if phrase_graph is not None else self.exercise.graph
         self.graph = PhraseGraph.load(graph_path(graph), clips=self.clips)
         self.max_children = max(1, self.graph.max_children)
+        if max_children is not None:  # one observation layout for envs of different graphs
+            if isinstance(max_children, bool) or not isinstance(max_children, numbers.Integral):
+                raise ConfigError(f"max_children must be an int, got {max_children!r}")
+            if max_children < self.max_children:
+                raise ConfigError(
+                    f"max_children must be >= the graph's largest out-degree "
+                    f"{self.max_children}, got {max_children}"
+                )
+            self.max_children = int(max_children)
 
         params = admittance if admittance is not None else self.exercise.admittance()
         self.motion = GuidedArm(

@@ -282,3 +282,23 @@ def test_malformed_actions_are_named(action: object, fragment: str) -> None:
     with pytest.raises(ActionError) as info:
         env.step(action)  # type: ignore[arg-type]
     assert fragment in str(info.value)
+
+
+def test_max_children_pads_the_observation_to_one_layout() -> None:
+    """Envs of graphs with different out-degrees share a layout when given one ``max_children``;
+    the extra child blocks are empty, and fewer than the graph needs is refused by name."""
+    from langenv.env import LangCtrlEnv
+    from langenv.errors import ConfigError
+    from langenv.observation import CHILD_FIELDS, observation_size
+
+    plain = LangCtrlEnv(phrase_graph="study")
+    wide = LangCtrlEnv(phrase_graph="study", max_children=plain.max_children + 2)
+    assert wide.observation_space.shape == (observation_size(plain.max_children + 2),)
+    a, _ = plain.reset(seed=3)
+    b, _ = wide.reset(seed=3)
+    assert np.array_equal(b[: a.size], a)
+    extra = b[a.size :]
+    assert extra.size == 2 * CHILD_FIELDS
+    assert np.array_equal(extra, np.tile(extra[:CHILD_FIELDS], 2))  # two empty blocks
+    with pytest.raises(ConfigError, match="max_children"):
+        LangCtrlEnv(phrase_graph="study", max_children=plain.max_children - 1)

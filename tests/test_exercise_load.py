@@ -58,7 +58,7 @@ def test_the_study_exercise_is_default_exercise_exactly() -> None:
     assert np.array_equal(pack(ex.trajectory), pack(ref))  # what the compiled tick reads
     assert ex.trajectory.waypoint_s.tolist() == ref.waypoint_s.tolist()
     assert ex.admittance() == type(ex.admittance())()  # the study's parameters, 10 N
-    assert (ex.graph, ex.single) == ("lc", "lc-noap")
+    assert (ex.graph, ex.single) == ("default", "lc-noap")  # the product graph (= "lc")
 
 
 def test_registry_ships_six_and_names_them() -> None:

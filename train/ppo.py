@@ -476,6 +476,7 @@ def _exercise_kwargs(env_kwargs: dict[str, Any]) -> list[dict[str, Any]]:
     """
     from langenv.exercise import resolve_exercise
     from langenv.exercise.check import check_exercise
+    from langenv.speech.graph import PhraseGraph, graph_path
 
     given = env_kwargs.get("exercise")
     if not isinstance(given, list | tuple):
@@ -484,9 +485,15 @@ def _exercise_kwargs(env_kwargs: dict[str, Any]) -> list[dict[str, Any]]:
         return [env_kwargs]
     if not given:
         raise ConfigError("env_kwargs.exercise: an empty list; give one exercise or several")
+    widest = 1
     for ex in given:
-        check_exercise(resolve_exercise(ex))
-    return [{**env_kwargs, "exercise": ex} for ex in given]
+        exercise = resolve_exercise(ex)
+        check_exercise(exercise)
+        graph = env_kwargs.get("phrase_graph") or exercise.graph
+        widest = max(widest, PhraseGraph.load(graph_path(graph)).max_children)
+    # one observation layout for all: the child blocks of the widest graph (unless given)
+    common = {"max_children": widest, **env_kwargs}
+    return [{**common, "exercise": ex} for ex in given]
 
 
 @dataclass(frozen=True)
