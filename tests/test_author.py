@@ -129,10 +129,21 @@ def test_author_writes_a_valid_graph_and_prints_its_coverage(
     assert "coverage:" in capsys.readouterr().out
 
 
+SHIPPED_SCRIPTS = sorted(
+    [*GRAPHS_DIR.glob("*.txt"), *(GRAPHS_DIR.parent / "exercises" / "scripts").glob("*.txt")]
+)
+
+
 def test_the_shipped_default_graph_is_what_author_makes_of_its_script() -> None:
     script = GRAPHS_DIR / "default.txt"
     made = graph_yaml(parse_script(script.read_text(encoding="utf-8"), script), script.name)
     assert made == default_graph_path("default").read_text(encoding="utf-8")
+
+
+@pytest.mark.parametrize("script", SHIPPED_SCRIPTS, ids=lambda p: p.name)
+def test_every_shipped_script_sits_beside_the_graph_author_makes_of_it(script: Path) -> None:
+    made = graph_yaml(parse_script(script.read_text(encoding="utf-8"), script), script.name)
+    assert made == script.with_suffix(".yaml").read_text(encoding="utf-8")
 
 
 def test_the_default_graph_covers_8_to_16_s_of_motion_at_a_natural_pace() -> None:
