@@ -280,3 +280,50 @@ def test_zeroing_refuses_a_touched_handle() -> None:
 def test_the_shipped_set_up_file_loads() -> None:
     cfg = load_ur_config(Path(__file__).parents[1] / "configs" / "ur.yaml", host=HOST)
     assert cfg.host == HOST and cfg.period == pytest.approx(0.002)
+
+
+def test_an_unsafe_exercise_is_refused_before_the_robot_is_contacted(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    served: list[fake_rtde.FakeUR] = []
+    real_serve = fake_rtde.FakeUR.serve
+    monkeypatch.setattr(
+        fake_rtde.FakeUR, "serve", lambda self: served.append(self) or real_serve(self)
+    )
+    bad = tmp_path / "far.yaml"
+    bad.write_text(
+        "name: far\ntitle: Far\nstart: [-0.35, -0.55, 0.06]\nswitch_tol: 0.035\nlegs:\n"
+        "  - name: reach\n    line: {to: [-0.35, -1.3, 0.06]}\n"
+    )
+    assert ur_main(["--host", HOST, "--fake", "--dry-run", "--exercise", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "leg 'reach'" in err and "unreachable" in err
+    assert not served  # refused before any connection
+    assert ur_main(["--host", HOST, "--fake", "--dry-run", "--exercise", "no_such_one"]) == 2
+    assert "no_such_one" in capsys.readouterr().err and not served
+
+
+def test_the_bridge_goes_to_the_chosen_exercise_and_speaks_its_script(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    from langenv.exercise import resolve_exercise
+
+    ex = resolve_exercise("hand_to_mouth")
+    assert ur_main(["--host", HOST, "--fake", "--dry-run", "--exercise", "hand_to_mouth"]) == 0
+    text = capsys.readouterr().out
+    assert "'hand_to_mouth'" in text and str(np.round(ex.start, 4).tolist()) in text
+    cfg = URConfig(host=HOST, exercise_origin=(0.01, 0.0, 0.0))
+    with fake_rtde.FakeUR(HOST) as ur:
+        robot = URRobot(cfg, backend=fake_rtde)
+        move_to_start(robot, cfg, lambda q: True, ex)
+        loop = RobotLoop(
+            robot,
+            load_registered_policy("lc"),
+            trajectory=exercise_trajectory(cfg, ex),
+            exercise=ex,
+        )
+        robot.close()
+    np.testing.assert_allclose(ur.pose[:3], ex.start + np.array([0.01, 0.0, 0.0]), atol=1e-9)
+    assert str(loop.env.graph.path).endswith("hand_to_mouth_lc.yaml")
+    assert loop.env.motion.params.propel_force == ex.admittance().propel_force
+    np.testing.assert_allclose(loop.env.motion.trajectory.position(0.0), ur.pose[:3], atol=1e-12)
