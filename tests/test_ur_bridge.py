@@ -327,3 +327,22 @@ def test_the_bridge_goes_to_the_chosen_exercise_and_speaks_its_script(
     assert str(loop.env.graph.path).endswith("hand_to_mouth_lc.yaml")
     assert loop.env.motion.params.propel_force == ex.admittance().propel_force
     np.testing.assert_allclose(loop.env.motion.trajectory.position(0.0), ur.pose[:3], atol=1e-12)
+
+
+def test_the_watchdog_is_fed_from_the_move_to_the_session_in_real_time() -> None:
+    """On a wall clock, as on the robot: the slow move to the start kicks the 50 Hz watchdog,
+    and the gap between that move's stop and the session's first command (env reset, policy
+    reset...) does not trip it."""
+    cfg = URConfig(host=HOST)
+    start = exercise_trajectory(cfg).position(0.0)
+    pose = (start[0], start[1], start[2] + 0.01, 0.0, 3.1416, 0.0)
+    with fake_rtde.FakeUR(HOST, pose=pose, realtime=True) as ur:
+        robot = URRobot(cfg, backend=fake_rtde)
+        move_to_start(robot, cfg, lambda q: True)
+        time.sleep(0.1)  # five watchdog periods at 50 Hz
+        robot.enable()
+        sent = robot.write_speed(np.array([0.01, 0, 0, 0, 0, 0.0]), 1.0, robot.period)
+        assert sent[0] == pytest.approx(0.01) and ur.program_running
+        robot.stop()
+        robot.close()
+    assert "watchdog" not in {c[0] for c in ur.commands}

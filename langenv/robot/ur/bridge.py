@@ -26,13 +26,26 @@ from langenv.robot.io import RobotContext, RobotState, limit_speed
 from langenv.robot.ur.config import URConfig
 from langenv.safety import DEFAULT_MAX_SPEED
 
-__all__ = ["INSTALL_HINT", "RTDE_PORT", "STALE_PERIODS", "URRobot", "ur_rtde_backend"]
+__all__ = [
+    "IDLE_WATCHDOG_HZ",
+    "INSTALL_HINT",
+    "RTDE_PORT",
+    "STALE_PERIODS",
+    "URRobot",
+    "ur_rtde_backend",
+]
 
 RTDE_PORT = 30004
 """The robot's RTDE port."""
 
 STALE_PERIODS = 10
 """An RTDE timestamp unchanged for this many periods in a row is a lost link."""
+
+IDLE_WATCHDOG_HZ = 0.2
+"""The RTDE watchdog's rate (Hz) once a ``speedStop`` went through: the arm is at rest and
+commanded nothing, so the watchdog (which stops ur-rtde's control script when no command arrives
+for 1/rate s) only has to outlast the gap to the next :meth:`URRobot.enable` (the move to the
+start, then the session, both re-arm it at ``watchdog_hz``)."""
 
 INSTALL_HINT = 'pip install -e ".[ur]"  (or: pip install "ur-rtde>=1.6")'
 
@@ -202,17 +215,30 @@ class URRobot(RobotContext):
             raise DeviceError(f"the robot at {self.config.host} refused zeroFtSensor")
 
     def stop(self) -> None:
-        """``speedStop`` at ``config.stop_deceleration``; latched until :meth:`enable`. A robot
-        never enabled has been commanded nothing, and is sent nothing (a dry run)."""
+        """``speedStop`` at ``config.stop_deceleration``; latched until :meth:`enable`. Once the
+        arm is stopped the watchdog is slowed to :data:`IDLE_WATCHDOG_HZ`. A robot never
+        enabled has been commanded nothing, and is sent nothing (a dry run)."""
         self._enabled = False
         if not self._ever_enabled:
             return
         self.stops_sent += 1
-        self._call(self._c.speedStop, self.config.stop_deceleration)
+        if self._call(self._c.speedStop, self.config.stop_deceleration):
+            self._call(self._c.setWatchdog, IDLE_WATCHDOG_HZ)
 
     def enable(self) -> None:
-        """Accept commands (arms the RTDE watchdog) and restart the period clock."""
-        self._call(self._c.setWatchdog, self.config.watchdog_hz)
+        """Accept commands (arms the RTDE watchdog at ``watchdog_hz``) and restart the period
+        clock.
+
+        Raises:
+            DeviceError: the robot's control script does not run (a stop, the watchdog, or the
+                pendant ended it): nothing is commanded.
+        """
+        if not self._call(self._c.setWatchdog, self.config.watchdog_hz):
+            raise DeviceError(
+                f"the robot at {self.config.host} does not take commands: ur-rtde's control "
+                "script is not running (a protective or emergency stop, its watchdog, or the "
+                "pendant stopped it)"
+            )
         self._t = self._call(self._c.initPeriod)
         self._enabled = self._ever_enabled = True
 
@@ -247,9 +273,9 @@ class URRobot(RobotContext):
         return bool(self._call(self._c.isPoseWithinSafetyLimits, pose.tolist()))
 
     def move_linear(self, pose: NDArray[np.float64], speed: float, acceleration: float) -> None:
-        """``moveL`` to ``pose`` (6,), asynchronous and watched every period: Ctrl-C, a stop of
-        the robot's, or a move that takes twice as long as it should (plus 2 s) ends it with
-        ``stopL`` at ``stop_deceleration`` (only while enabled).
+        """``moveL`` to ``pose`` (6,), asynchronous and watched every period (which also kicks the
+        RTDE watchdog): Ctrl-C, a stop of the robot's, or a move that takes twice as long as it
+        should (plus 2 s) ends it with ``stopL`` at ``stop_deceleration`` (only while enabled).
 
         Raises:
             DeviceError: refused, stopped by the robot, or too slow; KeyboardInterrupt passes on
@@ -265,6 +291,7 @@ class URRobot(RobotContext):
         waited = 0.0
         try:
             while self._call(c.getAsyncOperationProgress) >= 0:
+                self._call(c.kickWatchdog)
                 self.wait()
                 waited += self._period
                 state = self.read()

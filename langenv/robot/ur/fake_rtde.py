@@ -23,6 +23,12 @@ loop, not 10 s), and injects faults (:meth:`FakeUR.inject`) at a given ``speedL`
 | ``stuck_sensor`` | the wrist reading freezes at its current value |
 | ``joint_limit`` | joint ``joint`` moves to ``margin`` rad inside its range's upper end |
 | ``stale_state`` | the RTDE timestamp (and the state) stop advancing: a receive thread gone quiet |
+
+As on the robot, ``setWatchdog(f)`` arms ur-rtde's RTDE watchdog with the action "stop": when no
+RTDE input (any command: ``speedL``, ``kickWatchdog``, ``speedStop``, ``moveL``...; reading the
+state is no input) arrives for ``1/f`` s, the control script stops (the arm halts, commands are
+refused, ``isProgramRunning()`` is False) and the watchdog is removed. Commands answer False
+while the script does not run or the robot is stopped, as ur-rtde's ``sendCommand`` does.
 """
 
 from __future__ import annotations
@@ -139,6 +145,8 @@ class FakeUR:
         self._move: tuple[NDArray[np.float64], float] | None = None
         self.stale = False
         self._async_done = -1
+        self.watchdog_hz = 0.0
+        self._last_input = 0.0
 
     # ------------------------------------------------------------------ set-up
     def serve(self) -> FakeUR:
@@ -167,6 +175,33 @@ class FakeUR:
     def check_link(self) -> None:
         if not self.connected:
             raise RuntimeError("RTDE connection lost (fake)")
+        self._watch(self.now())
+
+    def command(self) -> bool:
+        """An RTDE input (a command) arrives: feeds the watchdog; whether the script takes it."""
+        self.check_link()
+        self._last_input = self.now()
+        return self.moving_allowed
+
+    def set_watchdog(self, hz: float) -> bool:
+        ok = self.command()
+        if ok:
+            self.watchdog_hz = float(hz)
+        return ok
+
+    def _watch(self, t: float) -> None:
+        """The RTDE watchdog: no input for 1/watchdog_hz s stops the control script."""
+        hz = self.watchdog_hz
+        if hz > 0.0 and self.program_running and t - self._last_input > 1.0 / hz + 1e-9:
+            self.commands.append(("watchdog", self.period_index))
+            self.stop_script()
+
+    def stop_script(self) -> None:
+        """The control script stops: the arm halts, and the watchdogs are removed."""
+        self.program_running = False
+        self.watchdog_hz = 0.0
+        self._move = None
+        self._halt()
 
     @property
     def moving_allowed(self) -> bool:
@@ -174,6 +209,7 @@ class FakeUR:
 
     def speed_command(self, xd: Sequence[float], acceleration: float) -> bool:
         self.check_link()
+        self._last_input = self.now()
         self.speedl_count += 1
         for fault in [f for f in self.faults if f.at == self.speedl_count - 1]:
             self._apply(fault)
@@ -186,11 +222,12 @@ class FakeUR:
         self._accel = float(acceleration)
         return True
 
-    def stop_command(self, a: float) -> None:
-        self.check_link()
+    def stop_command(self, a: float) -> bool:
+        ok = self.command()
         self.commands.append(("speedStop", self.period_index, float(a)))
         self._target = np.zeros(6)
         self._accel = float(a)
+        return ok
 
     def _apply(self, fault: _Fault) -> None:
         kind, p = fault.kind, fault.params
@@ -200,8 +237,7 @@ class FakeUR:
             setattr(self, kind, True)
             self._halt()
         elif kind == "program_stop":
-            self.program_running = False
-            self._halt()
+            self.stop_script()
         elif kind == "disconnect":
             self.connected = False
         elif kind == "force_spike":
@@ -243,6 +279,7 @@ class FakeUR:
         if not self.stale:
             self.timestamp = self.clock
         self.period_index += 1
+        self._watch(self.clock)
 
     def now(self) -> float:
         """The clock ``initPeriod`` reads (s): virtual, or the wall clock when ``realtime``."""
@@ -283,13 +320,14 @@ class FakeUR:
         self.clock += dt
         self.timestamp = self.clock
         self.period_index += 1
+        self._watch(self.clock)
 
     def async_progress(self) -> int:
         self.check_link()
         return 0 if self._move is not None else self._async_done
 
     def stop_move(self, a: float) -> None:
-        self.check_link()
+        self.command()
         self.commands.append(("stopL", self.period_index, float(a)))
         self._move = None
         self.velocity = np.zeros(6)
@@ -305,17 +343,20 @@ class FakeUR:
         f = f - self._ft_offset + self._rng.normal(0.0, self.noise, 3)
         return [*f.tolist(), *self._rng.normal(0.0, 0.01 * self.noise, 3).tolist()]
 
-    def zero_sensor(self) -> None:
-        self.check_link()
+    def zero_sensor(self) -> bool:
+        if not self.command():
+            return False
         self._ft_offset = self._ft_offset + np.array(self.wrench()[:3])
+        return True
 
-    def move_to(self, pose: Sequence[float], speed: float, asynchronous: bool = False) -> None:
-        self.check_link()
+    def move_to(self, pose: Sequence[float], speed: float, asynchronous: bool = False) -> bool:
+        if not self.command():
+            return False
         self.commands.append(("moveL", self.period_index, list(pose)))
         target = np.array(pose, dtype=np.float64)
         if asynchronous:
             self._move = (target, float(speed))
-            return
+            return True
         distance = float(np.linalg.norm(target[:3] - self.pose[:3]))
         periods = int(np.ceil(distance / (speed * self.period)))
         if self.realtime:
@@ -326,6 +367,7 @@ class FakeUR:
         self.pose = target
         self.velocity = np.zeros(6)
         self.timestamp = self.clock
+        return True
 
 
 def _server(hostname: str) -> FakeUR:
@@ -353,14 +395,12 @@ class RTDEControlInterface:
         rt_priority: int = 0,
     ) -> None:
         self._ur = _server(hostname)
-        self._watchdog = 0.0
 
     def speedL(self, xd: list[float], acceleration: float = 0.25, time: float = 0.0) -> bool:
         return self._ur.speed_command(xd, acceleration)
 
     def speedStop(self, a: float = 10.0) -> bool:
-        self._ur.stop_command(a)
-        return True
+        return self._ur.stop_command(a)
 
     def initPeriod(self) -> datetime.timedelta:
         self._ur.check_link()
@@ -370,8 +410,7 @@ class RTDEControlInterface:
         self._ur.wait(arg0.total_seconds())
 
     def zeroFtSensor(self) -> bool:
-        self._ur.zero_sensor()
-        return True
+        return self._ur.zero_sensor()
 
     def moveL(
         self,
@@ -380,8 +419,7 @@ class RTDEControlInterface:
         acceleration: float = 1.2,
         asynchronous: bool = False,
     ) -> bool:
-        self._ur.move_to(pose, speed, asynchronous)
-        return True
+        return self._ur.move_to(pose, speed, asynchronous)
 
     def getAsyncOperationProgress(self) -> int:
         return self._ur.async_progress()
@@ -406,18 +444,15 @@ class RTDEControlInterface:
         return list(self._ur.tcp_offset)
 
     def setWatchdog(self, min_frequency: float = 10.0) -> bool:
-        self._ur.check_link()
-        self._watchdog = float(min_frequency)
-        return True
+        return self._ur.set_watchdog(min_frequency)
 
     def kickWatchdog(self) -> bool:
-        self._ur.check_link()
-        return True
+        return self._ur.command()
 
     def stopScript(self) -> None:
-        self._ur.check_link()
+        self._ur.command()
         self._ur.commands.append(("stopScript", self._ur.period_index))
-        self._ur.program_running = False
+        self._ur.stop_script()
 
     def isConnected(self) -> bool:
         return self._ur.connected
