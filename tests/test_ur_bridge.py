@@ -346,3 +346,26 @@ def test_the_watchdog_is_fed_from_the_move_to_the_session_in_real_time() -> None
         robot.stop()
         robot.close()
     assert "watchdog" not in {c[0] for c in ur.commands}
+
+
+def test_the_env_on_a_robot_sends_speed_stop_for_its_own_monitor_stop() -> None:
+    """LangCtrl-v0 with robot= driven directly (no RobotLoop around it): a monitor stop (here the
+    force limit) sends speedStop in the period that found it, not a last speedL left running."""
+    from langenv.env import LangCtrlEnv
+
+    cfg = URConfig(host=HOST)
+    with fake_rtde.FakeUR(HOST) as ur:
+        robot = URRobot(cfg, backend=fake_rtde)
+        move_to_start(robot, cfg, lambda q: True)
+        ur.inject("force_spike", 600, force=(0.0, 0.0, 300.0))
+        env = LangCtrlEnv(robot=robot, trajectory=exercise_trajectory(cfg), decision_hz=50)
+        env.reset(seed=0)
+        for _ in range(200):
+            _, _, terminated, _, info = env.step(np.zeros(env.action_space.shape, np.float32))
+            if terminated:
+                break
+        assert info["safety_stop"] == "force"
+        cmds = [c[0] for c in _speed_commands(ur)]
+        assert cmds[-1] == "speedStop", cmds[-4:]
+        assert cmds[-3:] == ["speedL", "waitPeriod", "speedStop"]
+        robot.close()

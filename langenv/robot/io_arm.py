@@ -43,7 +43,9 @@ class IOArm:
             session (``sensor_stuck``): a live sensor always has some noise.
 
     Attributes:
-        fault: The robot-side stop (see :data:`langenv.safety.ROBOT_STOPS`), or None.
+        fault: The stop that halted the robot: a robot-side one (see
+            :data:`langenv.safety.ROBOT_STOPS`), or the monitor's (:meth:`stop_for`); None
+            while it runs.
         compute_s: Per period, the loop's compute time (s, wall clock): from the end of
             ``wait()`` to the start of the next (read, control, speech, policy, logging,
             ``speedL``); what the period's deadline sees, preemption included.
@@ -191,6 +193,13 @@ class IOArm:
             self._wrench = wrench
             if self._same >= self._stuck_periods:
                 self._halt("sensor_stuck", self._same * self.dt, self._stuck_periods * self.dt)
+
+    def stop_for(self, stop: SafetyStop) -> None:
+        """Our monitor's protective stop (``stop``): ``stop()`` is sent now, in the period that
+        found it, and nothing after (:attr:`fault` becomes ``stop``)."""
+        if self.fault is None:
+            self.fault = stop
+        self._halt(stop.limit)
 
     def halt(self, limit: str, detail: str = "") -> None:
         """Stop now for a reason found outside the arm (``interrupted``): ``stop()`` is sent."""
