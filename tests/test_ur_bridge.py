@@ -369,3 +369,24 @@ def test_the_env_on_a_robot_sends_speed_stop_for_its_own_monitor_stop() -> None:
         assert cmds[-1] == "speedStop", cmds[-4:]
         assert cmds[-3:] == ["speedL", "waitPeriod", "speedStop"]
         robot.close()
+
+
+def test_write_speed_keeps_speed_and_acceleration_within_the_set_up() -> None:
+    """Whatever a caller of the seam asks, speedL goes out within max_speed and the set-up's
+    speed_acceleration (ur-rtde itself accepts up to 150 m/s^2 and raises on a NaN)."""
+    cfg = URConfig(host=HOST, speed_acceleration=0.5)
+    with fake_rtde.FakeUR(HOST) as ur:
+        c = fake_rtde.RTDEControlInterface(HOST)
+        with pytest.raises(ValueError, match="NaN"):  # as ur-rtde's verifyValueIsWithin
+            c.speedL([0.0] * 6, float("nan"))
+        robot = URRobot(cfg, backend=fake_rtde, max_speed=0.2)
+        robot.enable()
+        for a in (100.0, float("nan"), -1.0, float("inf"), 0.3):
+            sent = robot.write_speed(np.array([3.0, 0, 0, 0, 0, 0.0]), a, robot.period)
+            assert np.linalg.norm(sent[:3]) == pytest.approx(0.2)
+            assert ur._accel == (0.3 if a == 0.3 else 0.5), a
+        robot.stop()
+        robot.close()
+    for bad in (float("nan"), 0.0, -0.5, float("inf")):
+        with pytest.raises(ConfigError, match="max_speed"), fake_rtde.FakeUR(HOST):
+            URRobot(cfg, backend=fake_rtde, max_speed=bad)

@@ -21,10 +21,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from langenv.errors import DeviceError
+from langenv.errors import ConfigError, DeviceError
 from langenv.robot.io import RobotContext, RobotState, limit_speed
 from langenv.robot.ur.config import URConfig
 from langenv.safety import DEFAULT_MAX_SPEED
+from langenv.validation import finite_positive
 
 __all__ = [
     "IDLE_WATCHDOG_HZ",
@@ -90,9 +91,10 @@ class URRobot(RobotContext):
     Args:
         config: The set-up.
         backend: The library's namespace (default: :func:`ur_rtde_backend`).
-        max_speed: The robot-side TCP speed clip of :meth:`write_speed` (m/s).
+        max_speed: The robot-side TCP speed clip of :meth:`write_speed` (m/s), > 0.
 
     Raises:
+        ConfigError: ``max_speed`` not a finite number > 0.
         DeviceError: ``ur-rtde`` missing, or no robot answers at ``config.host`` (the host named).
     """
 
@@ -100,7 +102,7 @@ class URRobot(RobotContext):
         self, config: URConfig, *, backend: Any = None, max_speed: float = DEFAULT_MAX_SPEED
     ) -> None:
         self.config = config
-        self.max_speed = float(max_speed)
+        self.max_speed = finite_positive("URRobot.max_speed", max_speed, ConfigError)
         lib = backend if backend is not None else ur_rtde_backend()
         host = config.host
         try:
@@ -175,14 +177,17 @@ class URRobot(RobotContext):
     def write_speed(
         self, xd: NDArray[np.float64], acceleration: float, time: float
     ) -> NDArray[np.float64]:
-        """``speedL`` of ``xd`` clipped to ``max_speed`` (and a watchdog kick); zeros, and
-        nothing sent, once stopped."""
+        """``speedL`` of ``xd`` clipped to ``max_speed``, at an ``acceleration`` clipped to the
+        set-up's ``speed_acceleration`` (a NaN or one <= 0 becomes that limit too), and a
+        watchdog kick; zeros, and nothing sent, once stopped."""
         if not self._enabled:
             return np.zeros(6)
         sent = limit_speed(xd, self.max_speed)
+        a_max = self.config.speed_acceleration
+        a = acceleration if 0.0 < acceleration <= a_max else a_max
         c = self._c
         try:
-            ok = c.speedL(sent.tolist(), acceleration, time)
+            ok = c.speedL(sent.tolist(), a, time)
             c.kickWatchdog()
             if not ok:  # explained by a stop the next read reports, or the link is gone
                 r = self._r

@@ -34,6 +34,7 @@ while the script does not run or the robot is stopped, as ur-rtde's ``sendComman
 from __future__ import annotations
 
 import datetime
+import math
 import time as _time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -370,6 +371,15 @@ class FakeUR:
         return True
 
 
+def _within(value: float, lo: float, hi: float) -> None:
+    """ur-rtde's ``verifyValueIsWithin``: a NaN or a value outside [lo, hi] raises ValueError
+    (its ``std::invalid_argument`` / ``std::range_error`` through pybind11)."""
+    if math.isnan(value):
+        raise ValueError("The value is considered NaN")
+    if not lo <= value <= hi:
+        raise ValueError(f"The value is not within [{lo:g};{hi:g}]")
+
+
 def _server(hostname: str) -> FakeUR:
     server = _SERVERS.get(hostname)
     if server is None:
@@ -397,6 +407,7 @@ class RTDEControlInterface:
         self._ur = _server(hostname)
 
     def speedL(self, xd: list[float], acceleration: float = 0.25, time: float = 0.0) -> bool:
+        _within(acceleration, 0.0, 150.0)  # ur-rtde's UR_TOOL_ACCELERATION_MIN/MAX
         return self._ur.speed_command(xd, acceleration)
 
     def speedStop(self, a: float = 10.0) -> bool:
