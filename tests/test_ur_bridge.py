@@ -390,3 +390,26 @@ def test_write_speed_keeps_speed_and_acceleration_within_the_set_up() -> None:
     for bad in (float("nan"), 0.0, -0.5, float("inf")):
         with pytest.raises(ConfigError, match="max_speed"), fake_rtde.FakeUR(HOST):
             URRobot(cfg, backend=fake_rtde, max_speed=bad)
+
+
+def test_ctrl_c_as_the_move_command_returns_still_ends_the_move() -> None:
+    """A SIGINT during ur-rtde's blocking moveL call is raised as the call returns: the
+    asynchronous move has started, and must be ended with stopL."""
+    cfg = URConfig(host=HOST)
+    with fake_rtde.FakeUR(HOST) as ur:
+        robot = URRobot(cfg, backend=fake_rtde)
+        real_move = robot._c.moveL
+
+        def move_then_ctrl_c(*args):
+            real_move(*args)
+            raise KeyboardInterrupt
+
+        robot._c.moveL = move_then_ctrl_c
+        with pytest.raises(KeyboardInterrupt):
+            move_to_start(robot, cfg, lambda q: True)
+        for _ in range(10):
+            robot.wait()
+        robot.close()
+    kinds = [c[0] for c in ur.commands if c[0] in ("moveL", "stopL", "speedStop")]
+    assert kinds == ["moveL", "stopL", "speedStop"]
+    assert not ur.velocity.any() and ur._move is None

@@ -291,10 +291,12 @@ class URRobot(RobotContext):
         c = self._c
         start = self.read().position
         budget = 2.0 * float(np.linalg.norm(pose[:3] - start)) / speed + 2.0
-        if not self._call(c.moveL, pose.tolist(), speed, acceleration, True):
-            raise DeviceError(f"the robot at {self.config.host} refused moveL to {pose.tolist()}")
         waited = 0.0
-        try:
+        try:  # from the moveL on: a Ctrl-C delivered as the call returns also ends in stopL
+            if not self._call(c.moveL, pose.tolist(), speed, acceleration, True):
+                raise DeviceError(
+                    f"the robot at {self.config.host} refused moveL to {pose.tolist()}"
+                )
             while self._call(c.getAsyncOperationProgress) >= 0:
                 self._call(c.kickWatchdog)
                 self.wait()
