@@ -413,3 +413,41 @@ def test_ctrl_c_as_the_move_command_returns_still_ends_the_move() -> None:
     kinds = [c[0] for c in ur.commands if c[0] in ("moveL", "stopL", "speedStop")]
     assert kinds == ["moveL", "stopL", "speedStop"]
     assert not ur.velocity.any() and ur._move is None
+
+
+class _BrokenSink:
+    """A sound card that fails when the session ends (the device unplugged)."""
+
+    def __init__(self, ring, sr: int) -> None:
+        self.ring, self.xruns = ring, 0
+
+    def start(self) -> None:
+        pass
+
+    def stop(self) -> None:
+        raise RuntimeError("PortAudio: device unavailable")
+
+
+def test_a_failing_sound_card_at_the_end_still_stops_logs_and_restores_gc(tmp_path: Path) -> None:
+    import gc
+
+    cfg = URConfig(host=HOST)
+    with fake_rtde.FakeUR(HOST) as ur:
+        robot = URRobot(cfg, backend=fake_rtde)
+        move_to_start(robot, cfg, lambda q: True)
+        ur.inject("protective_stop", 300)
+        loop = RobotLoop(
+            robot,
+            load_registered_policy("lc"),
+            make_sink=_BrokenSink,
+            log_path=tmp_path / "session.csv",
+        )
+        with pytest.raises(RuntimeError, match="device unavailable"):
+            loop.run()
+        robot.close()
+    enabled = gc.isenabled()
+    gc.unfreeze()
+    gc.enable()  # for the tests after this one, whatever happened
+    assert enabled
+    assert [c[0] for c in _speed_commands(ur) if c[0] != "waitPeriod"][-1] == "speedStop"
+    assert load_session(tmp_path / "session.csv").duration > 0.4

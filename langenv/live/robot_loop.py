@@ -238,13 +238,15 @@ class RobotLoop:
                 self.robot.stop()
             except DeviceError:
                 pass  # the link is gone: the robot's watchdog has stopped it
-            self._fade(started)
-            gc.unfreeze()
-            if collecting:
-                gc.enable()
-            if info:  # the log too, whatever ended the session (an error included)
-                self._log(env._info())
-            log = self._write()
+            try:
+                self._fade(started)  # may fail (the sound card gone) or be interrupted
+            finally:
+                gc.unfreeze()
+                if collecting:
+                    gc.enable()
+                if info:  # the log too, whatever ended the session (an error included)
+                    self._log(env._info())
+                log = self._write()
         stop = env.motion.safety_stop if env.motion.safety_stop is not None else arm.fault
         compute = np.asarray(arm.compute_s) * 1e3
         stats = (
