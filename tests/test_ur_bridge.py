@@ -419,7 +419,7 @@ class _BrokenSink:
     """A sound card that fails when the session ends (the device unplugged)."""
 
     def __init__(self, ring, sr: int) -> None:
-        self.ring, self.xruns = ring, 0
+        self.ring, self.xruns, self.alive = ring, 0, True
 
     def start(self) -> None:
         pass
@@ -451,3 +451,39 @@ def test_a_failing_sound_card_at_the_end_still_stops_logs_and_restores_gc(tmp_pa
     assert enabled
     assert [c[0] for c in _speed_commands(ur) if c[0] != "waitPeriod"][-1] == "speedStop"
     assert load_session(tmp_path / "session.csv").duration > 0.4
+
+
+def test_a_dead_audio_sink_is_the_audio_lost_stop(tmp_path: Path) -> None:
+    """The speech's writer thread dies mid-session (a failed write): the session stops with
+    speedStop and its named stop instead of guiding the person on in silence."""
+    from langenv.live.sinks import WavSink
+
+    sinks: list[WavSink] = []
+
+    def make_sink(ring, sr: int) -> WavSink:
+        sink = WavSink(ring, tmp_path / "speech.wav", sr)
+        write, calls = sink._file.write, {"n": 0}
+
+        def failing_write(buf):
+            calls["n"] += 1
+            if calls["n"] == 1:
+                raise OSError("No space left on device")
+            return write(buf)
+
+        sink._file.write = failing_write
+        sinks.append(sink)
+        return sink
+
+    cfg = URConfig(host=HOST)
+    with fake_rtde.FakeUR(HOST) as ur:
+        robot = URRobot(cfg, backend=fake_rtde)
+        move_to_start(robot, cfg, lambda q: True)
+        loop = RobotLoop(
+            robot, load_registered_policy("lc"), make_sink=make_sink, log_path=tmp_path / "s.csv"
+        )
+        assert sinks[0].alive  # not started yet
+        report = loop.run()
+        robot.close()
+    assert report.stop is not None and report.stop.limit == "audio_lost", report.summary()
+    _assert_stopped_in_time(ur)
+    assert report.log is not None

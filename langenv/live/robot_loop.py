@@ -13,6 +13,8 @@ it this module adds what a real session needs:
   the measured force and the phrase; written whatever ends the session;
 * Python's cyclic garbage collector paused for the session (``gc.freeze`` then ``gc.disable``;
   restored after): a full collection takes milliseconds, more than a period;
+* the sink watched every ``log_every`` periods: one that died (its thread or stream) ends the
+  session with the ``audio_lost`` stop (the person is no longer talked through);
 * ``stop()`` (``speedStop``) on every way out: the end of the motion, a named stop, Ctrl-C
   (``interrupted``), an exception.
 """
@@ -231,6 +233,9 @@ class RobotLoop:
                     started = self._audio(stream, float(info["time"]), started)
                 if (step + 1) % self.log_every == 0:
                     self._log(info)
+                    if self.sink is not None and not self.sink.alive:
+                        arm.halt("audio_lost", "the sink's thread or stream died")
+                        break
         except KeyboardInterrupt:
             arm.halt("interrupted")
         finally:
