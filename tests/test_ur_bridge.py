@@ -107,6 +107,16 @@ def test_lost_connection_is_a_named_stop(tmp_path: Path) -> None:
     assert load_session(report.log).duration > 1.5
 
 
+def test_a_dead_receive_link_stops_at_once(tmp_path: Path) -> None:
+    """ur-rtde's receive thread dies on a socket error and its getters go on returning the last
+    state without raising: the bridge sees isConnected() False in the next read, not 10 stale
+    periods later."""
+    report, ur = _session(tmp_path, ("receive_lost", 1000, {}))
+    assert report.stop is not None and report.stop.limit == "connection_lost", report.summary()
+    assert ur.speedl_count == 1001  # the one that met the loss, and none after
+    _assert_stopped_in_time(ur)
+
+
 def test_ctrl_c_is_the_interrupted_stop(tmp_path: Path) -> None:
     def person(t: float, v: np.ndarray) -> np.ndarray:
         if t > 3.0:

@@ -8,8 +8,9 @@ simulated robot on a loopback host.
 Per period the loop calls :meth:`URRobot.write_speed` (``speedL`` and a watchdog kick),
 :meth:`URRobot.wait` (``waitPeriod`` then ``initPeriod``: the lateness is measured on the
 library's own steady clock) and :meth:`URRobot.read` (seven cached RTDE values). Any
-``RuntimeError`` from the library, a ``False`` from a command, or an RTDE timestamp that stops
-advancing is a lost link (:class:`~langenv.errors.DeviceError`, the ``connection_lost`` stop).
+``RuntimeError`` from the library, a ``False`` from a command, an interface no longer
+connected, or an RTDE timestamp that stops advancing is a lost link
+(:class:`~langenv.errors.DeviceError`, the ``connection_lost`` stop).
 """
 
 from __future__ import annotations
@@ -150,9 +151,12 @@ class URRobot(RobotContext):
             raise DeviceError(f"link to the robot at {self.config.host} lost: {exc}") from None
 
     def read(self) -> RobotState:
-        """The robot's state (RTDE receive), checked fresh."""
+        """The robot's state (RTDE receive), checked fresh: both interfaces connected (ur-rtde's
+        getters return their last values without raising once a link is lost) and the RTDE
+        timestamp advancing."""
         r = self._r
         try:
+            linked = r.isConnected() and self._c.isConnected()
             stamp = r.getTimestamp()
             state = RobotState(
                 stamp,
@@ -166,6 +170,8 @@ class URRobot(RobotContext):
             )
         except RuntimeError as exc:
             raise DeviceError(f"link to the robot at {self.config.host} lost: {exc}") from None
+        if not linked:
+            raise DeviceError(f"the link to the robot at {self.config.host} is lost (ur-rtde)")
         self._same_stamp = self._same_stamp + 1 if stamp == self._stamp else 0
         self._stamp = stamp
         if self._same_stamp >= STALE_PERIODS:

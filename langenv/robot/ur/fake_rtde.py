@@ -18,11 +18,16 @@ loop, not 10 s), and injects faults (:meth:`FakeUR.inject`) at a given ``speedL`
 | ``protective_stop`` | ``isProtectiveStopped()`` is True, the arm halts, the script stops |
 | ``emergency_stop`` | ``isEmergencyStopped()`` is True, likewise |
 | ``program_stop`` | ``isProgramRunning()`` is False, commands are ignored |
-| ``disconnect`` | every call raises ``RuntimeError``; ``isConnected()`` is False |
+| ``disconnect`` | commands raise ``RuntimeError`` (the reconnect fails); reads: see below |
+| ``receive_lost`` | the receive thread died (on a socket error); commands still go out |
 | ``force_spike`` | ``force`` N (3,) added to the wrist reading for ``duration`` s |
 | ``stuck_sensor`` | the wrist reading freezes at its current value |
 | ``joint_limit`` | joint ``joint`` moves to ``margin`` rad inside its range's upper end |
 | ``stale_state`` | the RTDE timestamp (and the state) stop advancing: a receive thread gone quiet |
+
+After ``disconnect`` or ``receive_lost``, as in ur-rtde, reading returns the last state received
+without raising, and ``isConnected()`` is False (the receive interface's; after ``disconnect``
+the control interface's too).
 
 As on the robot, ``setWatchdog(f)`` arms ur-rtde's RTDE watchdog with the action "stop": when no
 RTDE input (any command: ``speedL``, ``kickWatchdog``, ``speedStop``, ``moveL``...; reading the
@@ -36,6 +41,7 @@ from __future__ import annotations
 import datetime
 import math
 import time as _time
+import types
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -58,6 +64,7 @@ FAULTS = (
     "emergency_stop",
     "program_stop",
     "disconnect",
+    "receive_lost",
     "force_spike",
     "stuck_sensor",
     "joint_limit",
@@ -148,6 +155,8 @@ class FakeUR:
         self._async_done = -1
         self.watchdog_hz = 0.0
         self._last_input = 0.0
+        self.receive_connected = True
+        self._snapshot: Any = None
 
     # ------------------------------------------------------------------ set-up
     def serve(self) -> FakeUR:
@@ -177,6 +186,30 @@ class FakeUR:
         if not self.connected:
             raise RuntimeError("RTDE connection lost (fake)")
         self._watch(self.now())
+
+    def received(self) -> Any:
+        """What the receive interface reads: this robot, or once its link is lost the last
+        state received (ur-rtde's getters return their cache and never raise)."""
+        if self._snapshot is not None:
+            return self._snapshot
+        self._watch(self.now())
+        return self
+
+    def _lose_receive(self) -> None:
+        wrench = self.wrench()
+        self._snapshot = types.SimpleNamespace(
+            pose=self.pose.copy(),
+            velocity=self.velocity.copy(),
+            q=self.q.copy(),
+            protective_stop=self.protective_stop,
+            emergency_stop=self.emergency_stop,
+            program_running=self.program_running,
+            timestamp=self.timestamp,
+            payload_mass=self.payload_mass,
+            payload_cog=list(self.payload_cog),
+            wrench=lambda: list(wrench),
+        )
+        self.receive_connected = False
 
     def command(self) -> bool:
         """An RTDE input (a command) arrives: feeds the watchdog; whether the script takes it."""
@@ -240,7 +273,10 @@ class FakeUR:
         elif kind == "program_stop":
             self.stop_script()
         elif kind == "disconnect":
+            self._lose_receive()
             self.connected = False
+        elif kind == "receive_lost":
+            self._lose_receive()
         elif kind == "force_spike":
             self._spike = np.array(p.get("force", (0.0, 0.0, 200.0)), dtype=np.float64)
             self._spike_until = self.clock + float(p.get("duration", 0.05))
@@ -287,8 +323,8 @@ class FakeUR:
         return _time.perf_counter() - self._t0 if self.realtime else self.clock
 
     def wait(self, t_start: float) -> None:
-        """Advance the clock to one period after ``t_start`` (plus injected lateness)."""
-        self.check_link()
+        """Advance the clock to one period after ``t_start`` (plus injected lateness); the
+        library's own steady clock: works without a link."""
         self.commands.append(("waitPeriod", self.period_index))
         due = t_start + self.period + self._late
         self._late = 0.0
@@ -414,7 +450,6 @@ class RTDEControlInterface:
         return self._ur.stop_command(a)
 
     def initPeriod(self) -> datetime.timedelta:
-        self._ur.check_link()
         return datetime.timedelta(seconds=self._ur.now())
 
     def waitPeriod(self, arg0: datetime.timedelta, /) -> None:
@@ -439,12 +474,10 @@ class RTDEControlInterface:
         self._ur.stop_move(a)
 
     def isSteady(self) -> bool:
-        self._ur.check_link()
-        return bool(not self._ur.velocity.any())
+        return bool(not self._ur.received().velocity.any())
 
     def isProgramRunning(self) -> bool:
-        self._ur.check_link()
-        return self._ur.program_running
+        return bool(self._ur.received().program_running)
 
     def isPoseWithinSafetyLimits(self, arg0: list[float], /) -> bool:
         self._ur.check_link()
@@ -487,43 +520,43 @@ class RTDEReceiveInterface:
         self._ur = _server(hostname)
 
     def getActualTCPPose(self) -> list[float]:
-        self._ur.check_link()
-        return self._ur.pose.tolist()
+        ur = self._ur.received()
+        return ur.pose.tolist()
 
     def getActualTCPSpeed(self) -> list[float]:
-        self._ur.check_link()
-        return self._ur.velocity.tolist()
+        ur = self._ur.received()
+        return ur.velocity.tolist()
 
     def getActualQ(self) -> list[float]:
-        self._ur.check_link()
-        return self._ur.q.tolist()
+        ur = self._ur.received()
+        return ur.q.tolist()
 
     def getActualTCPForce(self) -> list[float]:
-        self._ur.check_link()
-        return self._ur.wrench()
+        ur = self._ur.received()
+        return ur.wrench()
 
     def isProtectiveStopped(self) -> bool:
-        self._ur.check_link()
-        return self._ur.protective_stop
+        ur = self._ur.received()
+        return ur.protective_stop
 
     def isEmergencyStopped(self) -> bool:
-        self._ur.check_link()
-        return self._ur.emergency_stop
+        ur = self._ur.received()
+        return ur.emergency_stop
 
     def getTimestamp(self) -> float:
-        self._ur.check_link()
-        return self._ur.timestamp
+        ur = self._ur.received()
+        return ur.timestamp
 
     def getPayload(self) -> float:
-        self._ur.check_link()
-        return self._ur.payload_mass
+        ur = self._ur.received()
+        return ur.payload_mass
 
     def getPayloadCog(self) -> list[float]:
-        self._ur.check_link()
-        return list(self._ur.payload_cog)
+        ur = self._ur.received()
+        return list(ur.payload_cog)
 
     def isConnected(self) -> bool:
-        return self._ur.connected
+        return self._ur.receive_connected
 
     def disconnect(self) -> None:
         return None
