@@ -497,3 +497,21 @@ def test_a_dead_audio_sink_is_the_audio_lost_stop(tmp_path: Path) -> None:
     assert report.stop is not None and report.stop.limit == "audio_lost", report.summary()
     _assert_stopped_in_time(ur)
     assert report.log is not None
+
+
+def test_a_non_finite_command_is_a_stop_not_rest() -> None:
+    """A NaN from the controller (a bug) stops the session with speedStop; it was sent as a
+    zero speedL and the session went on."""
+    from langenv.robot.io_arm import IOArm
+
+    cfg = URConfig(host=HOST)
+    with fake_rtde.FakeUR(HOST) as ur:
+        robot = URRobot(cfg, backend=fake_rtde)
+        arm = IOArm(robot)
+        arm.reset()
+        arm.step(np.array([0.01, 0.0, 0.0]), np.zeros(3))
+        arm.step(np.array([np.nan, 0.0, 0.0]), np.zeros(3))
+        arm.step(np.array([0.01, 0.0, 0.0]), np.zeros(3))
+        robot.close()
+    assert arm.fault is not None and arm.fault.limit == "bad_command"
+    assert [c[0] for c in ur.commands if c[0] in ("speedL", "speedStop")] == ["speedL", "speedStop"]

@@ -45,6 +45,7 @@ speech faded out; the stop's name is in :data:`langenv.safety.STOP_LIMITS` or
 | a period starting more than 2 periods late | ``wait()`` | ``late_period`` |
 | link lost (an exception from the link, or ``RobotState`` no longer fresh) | ``read``/``write_speed``/``wait`` | ``connection_lost`` |
 | the force/torque reading bit-for-bit unchanged for ``stuck_after`` s | :class:`~langenv.robot.io_arm.IOArm` | ``sensor_stuck`` |
+| a non-finite velocity command (a controller bug) | :class:`~langenv.robot.io_arm.IOArm` | ``bad_command`` |
 | the speech's audio sink died (its thread or stream) | the session loop | ``audio_lost`` |
 | Ctrl-C | the session loop | ``interrupted`` |
 """

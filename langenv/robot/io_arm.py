@@ -13,6 +13,7 @@ and turns it into a named stop (:attr:`fault`), sending ``stop()`` in the same p
 
 from __future__ import annotations
 
+import math
 import time as _time
 from array import array
 
@@ -148,13 +149,16 @@ class IOArm:
         """Send ``v_ref`` (3,) m/s as ``speedL`` (no rotation), wait for the next period, read.
 
         ``f_ext`` is ignored: on a robot the person pushes the arm itself. After a fault nothing
-        is sent. Checks nothing of its arguments (hot path: GuidedArm's command is finite and
-        limited).
+        is sent. A non-finite ``v_ref`` is the ``bad_command`` stop; nothing else of the
+        arguments is checked (hot path: GuidedArm's command is limited).
         """
         if self.fault is not None:
             return
         robot = self.robot
         v0, v1, v2 = v_ref.tolist()
+        if not math.isfinite(v0 + v1 + v2):  # a controller bug: stop, never "rest" and go on
+            self._halt("bad_command", 0.0, 0.0, f"velocity command {[v0, v1, v2]} m/s")
+            return
         try:
             if not self._armed:
                 robot.enable()
