@@ -515,3 +515,26 @@ def test_a_non_finite_command_is_a_stop_not_rest() -> None:
         robot.close()
     assert arm.fault is not None and arm.fault.limit == "bad_command"
     assert [c[0] for c in ur.commands if c[0] in ("speedL", "speedStop")] == ["speedL", "speedStop"]
+
+
+def test_a_stop_stays_latched_until_the_operator_releases_it() -> None:
+    """After a stop, env.reset() (or an autoreset wrapper) must not start the arm again by
+    itself, even with the TCP still at the start: the operator confirms (IOArm.release())."""
+    from langenv.robot.io_arm import IOArm
+
+    cfg = URConfig(host=HOST)
+    with fake_rtde.FakeUR(HOST) as ur:
+        robot = URRobot(cfg, backend=fake_rtde)
+        arm = IOArm(robot)
+        arm.reset()
+        arm.step(np.array([np.nan, 0.0, 0.0]), np.zeros(3))
+        assert arm.fault is not None
+        with pytest.raises(DeviceError, match="operator"):
+            arm.reset()
+        arm.step(np.array([0.01, 0.0, 0.0]), np.zeros(3))
+        assert ur.speedl_count == 0
+        arm.release()
+        arm.reset()
+        arm.step(np.array([0.01, 0.0, 0.0]), np.zeros(3))
+        assert ur.speedl_count == 1
+        robot.close()

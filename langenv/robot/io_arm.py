@@ -79,6 +79,7 @@ class IOArm:
         self.joint_names: tuple[str, ...] = tuple(robot.joint_names)
         self.max_hand_speed: float = 0.5
         self.fault: SafetyStop | None = None
+        self._latched: SafetyStop | None = None
         self.compute_s = array("d")
         self.compute_cpu_s = array("d")
         self.sent = np.zeros(6)
@@ -107,11 +108,18 @@ class IOArm:
         Unlike the simulation, a robot is not placed: it must already be there (the confirmed
         move of :mod:`langenv.robot.ur.preflight`). Clears the fault and the timing record; the
         first :meth:`step` allows commands again (``robot.enable()``, which starts the robot's
-        period clock right before the first command).
+        period clock right before the first command). A stop is latched across sessions: after
+        one, a new session needs the operator's :meth:`release` first.
 
         Raises:
-            DeviceError: the TCP is more than ``start_tolerance`` from ``hand_position``.
+            DeviceError: a stop ended the last session and was not released, or the TCP is more
+                than ``start_tolerance`` from ``hand_position``.
         """
+        if self._latched is not None:
+            raise DeviceError(
+                f"a stop ended the last session ({self._latched.message}): a new one needs the "
+                "operator's confirmation (IOArm.release())"
+            )
         self._state = self.robot.read()
         if hand_position is not None:
             gap = float(np.linalg.norm(self._state.position - np.asarray(hand_position, float)))
@@ -205,6 +213,10 @@ class IOArm:
             self.fault = stop
         self._halt(stop.limit)
 
+    def release(self) -> None:
+        """The operator confirms a new session after a stop (see :meth:`reset`)."""
+        self._latched = None
+
     def halt(self, limit: str, detail: str = "") -> None:
         """Stop now for a reason found outside the arm (``interrupted``): ``stop()`` is sent."""
         self._halt(limit, 0.0, 0.0, detail)
@@ -214,6 +226,7 @@ class IOArm:
     ) -> None:
         if self.fault is None:
             self.fault = SafetyStop(limit, value, threshold, self.time, detail)
+        self._latched = self.fault
         try:
             self.robot.stop()
         except DeviceError:
