@@ -538,3 +538,34 @@ def test_a_stop_stays_latched_until_the_operator_releases_it() -> None:
         arm.step(np.array([0.01, 0.0, 0.0]), np.zeros(3))
         assert ur.speedl_count == 1
         robot.close()
+
+
+def test_a_second_ctrl_c_during_the_stop_still_logs(tmp_path: Path) -> None:
+    """Ctrl-C pressed twice: the second arrives as speedStop returns (Python raises it after the
+    blocking call). The stop went out; the log and the garbage collector must survive it."""
+    import gc
+
+    cfg = URConfig(host=HOST)
+    with fake_rtde.FakeUR(HOST) as ur:
+        robot = URRobot(cfg, backend=fake_rtde)
+        move_to_start(robot, cfg, lambda q: True)
+        ur.inject("protective_stop", 300)
+        real_stop, calls = robot.stop, {"n": 0}
+
+        def stop_then_ctrl_c() -> None:
+            real_stop()
+            calls["n"] += 1
+            if calls["n"] == 2:  # the first is the fault's own
+                raise KeyboardInterrupt
+
+        robot.stop = stop_then_ctrl_c  # type: ignore[method-assign]
+        loop = RobotLoop(robot, load_registered_policy("lc"), log_path=tmp_path / "s.csv")
+        with pytest.raises(KeyboardInterrupt):
+            loop.run()
+        robot.close()
+    enabled = gc.isenabled()
+    gc.unfreeze()
+    gc.enable()
+    assert enabled
+    assert load_session(tmp_path / "s.csv").duration > 0.4
+    assert [c[0] for c in _speed_commands(ur) if c[0] != "waitPeriod"][-1] == "speedStop"

@@ -239,12 +239,12 @@ class RobotLoop:
         except KeyboardInterrupt:
             arm.halt("interrupted")
         finally:
-            try:
-                self.robot.stop()
-            except DeviceError:
-                pass  # the link is gone: the robot's watchdog has stopped it
-            try:
-                self._fade(started)  # may fail (the sound card gone) or be interrupted
+            try:  # each step may fail (the sound card gone) or meet a second Ctrl-C
+                try:
+                    self.robot.stop()
+                except DeviceError:
+                    pass  # the link is gone: the robot's watchdog has stopped it
+                self._fade(started)
             finally:
                 gc.unfreeze()
                 if collecting:
