@@ -569,3 +569,16 @@ def test_a_second_ctrl_c_during_the_stop_still_logs(tmp_path: Path) -> None:
     assert enabled
     assert load_session(tmp_path / "s.csv").duration > 0.4
     assert [c[0] for c in _speed_commands(ur) if c[0] != "waitPeriod"][-1] == "speedStop"
+
+
+def test_write_speed_sends_no_unbounded_rotation() -> None:
+    """No limit bounds an angular velocity: the bridge sends none (MujocoRobot ignores it too)."""
+    cfg = URConfig(host=HOST)
+    with fake_rtde.FakeUR(HOST) as ur:
+        robot = URRobot(cfg, backend=fake_rtde)
+        robot.enable()
+        sent = robot.write_speed(np.array([0.01, 0, 0, 6.0, -6.0, 6.0]), 1.0, robot.period)
+        robot.stop()
+        robot.close()
+    last = [c for c in ur.commands if c[0] == "speedL"][-1][2]
+    assert last[3:] == [0.0, 0.0, 0.0] and not sent[3:].any() and last[0] == pytest.approx(0.01)

@@ -183,12 +183,14 @@ class URRobot(RobotContext):
     def write_speed(
         self, xd: NDArray[np.float64], acceleration: float, time: float
     ) -> NDArray[np.float64]:
-        """``speedL`` of ``xd`` clipped to ``max_speed``, at an ``acceleration`` clipped to the
-        set-up's ``speed_acceleration`` (a NaN or one <= 0 becomes that limit too), and a
-        watchdog kick; zeros, and nothing sent, once stopped."""
+        """``speedL`` of ``xd``'s linear part clipped to ``max_speed`` (its angular part is not
+        sent: no limit bounds it, and the session holds the orientation), at an
+        ``acceleration`` clipped to the set-up's ``speed_acceleration`` (a NaN or one <= 0
+        becomes that limit too), and a watchdog kick; zeros, and nothing sent, once stopped."""
         if not self._enabled:
             return np.zeros(6)
         sent = limit_speed(xd, self.max_speed)
+        sent[3:] = 0.0  # no rotation: the session holds the TCP's orientation (as MujocoRobot)
         a_max = self.config.speed_acceleration
         a = acceleration if 0.0 < acceleration <= a_max else a_max
         c = self._c
