@@ -294,3 +294,5 @@ class GuidedArm:
                 self.arm.joint_positions,
             )
         )
+        if fault is None and self.safety_stop is not None and isinstance(self.arm, IOArm):
+            self.arm.stop_for(self.safety_stop)  # speedStop now, in the period that found it

@@ -176,6 +176,7 @@ def run_robot(ns: argparse.Namespace) -> str:
             loop = RobotLoop(
                 robot,
                 policy,
+                exercise=ns.exercise,
                 make_sink=lambda ring, sr: WavSink(ring, out, sr),
                 log_path=ns.log_out,
                 max_seconds=ns.seconds,

@@ -71,12 +71,15 @@ ROBOT_STOPS: tuple[str, ...] = (
     "late_period",
     "connection_lost",
     "sensor_stuck",
+    "bad_command",
+    "audio_lost",
     "interrupted",
 )
 """Names of the stops a real robot's loop adds to :data:`STOP_LIMITS` (:mod:`langenv.robot.io`):
 the robot's own protective and emergency stops, its control program no longer running, a control
 period started more than two periods late, the link to the robot lost, the force sensor's reading
-frozen, and the operator's Ctrl-C."""
+frozen, a non-finite velocity command from the controller (a bug), the speech's audio output dead
+(the person is no longer talked through), and the operator's Ctrl-C."""
 
 _UNITS = {
     "speed": "m/s",
@@ -97,6 +100,8 @@ _WHAT = {
     "late_period": "control period started late by",
     "connection_lost": "the link to the robot is lost",
     "sensor_stuck": "force sensor reading unchanged for",
+    "bad_command": "the controller's velocity command is not finite",
+    "audio_lost": "the speech's audio output stopped",
     "interrupted": "interrupted by the operator (Ctrl-C)",
 }
 

@@ -121,3 +121,19 @@ def test_a_robot_env_refuses_a_simulated_user() -> None:
     env = LangCtrlEnv(robot=MujocoRobot())
     with pytest.raises(ConfigError, match="the person is real"):
         env.reset(seed=0, options={"user": "synthetic"})
+
+
+def test_play_on_a_robot_runs_the_chosen_exercise(tmp_path: Path, capsys) -> None:
+    """--exercise with --robot: the session starts at that exercise's start (it ran the study's)."""
+    import csv
+
+    from langenv.exercise import resolve_exercise
+    from langenv.play import main
+
+    wav, log = tmp_path / "a.wav", tmp_path / "s.csv"
+    argv = ["--robot", "ur-fake", "--headless", "--seconds", "0.3", "--audio-out", str(wav)]
+    assert main([*argv, "--log-out", str(log), "--exercise", "hand_to_mouth"]) == 0
+    first = next(csv.DictReader(log.open()))
+    xyz = [float(first[k]) for k in ("x", "y", "z")]
+    np.testing.assert_allclose(xyz, resolve_exercise("hand_to_mouth").start, atol=1e-3)
+    capsys.readouterr()

@@ -62,3 +62,23 @@ def test_fake_signatures_match_ur_rtde(cls_name: str) -> None:
                 f"{cls_name}.{name}({rname})"
             )
             assert _same_default(rdefault, p.default), f"{cls_name}.{name}({rname}) default"
+
+
+def test_the_fake_watchdog_stops_the_script_as_ur_rtde_does() -> None:
+    """setWatchdog(f): no command for 1/f s stops the control script (action "stop"); reading
+    the state is no command; afterwards commands answer False."""
+    with fake_rtde.FakeUR("127.0.0.1") as ur:
+        c = fake_rtde.RTDEControlInterface("127.0.0.1", 500.0)
+        r = fake_rtde.RTDEReceiveInterface("127.0.0.1", 500.0)
+        assert c.setWatchdog(50.0)
+        for _ in range(30):  # kicked every period: runs on
+            assert c.kickWatchdog()
+            c.waitPeriod(c.initPeriod())
+        assert c.isProgramRunning()
+        for _ in range(11):  # 22 ms of reads only
+            r.getActualTCPPose()
+            c.waitPeriod(c.initPeriod())
+        assert not c.isProgramRunning()
+        assert ("watchdog", ur.period_index - 1) in ur.commands
+        assert c.speedL([0.01, 0, 0, 0, 0, 0], 1.0, 0.002) is False
+        assert c.speedStop(2.0) is False and c.setWatchdog(50.0) is False

@@ -13,6 +13,8 @@ it this module adds what a real session needs:
   the measured force and the phrase; written whatever ends the session;
 * Python's cyclic garbage collector paused for the session (``gc.freeze`` then ``gc.disable``;
   restored after): a full collection takes milliseconds, more than a period;
+* the sink watched every ``log_every`` periods: one that died (its thread or stream) ends the
+  session with the ``audio_lost`` stop (the person is no longer talked through);
 * ``stop()`` (``speedStop``) on every way out: the end of the motion, a named stop, Ctrl-C
   (``interrupted``), an exception.
 """
@@ -31,6 +33,7 @@ import numpy as np
 
 from langenv.control.trajectory import Trajectory
 from langenv.errors import DeviceError
+from langenv.exercise import Exercise, resolve_exercise
 from langenv.live.ring import AudioRing
 from langenv.live.sinks import AudioSink
 from langenv.live.stream import BLOCK, DEFAULT_LAG, SpeechStream
@@ -127,7 +130,12 @@ class RobotLoop:
         robot: The robot, at the exercise's start and at rest.
         policy: Offers ``act(observation)``, ``reset()``, ``decision_hz``, ``phrase_graph``
             and ``env_kwargs`` (what :func:`langenv.live.registry.load_registered_policy` gives).
-        trajectory: The exercise's path in the robot's base frame (default: the env's).
+        trajectory: The exercise's path in the robot's base frame (default: the exercise's
+            own, in our UR5 model's base frame).
+        exercise: The exercise (a name, a YAML path or an
+            :class:`~langenv.exercise.Exercise`; None: the study's): its guide speed
+            (admittance) and the script the policy speaks on it
+            (:meth:`~langenv.exercise.Exercise.script_for`).
         make_sink: Builds the audio sink from the ring and the sample rate (None: no audio).
         log_path: The session CSV to write (None: none).
         log_every: Periods between two logged rows (10: 50 Hz, as the study's recordings).
@@ -142,6 +150,7 @@ class RobotLoop:
         policy: Any,
         *,
         trajectory: Trajectory | None = None,
+        exercise: str | Path | Exercise | None = None,
         make_sink: Callable[[AudioRing, int], AudioSink] | None = None,
         log_path: str | Path | None = None,
         log_every: int = 10,
@@ -152,10 +161,14 @@ class RobotLoop:
         from langenv.env import LangCtrlEnv
 
         kwargs = {k: v for k, v in dict(policy.env_kwargs).items() if k != "users"}
+        own = kwargs.pop("exercise", None)
+        ex = resolve_exercise(exercise if exercise is not None else own)
+        kwargs.setdefault("admittance", ex.admittance())
+        self.exercise = ex
         self.env = LangCtrlEnv(
             robot=robot,
-            trajectory=trajectory,
-            phrase_graph=policy.phrase_graph,
+            trajectory=trajectory if trajectory is not None else ex.trajectory,
+            phrase_graph=ex.script_for(policy.phrase_graph),
             decision_hz=int(policy.decision_hz),
             robot_acceleration=acceleration,
             **kwargs,
@@ -220,20 +233,25 @@ class RobotLoop:
                     started = self._audio(stream, float(info["time"]), started)
                 if (step + 1) % self.log_every == 0:
                     self._log(info)
+                    if self.sink is not None and not self.sink.alive:
+                        arm.halt("audio_lost", "the sink's thread or stream died")
+                        break
         except KeyboardInterrupt:
             arm.halt("interrupted")
         finally:
-            try:
-                self.robot.stop()
-            except DeviceError:
-                pass  # the link is gone: the robot's watchdog has stopped it
-            self._fade(started)
-            gc.unfreeze()
-            if collecting:
-                gc.enable()
-            if info:  # the log too, whatever ended the session (an error included)
-                self._log(env._info())
-            log = self._write()
+            try:  # each step may fail (the sound card gone) or meet a second Ctrl-C
+                try:
+                    self.robot.stop()
+                except DeviceError:
+                    pass  # the link is gone: the robot's watchdog has stopped it
+                self._fade(started)
+            finally:
+                gc.unfreeze()
+                if collecting:
+                    gc.enable()
+                if info:  # the log too, whatever ended the session (an error included)
+                    self._log(env._info())
+                log = self._write()
         stop = env.motion.safety_stop if env.motion.safety_stop is not None else arm.fault
         compute = np.asarray(arm.compute_s) * 1e3
         stats = (

@@ -44,6 +44,12 @@ class AudioSink(Protocol):
         """Underruns the device itself reported (beyond the ring's own count)."""
         ...
 
+    @property
+    def alive(self) -> bool:
+        """False once the sink, started and not stopped, no longer plays (its thread or stream
+        died); True before :meth:`start`."""
+        ...
+
 
 class WavSink:
     """A virtual sound card: reads the ring every block period and writes a 16-bit WAV.
@@ -68,18 +74,33 @@ class WavSink:
             raise ConfigError(f"audio out {self.path}: cannot write: {exc}") from None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="wav-sink", daemon=True)
+        self._started = False
         self.written = 0
+        self.error: Exception | None = None
+        """What ended the writer thread early (a failed write), or None."""
 
     @property
     def xruns(self) -> int:
         """A file never underruns by itself."""
         return 0
 
+    @property
+    def alive(self) -> bool:
+        """False once the writer thread died (a failed write) before :meth:`stop`."""
+        return not self._started or self._stop.is_set() or self._thread.is_alive()
+
     def start(self) -> None:
         """Start the clock."""
+        self._started = True
         self._thread.start()
 
     def _run(self) -> None:
+        try:
+            self._write_blocks()
+        except Exception as exc:  # a failed write ends the thread: alive turns False
+            self.error = exc
+
+    def _write_blocks(self) -> None:
         buf = np.zeros(self.block, np.float32)
         period = self.block / self.sr
         t0 = time.monotonic()
@@ -144,6 +165,7 @@ class SoundCardSink:
         sd = _sounddevice()
         self.ring, self.sr = ring, int(sr)
         self._xruns = 0
+        self._started = self._stopping = False
         try:
             sd.query_devices(device, kind="output")
             self._stream = sd.OutputStream(
@@ -170,12 +192,20 @@ class SoundCardSink:
             self._xruns += 1
         self.ring.read_into(outdata[:, 0])
 
+    @property
+    def alive(self) -> bool:
+        """False once the stream stopped by itself (a callback error, the device gone) before
+        :meth:`stop`."""
+        return not self._started or self._stopping or bool(self._stream.active)
+
     def start(self) -> None:
         """Start playing."""
+        self._started = True
         self._stream.start()
 
     def stop(self) -> None:
         """Let the ring drain, then stop and close the stream."""
+        self._stopping = True
         underruns, missing = self.ring.underruns, self.ring.missing
         deadline = time.monotonic() + len(self.ring) / self.sr + 0.2
         while len(self.ring) and time.monotonic() < deadline:

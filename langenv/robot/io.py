@@ -15,7 +15,7 @@ All vectors are in the robot's **base frame** (z up), SI units.
 | ``period`` | s (0.002 at 500 Hz) | fixed for the connection |
 | ``joint_names``, ``joint_limits`` | names; (lower, upper) (n,) rad | fixed (the monitor's joint margin) |
 | ``read() -> RobotState`` | see :class:`RobotState` | the state at the start of the current period; cheap, never blocks longer than the link's own latency |
-| ``write_speed(xd, acceleration, time) -> sent`` | ``xd`` (6,): TCP linear (m/s) and angular (rad/s) velocity; ``acceleration`` m/s^2; ``time`` s | returns at once with the (6,) command actually sent, after the robot's own speed clip (``max_speed``) |
+| ``write_speed(xd, acceleration, time) -> sent`` | ``xd`` (6,): TCP linear (m/s) and angular (rad/s) velocity; ``acceleration`` m/s^2; ``time`` s | returns at once with the (6,) command actually sent, after the robot's own speed clip (``max_speed``); the robots here command no rotation (zeros in ``sent``): the orientation is held |
 | ``wait() -> late`` | s | blocks until the next period starts; returns how late (s) that start is against the schedule (0 when on time). A late start re-bases the schedule: no bursts of catch-up periods |
 | ``zero_ft_sensor()`` | | zeroes the wrist force/torque reading (the arm at rest) |
 | ``stop()`` | | ``speedStop``: decelerate to rest and command nothing more (latched: ``write_speed`` then sends nothing and returns zeros); safe to call at any time, any number of times |
@@ -45,6 +45,8 @@ speech faded out; the stop's name is in :data:`langenv.safety.STOP_LIMITS` or
 | a period starting more than 2 periods late | ``wait()`` | ``late_period`` |
 | link lost (an exception from the link, or ``RobotState`` no longer fresh) | ``read``/``write_speed``/``wait`` | ``connection_lost`` |
 | the force/torque reading bit-for-bit unchanged for ``stuck_after`` s | :class:`~langenv.robot.io_arm.IOArm` | ``sensor_stuck`` |
+| a non-finite velocity command (a controller bug) | :class:`~langenv.robot.io_arm.IOArm` | ``bad_command`` |
+| the speech's audio sink died (its thread or stream) | the session loop | ``audio_lost`` |
 | Ctrl-C | the session loop | ``interrupted`` |
 """
 

@@ -13,6 +13,7 @@ and turns it into a named stop (:attr:`fault`), sending ``stop()`` in the same p
 
 from __future__ import annotations
 
+import math
 import time as _time
 from array import array
 
@@ -43,7 +44,9 @@ class IOArm:
             session (``sensor_stuck``): a live sensor always has some noise.
 
     Attributes:
-        fault: The robot-side stop (see :data:`langenv.safety.ROBOT_STOPS`), or None.
+        fault: The stop that halted the robot: a robot-side one (see
+            :data:`langenv.safety.ROBOT_STOPS`), or the monitor's (:meth:`stop_for`); None
+            while it runs.
         compute_s: Per period, the loop's compute time (s, wall clock): from the end of
             ``wait()`` to the start of the next (read, control, speech, policy, logging,
             ``speedL``); what the period's deadline sees, preemption included.
@@ -76,6 +79,7 @@ class IOArm:
         self.joint_names: tuple[str, ...] = tuple(robot.joint_names)
         self.max_hand_speed: float = 0.5
         self.fault: SafetyStop | None = None
+        self._latched: SafetyStop | None = None
         self.compute_s = array("d")
         self.compute_cpu_s = array("d")
         self.sent = np.zeros(6)
@@ -104,11 +108,18 @@ class IOArm:
         Unlike the simulation, a robot is not placed: it must already be there (the confirmed
         move of :mod:`langenv.robot.ur.preflight`). Clears the fault and the timing record; the
         first :meth:`step` allows commands again (``robot.enable()``, which starts the robot's
-        period clock right before the first command).
+        period clock right before the first command). A stop is latched across sessions: after
+        one, a new session needs the operator's :meth:`release` first.
 
         Raises:
-            DeviceError: the TCP is more than ``start_tolerance`` from ``hand_position``.
+            DeviceError: a stop ended the last session and was not released, or the TCP is more
+                than ``start_tolerance`` from ``hand_position``.
         """
+        if self._latched is not None:
+            raise DeviceError(
+                f"a stop ended the last session ({self._latched.message}): a new one needs the "
+                "operator's confirmation (IOArm.release())"
+            )
         self._state = self.robot.read()
         if hand_position is not None:
             gap = float(np.linalg.norm(self._state.position - np.asarray(hand_position, float)))
@@ -146,13 +157,16 @@ class IOArm:
         """Send ``v_ref`` (3,) m/s as ``speedL`` (no rotation), wait for the next period, read.
 
         ``f_ext`` is ignored: on a robot the person pushes the arm itself. After a fault nothing
-        is sent. Checks nothing of its arguments (hot path: GuidedArm's command is finite and
-        limited).
+        is sent. A non-finite ``v_ref`` is the ``bad_command`` stop; nothing else of the
+        arguments is checked (hot path: GuidedArm's command is limited).
         """
         if self.fault is not None:
             return
         robot = self.robot
         v0, v1, v2 = v_ref.tolist()
+        if not math.isfinite(v0 + v1 + v2):  # a controller bug: stop, never "rest" and go on
+            self._halt("bad_command", 0.0, 0.0, f"velocity command {[v0, v1, v2]} m/s")
+            return
         try:
             if not self._armed:
                 robot.enable()
@@ -192,6 +206,17 @@ class IOArm:
             if self._same >= self._stuck_periods:
                 self._halt("sensor_stuck", self._same * self.dt, self._stuck_periods * self.dt)
 
+    def stop_for(self, stop: SafetyStop) -> None:
+        """Our monitor's protective stop (``stop``): ``stop()`` is sent now, in the period that
+        found it, and nothing after (:attr:`fault` becomes ``stop``)."""
+        if self.fault is None:
+            self.fault = stop
+        self._halt(stop.limit)
+
+    def release(self) -> None:
+        """The operator confirms a new session after a stop (see :meth:`reset`)."""
+        self._latched = None
+
     def halt(self, limit: str, detail: str = "") -> None:
         """Stop now for a reason found outside the arm (``interrupted``): ``stop()`` is sent."""
         self._halt(limit, 0.0, 0.0, detail)
@@ -201,6 +226,7 @@ class IOArm:
     ) -> None:
         if self.fault is None:
             self.fault = SafetyStop(limit, value, threshold, self.time, detail)
+        self._latched = self.fault
         try:
             self.robot.stop()
         except DeviceError:

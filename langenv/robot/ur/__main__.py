@@ -5,6 +5,11 @@
     python -m langenv.robot.ur --host 192.168.1.10 --dry-run      # connect, check, print the plan
     python -m langenv.robot.ur --config configs/ur.yaml --log-out session.csv
     python -m langenv.robot.ur --host 127.0.0.1 --fake --dry-run  # against the built-in fake
+    python -m langenv.robot.ur --config configs/ur.yaml --exercise hand_to_mouth --dry-run
+
+``--exercise NAME|PATH`` (default: the study's) is loaded and checked
+(:func:`~langenv.exercise.check.check_exercise`: reach, joint margins, contacts, speed, script)
+before the robot is even connected; a failed check is an error naming every problem.
 
 A dry run connects, reads, runs the preflight checks (:mod:`langenv.robot.ur.preflight`) and
 prints what a session would do; it commands no motion. A session then zeroes the wrist sensor,
@@ -36,6 +41,12 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     p.add_argument("--host", default=None, help="the robot's (or URSim's) address")
     p.add_argument("--config", type=Path, default=None, help="UR set-up YAML (configs/ur.yaml)")
     p.add_argument("--dry-run", action="store_true", help="connect, check, plan; move nothing")
+    p.add_argument(
+        "--exercise",
+        default=None,
+        help="exercise: a shipped name (python -m langenv.exercise list) or a YAML path, "
+        "checked before anything connects or moves (default: the study's)",
+    )
     p.add_argument("--policy", default="lc", help="policy by name (lc, ac, lc-noap, ppo:PATH...)")
     p.add_argument("--log-out", type=Path, default=None, help="write the session CSV here")
     p.add_argument("--audio-out", type=Path, default=None, help="speech to a WAV, not the card")
@@ -69,8 +80,10 @@ def run(
     """Connect, check, and (unless a dry run) run one session; returns the exit code."""
     from langenv.robot.backends import make_robot
     from langenv.robot.ur import preflight
+    from langenv.robot.ur.exercise import checked_exercise
 
     config = _config(ns)
+    exercise = checked_exercise(ns.exercise)  # before anything connects or moves
     fake = None
     if ns.fake:
         from langenv.robot.ur.fake_rtde import FakeUR
@@ -79,7 +92,7 @@ def run(
     try:
         robot: Any = make_robot("ur-fake" if ns.fake else "ur", config=config)
         with robot:
-            checks = preflight.run_checks(robot, config)
+            checks = preflight.run_checks(robot, config, exercise)
             out(f"robot at {config.host}:")
             for check in checks:
                 out(check.line())
@@ -87,13 +100,13 @@ def run(
             out(
                 ("would do:" if ns.dry_run else "plan:")
                 + "\n"
-                + "\n".join(preflight.plan(robot, config))
+                + "\n".join(preflight.plan(robot, config, exercise))
             )
             if ns.dry_run or not passed:
                 if not passed:
                     out("not moving: a check failed")
                 return 0 if passed else 1
-            return _session(ns, robot, config, out, ask)
+            return _session(ns, robot, config, exercise, out, ask)
     finally:
         if fake is not None:
             fake.shutdown()
@@ -103,6 +116,7 @@ def _session(
     ns: argparse.Namespace,
     robot: Any,
     config: Any,
+    exercise: Any,
     out: Callable[[str], None],
     ask: Callable[[str], str],
 ) -> int:
@@ -122,7 +136,8 @@ def _session(
     loop = RobotLoop(
         robot,
         policy,
-        trajectory=exercise_trajectory(config),
+        trajectory=exercise_trajectory(config, exercise),
+        exercise=exercise,
         make_sink=make_sink,
         log_path=ns.log_out,
         acceleration=config.speed_acceleration,
@@ -130,7 +145,7 @@ def _session(
     preflight.zero_sensor(robot)
     out("force sensor zeroed")
     preflight.move_to_start(
-        robot, config, lambda q: ns.yes or ask(q).strip().lower() in ("y", "yes")
+        robot, config, lambda q: ns.yes or ask(q).strip().lower() in ("y", "yes"), exercise
     )
     out("at the exercise's start; session running (Ctrl-C stops the arm)")
     report = loop.run()

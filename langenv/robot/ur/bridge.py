@@ -8,8 +8,9 @@ simulated robot on a loopback host.
 Per period the loop calls :meth:`URRobot.write_speed` (``speedL`` and a watchdog kick),
 :meth:`URRobot.wait` (``waitPeriod`` then ``initPeriod``: the lateness is measured on the
 library's own steady clock) and :meth:`URRobot.read` (seven cached RTDE values). Any
-``RuntimeError`` from the library, a ``False`` from a command, or an RTDE timestamp that stops
-advancing is a lost link (:class:`~langenv.errors.DeviceError`, the ``connection_lost`` stop).
+``RuntimeError`` from the library, a ``False`` from a command, an interface no longer
+connected, or an RTDE timestamp that stops advancing is a lost link
+(:class:`~langenv.errors.DeviceError`, the ``connection_lost`` stop).
 """
 
 from __future__ import annotations
@@ -21,18 +22,32 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from langenv.errors import DeviceError
+from langenv.errors import ConfigError, DeviceError
 from langenv.robot.io import RobotContext, RobotState, limit_speed
 from langenv.robot.ur.config import URConfig
 from langenv.safety import DEFAULT_MAX_SPEED
+from langenv.validation import finite_positive
 
-__all__ = ["INSTALL_HINT", "RTDE_PORT", "STALE_PERIODS", "URRobot", "ur_rtde_backend"]
+__all__ = [
+    "IDLE_WATCHDOG_HZ",
+    "INSTALL_HINT",
+    "RTDE_PORT",
+    "STALE_PERIODS",
+    "URRobot",
+    "ur_rtde_backend",
+]
 
 RTDE_PORT = 30004
 """The robot's RTDE port."""
 
 STALE_PERIODS = 10
 """An RTDE timestamp unchanged for this many periods in a row is a lost link."""
+
+IDLE_WATCHDOG_HZ = 0.2
+"""The RTDE watchdog's rate (Hz) once a ``speedStop`` went through: the arm is at rest and
+commanded nothing, so the watchdog (which stops ur-rtde's control script when no command arrives
+for 1/rate s) only has to outlast the gap to the next :meth:`URRobot.enable` (the move to the
+start, then the session, both re-arm it at ``watchdog_hz``)."""
 
 INSTALL_HINT = 'pip install -e ".[ur]"  (or: pip install "ur-rtde>=1.6")'
 
@@ -77,9 +92,10 @@ class URRobot(RobotContext):
     Args:
         config: The set-up.
         backend: The library's namespace (default: :func:`ur_rtde_backend`).
-        max_speed: The robot-side TCP speed clip of :meth:`write_speed` (m/s).
+        max_speed: The robot-side TCP speed clip of :meth:`write_speed` (m/s), > 0.
 
     Raises:
+        ConfigError: ``max_speed`` not a finite number > 0.
         DeviceError: ``ur-rtde`` missing, or no robot answers at ``config.host`` (the host named).
     """
 
@@ -87,7 +103,7 @@ class URRobot(RobotContext):
         self, config: URConfig, *, backend: Any = None, max_speed: float = DEFAULT_MAX_SPEED
     ) -> None:
         self.config = config
-        self.max_speed = float(max_speed)
+        self.max_speed = finite_positive("URRobot.max_speed", max_speed, ConfigError)
         lib = backend if backend is not None else ur_rtde_backend()
         host = config.host
         try:
@@ -135,9 +151,12 @@ class URRobot(RobotContext):
             raise DeviceError(f"link to the robot at {self.config.host} lost: {exc}") from None
 
     def read(self) -> RobotState:
-        """The robot's state (RTDE receive), checked fresh."""
+        """The robot's state (RTDE receive), checked fresh: both interfaces connected (ur-rtde's
+        getters return their last values without raising once a link is lost) and the RTDE
+        timestamp advancing."""
         r = self._r
         try:
+            linked = r.isConnected() and self._c.isConnected()
             stamp = r.getTimestamp()
             state = RobotState(
                 stamp,
@@ -151,6 +170,8 @@ class URRobot(RobotContext):
             )
         except RuntimeError as exc:
             raise DeviceError(f"link to the robot at {self.config.host} lost: {exc}") from None
+        if not linked:
+            raise DeviceError(f"the link to the robot at {self.config.host} is lost (ur-rtde)")
         self._same_stamp = self._same_stamp + 1 if stamp == self._stamp else 0
         self._stamp = stamp
         if self._same_stamp >= STALE_PERIODS:
@@ -162,14 +183,19 @@ class URRobot(RobotContext):
     def write_speed(
         self, xd: NDArray[np.float64], acceleration: float, time: float
     ) -> NDArray[np.float64]:
-        """``speedL`` of ``xd`` clipped to ``max_speed`` (and a watchdog kick); zeros, and
-        nothing sent, once stopped."""
+        """``speedL`` of ``xd``'s linear part clipped to ``max_speed`` (its angular part is not
+        sent: no limit bounds it, and the session holds the orientation), at an
+        ``acceleration`` clipped to the set-up's ``speed_acceleration`` (a NaN or one <= 0
+        becomes that limit too), and a watchdog kick; zeros, and nothing sent, once stopped."""
         if not self._enabled:
             return np.zeros(6)
         sent = limit_speed(xd, self.max_speed)
+        sent[3:] = 0.0  # no rotation: the session holds the TCP's orientation (as MujocoRobot)
+        a_max = self.config.speed_acceleration
+        a = acceleration if 0.0 < acceleration <= a_max else a_max
         c = self._c
         try:
-            ok = c.speedL(sent.tolist(), acceleration, time)
+            ok = c.speedL(sent.tolist(), a, time)
             c.kickWatchdog()
             if not ok:  # explained by a stop the next read reports, or the link is gone
                 r = self._r
@@ -202,17 +228,30 @@ class URRobot(RobotContext):
             raise DeviceError(f"the robot at {self.config.host} refused zeroFtSensor")
 
     def stop(self) -> None:
-        """``speedStop`` at ``config.stop_deceleration``; latched until :meth:`enable`. A robot
-        never enabled has been commanded nothing, and is sent nothing (a dry run)."""
+        """``speedStop`` at ``config.stop_deceleration``; latched until :meth:`enable`. Once the
+        arm is stopped the watchdog is slowed to :data:`IDLE_WATCHDOG_HZ`. A robot never
+        enabled has been commanded nothing, and is sent nothing (a dry run)."""
         self._enabled = False
         if not self._ever_enabled:
             return
         self.stops_sent += 1
-        self._call(self._c.speedStop, self.config.stop_deceleration)
+        if self._call(self._c.speedStop, self.config.stop_deceleration):
+            self._call(self._c.setWatchdog, IDLE_WATCHDOG_HZ)
 
     def enable(self) -> None:
-        """Accept commands (arms the RTDE watchdog) and restart the period clock."""
-        self._call(self._c.setWatchdog, self.config.watchdog_hz)
+        """Accept commands (arms the RTDE watchdog at ``watchdog_hz``) and restart the period
+        clock.
+
+        Raises:
+            DeviceError: the robot's control script does not run (a stop, the watchdog, or the
+                pendant ended it): nothing is commanded.
+        """
+        if not self._call(self._c.setWatchdog, self.config.watchdog_hz):
+            raise DeviceError(
+                f"the robot at {self.config.host} does not take commands: ur-rtde's control "
+                "script is not running (a protective or emergency stop, its watchdog, or the "
+                "pendant stopped it)"
+            )
         self._t = self._call(self._c.initPeriod)
         self._enabled = self._ever_enabled = True
 
@@ -247,9 +286,9 @@ class URRobot(RobotContext):
         return bool(self._call(self._c.isPoseWithinSafetyLimits, pose.tolist()))
 
     def move_linear(self, pose: NDArray[np.float64], speed: float, acceleration: float) -> None:
-        """``moveL`` to ``pose`` (6,), asynchronous and watched every period: Ctrl-C, a stop of
-        the robot's, or a move that takes twice as long as it should (plus 2 s) ends it with
-        ``stopL`` at ``stop_deceleration`` (only while enabled).
+        """``moveL`` to ``pose`` (6,), asynchronous and watched every period (which also kicks the
+        RTDE watchdog): Ctrl-C, a stop of the robot's, or a move that takes twice as long as it
+        should (plus 2 s) ends it with ``stopL`` at ``stop_deceleration`` (only while enabled).
 
         Raises:
             DeviceError: refused, stopped by the robot, or too slow; KeyboardInterrupt passes on
@@ -260,11 +299,14 @@ class URRobot(RobotContext):
         c = self._c
         start = self.read().position
         budget = 2.0 * float(np.linalg.norm(pose[:3] - start)) / speed + 2.0
-        if not self._call(c.moveL, pose.tolist(), speed, acceleration, True):
-            raise DeviceError(f"the robot at {self.config.host} refused moveL to {pose.tolist()}")
         waited = 0.0
-        try:
+        try:  # from the moveL on: a Ctrl-C delivered as the call returns also ends in stopL
+            if not self._call(c.moveL, pose.tolist(), speed, acceleration, True):
+                raise DeviceError(
+                    f"the robot at {self.config.host} refused moveL to {pose.tolist()}"
+                )
             while self._call(c.getAsyncOperationProgress) >= 0:
+                self._call(c.kickWatchdog)
                 self.wait()
                 waited += self._period
                 state = self.read()

@@ -18,17 +18,30 @@ loop, not 10 s), and injects faults (:meth:`FakeUR.inject`) at a given ``speedL`
 | ``protective_stop`` | ``isProtectiveStopped()`` is True, the arm halts, the script stops |
 | ``emergency_stop`` | ``isEmergencyStopped()`` is True, likewise |
 | ``program_stop`` | ``isProgramRunning()`` is False, commands are ignored |
-| ``disconnect`` | every call raises ``RuntimeError``; ``isConnected()`` is False |
+| ``disconnect`` | commands raise ``RuntimeError`` (the reconnect fails); reads: see below |
+| ``receive_lost`` | the receive thread died (on a socket error); commands still go out |
 | ``force_spike`` | ``force`` N (3,) added to the wrist reading for ``duration`` s |
 | ``stuck_sensor`` | the wrist reading freezes at its current value |
 | ``joint_limit`` | joint ``joint`` moves to ``margin`` rad inside its range's upper end |
 | ``stale_state`` | the RTDE timestamp (and the state) stop advancing: a receive thread gone quiet |
+
+After ``disconnect`` or ``receive_lost``, as in ur-rtde, reading returns the last state received
+without raising, and ``isConnected()`` is False (the receive interface's; after ``disconnect``
+the control interface's too).
+
+As on the robot, ``setWatchdog(f)`` arms ur-rtde's RTDE watchdog with the action "stop": when no
+RTDE input (any command: ``speedL``, ``kickWatchdog``, ``speedStop``, ``moveL``...; reading the
+state is no input) arrives for ``1/f`` s, the control script stops (the arm halts, commands are
+refused, ``isProgramRunning()`` is False) and the watchdog is removed. Commands answer False
+while the script does not run or the robot is stopped, as ur-rtde's ``sendCommand`` does.
 """
 
 from __future__ import annotations
 
 import datetime
+import math
 import time as _time
+import types
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -51,6 +64,7 @@ FAULTS = (
     "emergency_stop",
     "program_stop",
     "disconnect",
+    "receive_lost",
     "force_spike",
     "stuck_sensor",
     "joint_limit",
@@ -139,6 +153,10 @@ class FakeUR:
         self._move: tuple[NDArray[np.float64], float] | None = None
         self.stale = False
         self._async_done = -1
+        self.watchdog_hz = 0.0
+        self._last_input = 0.0
+        self.receive_connected = True
+        self._snapshot: Any = None
 
     # ------------------------------------------------------------------ set-up
     def serve(self) -> FakeUR:
@@ -167,6 +185,57 @@ class FakeUR:
     def check_link(self) -> None:
         if not self.connected:
             raise RuntimeError("RTDE connection lost (fake)")
+        self._watch(self.now())
+
+    def received(self) -> Any:
+        """What the receive interface reads: this robot, or once its link is lost the last
+        state received (ur-rtde's getters return their cache and never raise)."""
+        if self._snapshot is not None:
+            return self._snapshot
+        self._watch(self.now())
+        return self
+
+    def _lose_receive(self) -> None:
+        wrench = self.wrench()
+        self._snapshot = types.SimpleNamespace(
+            pose=self.pose.copy(),
+            velocity=self.velocity.copy(),
+            q=self.q.copy(),
+            protective_stop=self.protective_stop,
+            emergency_stop=self.emergency_stop,
+            program_running=self.program_running,
+            timestamp=self.timestamp,
+            payload_mass=self.payload_mass,
+            payload_cog=list(self.payload_cog),
+            wrench=lambda: list(wrench),
+        )
+        self.receive_connected = False
+
+    def command(self) -> bool:
+        """An RTDE input (a command) arrives: feeds the watchdog; whether the script takes it."""
+        self.check_link()
+        self._last_input = self.now()
+        return self.moving_allowed
+
+    def set_watchdog(self, hz: float) -> bool:
+        ok = self.command()
+        if ok:
+            self.watchdog_hz = float(hz)
+        return ok
+
+    def _watch(self, t: float) -> None:
+        """The RTDE watchdog: no input for 1/watchdog_hz s stops the control script."""
+        hz = self.watchdog_hz
+        if hz > 0.0 and self.program_running and t - self._last_input > 1.0 / hz + 1e-9:
+            self.commands.append(("watchdog", self.period_index))
+            self.stop_script()
+
+    def stop_script(self) -> None:
+        """The control script stops: the arm halts, and the watchdogs are removed."""
+        self.program_running = False
+        self.watchdog_hz = 0.0
+        self._move = None
+        self._halt()
 
     @property
     def moving_allowed(self) -> bool:
@@ -174,6 +243,7 @@ class FakeUR:
 
     def speed_command(self, xd: Sequence[float], acceleration: float) -> bool:
         self.check_link()
+        self._last_input = self.now()
         self.speedl_count += 1
         for fault in [f for f in self.faults if f.at == self.speedl_count - 1]:
             self._apply(fault)
@@ -186,11 +256,12 @@ class FakeUR:
         self._accel = float(acceleration)
         return True
 
-    def stop_command(self, a: float) -> None:
-        self.check_link()
+    def stop_command(self, a: float) -> bool:
+        ok = self.command()
         self.commands.append(("speedStop", self.period_index, float(a)))
         self._target = np.zeros(6)
         self._accel = float(a)
+        return ok
 
     def _apply(self, fault: _Fault) -> None:
         kind, p = fault.kind, fault.params
@@ -200,10 +271,12 @@ class FakeUR:
             setattr(self, kind, True)
             self._halt()
         elif kind == "program_stop":
-            self.program_running = False
-            self._halt()
+            self.stop_script()
         elif kind == "disconnect":
+            self._lose_receive()
             self.connected = False
+        elif kind == "receive_lost":
+            self._lose_receive()
         elif kind == "force_spike":
             self._spike = np.array(p.get("force", (0.0, 0.0, 200.0)), dtype=np.float64)
             self._spike_until = self.clock + float(p.get("duration", 0.05))
@@ -243,14 +316,15 @@ class FakeUR:
         if not self.stale:
             self.timestamp = self.clock
         self.period_index += 1
+        self._watch(self.clock)
 
     def now(self) -> float:
         """The clock ``initPeriod`` reads (s): virtual, or the wall clock when ``realtime``."""
         return _time.perf_counter() - self._t0 if self.realtime else self.clock
 
     def wait(self, t_start: float) -> None:
-        """Advance the clock to one period after ``t_start`` (plus injected lateness)."""
-        self.check_link()
+        """Advance the clock to one period after ``t_start`` (plus injected lateness); the
+        library's own steady clock: works without a link."""
         self.commands.append(("waitPeriod", self.period_index))
         due = t_start + self.period + self._late
         self._late = 0.0
@@ -283,13 +357,14 @@ class FakeUR:
         self.clock += dt
         self.timestamp = self.clock
         self.period_index += 1
+        self._watch(self.clock)
 
     def async_progress(self) -> int:
         self.check_link()
         return 0 if self._move is not None else self._async_done
 
     def stop_move(self, a: float) -> None:
-        self.check_link()
+        self.command()
         self.commands.append(("stopL", self.period_index, float(a)))
         self._move = None
         self.velocity = np.zeros(6)
@@ -305,17 +380,20 @@ class FakeUR:
         f = f - self._ft_offset + self._rng.normal(0.0, self.noise, 3)
         return [*f.tolist(), *self._rng.normal(0.0, 0.01 * self.noise, 3).tolist()]
 
-    def zero_sensor(self) -> None:
-        self.check_link()
+    def zero_sensor(self) -> bool:
+        if not self.command():
+            return False
         self._ft_offset = self._ft_offset + np.array(self.wrench()[:3])
+        return True
 
-    def move_to(self, pose: Sequence[float], speed: float, asynchronous: bool = False) -> None:
-        self.check_link()
+    def move_to(self, pose: Sequence[float], speed: float, asynchronous: bool = False) -> bool:
+        if not self.command():
+            return False
         self.commands.append(("moveL", self.period_index, list(pose)))
         target = np.array(pose, dtype=np.float64)
         if asynchronous:
             self._move = (target, float(speed))
-            return
+            return True
         distance = float(np.linalg.norm(target[:3] - self.pose[:3]))
         periods = int(np.ceil(distance / (speed * self.period)))
         if self.realtime:
@@ -326,6 +404,16 @@ class FakeUR:
         self.pose = target
         self.velocity = np.zeros(6)
         self.timestamp = self.clock
+        return True
+
+
+def _within(value: float, lo: float, hi: float) -> None:
+    """ur-rtde's ``verifyValueIsWithin``: a NaN or a value outside [lo, hi] raises ValueError
+    (its ``std::invalid_argument`` / ``std::range_error`` through pybind11)."""
+    if math.isnan(value):
+        raise ValueError("The value is considered NaN")
+    if not lo <= value <= hi:
+        raise ValueError(f"The value is not within [{lo:g};{hi:g}]")
 
 
 def _server(hostname: str) -> FakeUR:
@@ -353,25 +441,22 @@ class RTDEControlInterface:
         rt_priority: int = 0,
     ) -> None:
         self._ur = _server(hostname)
-        self._watchdog = 0.0
 
     def speedL(self, xd: list[float], acceleration: float = 0.25, time: float = 0.0) -> bool:
+        _within(acceleration, 0.0, 150.0)  # ur-rtde's UR_TOOL_ACCELERATION_MIN/MAX
         return self._ur.speed_command(xd, acceleration)
 
     def speedStop(self, a: float = 10.0) -> bool:
-        self._ur.stop_command(a)
-        return True
+        return self._ur.stop_command(a)
 
     def initPeriod(self) -> datetime.timedelta:
-        self._ur.check_link()
         return datetime.timedelta(seconds=self._ur.now())
 
     def waitPeriod(self, arg0: datetime.timedelta, /) -> None:
         self._ur.wait(arg0.total_seconds())
 
     def zeroFtSensor(self) -> bool:
-        self._ur.zero_sensor()
-        return True
+        return self._ur.zero_sensor()
 
     def moveL(
         self,
@@ -380,8 +465,7 @@ class RTDEControlInterface:
         acceleration: float = 1.2,
         asynchronous: bool = False,
     ) -> bool:
-        self._ur.move_to(pose, speed, asynchronous)
-        return True
+        return self._ur.move_to(pose, speed, asynchronous)
 
     def getAsyncOperationProgress(self) -> int:
         return self._ur.async_progress()
@@ -390,12 +474,10 @@ class RTDEControlInterface:
         self._ur.stop_move(a)
 
     def isSteady(self) -> bool:
-        self._ur.check_link()
-        return bool(not self._ur.velocity.any())
+        return bool(not self._ur.received().velocity.any())
 
     def isProgramRunning(self) -> bool:
-        self._ur.check_link()
-        return self._ur.program_running
+        return bool(self._ur.received().program_running)
 
     def isPoseWithinSafetyLimits(self, arg0: list[float], /) -> bool:
         self._ur.check_link()
@@ -406,18 +488,15 @@ class RTDEControlInterface:
         return list(self._ur.tcp_offset)
 
     def setWatchdog(self, min_frequency: float = 10.0) -> bool:
-        self._ur.check_link()
-        self._watchdog = float(min_frequency)
-        return True
+        return self._ur.set_watchdog(min_frequency)
 
     def kickWatchdog(self) -> bool:
-        self._ur.check_link()
-        return True
+        return self._ur.command()
 
     def stopScript(self) -> None:
-        self._ur.check_link()
+        self._ur.command()
         self._ur.commands.append(("stopScript", self._ur.period_index))
-        self._ur.program_running = False
+        self._ur.stop_script()
 
     def isConnected(self) -> bool:
         return self._ur.connected
@@ -441,43 +520,43 @@ class RTDEReceiveInterface:
         self._ur = _server(hostname)
 
     def getActualTCPPose(self) -> list[float]:
-        self._ur.check_link()
-        return self._ur.pose.tolist()
+        ur = self._ur.received()
+        return ur.pose.tolist()
 
     def getActualTCPSpeed(self) -> list[float]:
-        self._ur.check_link()
-        return self._ur.velocity.tolist()
+        ur = self._ur.received()
+        return ur.velocity.tolist()
 
     def getActualQ(self) -> list[float]:
-        self._ur.check_link()
-        return self._ur.q.tolist()
+        ur = self._ur.received()
+        return ur.q.tolist()
 
     def getActualTCPForce(self) -> list[float]:
-        self._ur.check_link()
-        return self._ur.wrench()
+        ur = self._ur.received()
+        return ur.wrench()
 
     def isProtectiveStopped(self) -> bool:
-        self._ur.check_link()
-        return self._ur.protective_stop
+        ur = self._ur.received()
+        return ur.protective_stop
 
     def isEmergencyStopped(self) -> bool:
-        self._ur.check_link()
-        return self._ur.emergency_stop
+        ur = self._ur.received()
+        return ur.emergency_stop
 
     def getTimestamp(self) -> float:
-        self._ur.check_link()
-        return self._ur.timestamp
+        ur = self._ur.received()
+        return ur.timestamp
 
     def getPayload(self) -> float:
-        self._ur.check_link()
-        return self._ur.payload_mass
+        ur = self._ur.received()
+        return ur.payload_mass
 
     def getPayloadCog(self) -> list[float]:
-        self._ur.check_link()
-        return list(self._ur.payload_cog)
+        ur = self._ur.received()
+        return list(ur.payload_cog)
 
     def isConnected(self) -> bool:
-        return self._ur.connected
+        return self._ur.receive_connected
 
     def disconnect(self) -> None:
         return None

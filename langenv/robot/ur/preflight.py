@@ -25,9 +25,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from langenv.errors import DeviceError
+from langenv.exercise import resolve_exercise
 from langenv.robot.ur.bridge import URRobot
 from langenv.robot.ur.config import URConfig
-from langenv.robot.ur.exercise import exercise_trajectory, start_pose
+from langenv.robot.ur.exercise import ExerciseSpec, exercise_trajectory, start_pose
 
 __all__ = ["REST_SPEED", "Check", "move_to_start", "plan", "run_checks", "zero_sensor"]
 
@@ -56,8 +57,9 @@ def _version(text: str) -> tuple[int, ...]:
     return tuple(int(x) for x in found.group(1).split(".")) if found else ()
 
 
-def run_checks(robot: URRobot, config: URConfig) -> list[Check]:
-    """Read the robot and check it against ``config``; commands nothing."""
+def run_checks(robot: URRobot, config: URConfig, exercise: ExerciseSpec = None) -> list[Check]:
+    """Read the robot and check it against ``config`` and ``exercise``'s start (a name, a path
+    or an :class:`~langenv.exercise.Exercise`; None: the study's); commands nothing."""
     checks = []
     text = robot.controller_version()
     have, need = _version(text), _version(config.min_version)
@@ -105,7 +107,7 @@ def run_checks(robot: URRobot, config: URConfig) -> list[Check]:
     checks.append(
         Check("at_rest", steady and speed < REST_SPEED, f"steady={steady}, TCP {speed:.4f} m/s")
     )
-    target = start_pose(config, state.tcp_pose[3:])
+    target = start_pose(config, state.tcp_pose[3:], exercise)
     gap = float(np.linalg.norm(target[:3] - state.position))
     within = robot.pose_within_limits(target)
     checks.append(
@@ -119,18 +121,19 @@ def run_checks(robot: URRobot, config: URConfig) -> list[Check]:
     return checks
 
 
-def plan(robot: URRobot, config: URConfig) -> list[str]:
-    """What a session would do, in order, one line each."""
+def plan(robot: URRobot, config: URConfig, exercise: ExerciseSpec = None) -> list[str]:
+    """What a session of ``exercise`` would do, in order, one line each."""
     state = robot.read()
-    target = start_pose(config, state.tcp_pose[3:])
+    target = start_pose(config, state.tcp_pose[3:], exercise)
     gap = float(np.linalg.norm(target[:3] - state.position))
-    path = exercise_trajectory(config)
+    path = exercise_trajectory(config, exercise)
+    name = resolve_exercise(exercise).name
     return [
         "1. zero the wrist force/torque sensor (arm at rest)",
         f"2. after you confirm: moveL to the exercise's start {np.round(target[:3], 4).tolist()} m "
         f"({gap * 100:.1f} cm at {config.approach_speed:g} m/s, about "
         f"{gap / config.approach_speed:.1f} s), orientation held",
-        f"3. the session: speedL at {config.frequency:g} Hz along the exercise "
+        f"3. the session: speedL at {config.frequency:g} Hz along the exercise {name!r} "
         f"({path.length:.3f} m, {len(path.waypoint_s)} legs), speaking through the sound card",
         f"4. on any stop: speedStop at {config.stop_deceleration:g} m/s^2, speech faded out; "
         f"RTDE watchdog at {config.watchdog_hz:g} Hz",
@@ -160,9 +163,12 @@ def zero_sensor(robot: URRobot, settle_periods: int = 50) -> None:
 
 
 def move_to_start(
-    robot: URRobot, config: URConfig, confirm: Callable[[str], bool]
+    robot: URRobot,
+    config: URConfig,
+    confirm: Callable[[str], bool],
+    exercise: ExerciseSpec = None,
 ) -> NDArray[np.float64]:
-    """After ``confirm(question)`` answers True, moveL slowly to the exercise's start.
+    """After ``confirm(question)`` answers True, moveL slowly to ``exercise``'s start.
 
     Returns:
         The start pose reached (6,).
@@ -171,7 +177,7 @@ def move_to_start(
         DeviceError: not confirmed, the start too far, or not reached within 2 mm.
     """
     state = robot.read()
-    target = start_pose(config, state.tcp_pose[3:])
+    target = start_pose(config, state.tcp_pose[3:], exercise)
     gap = float(np.linalg.norm(target[:3] - state.position))
     if gap > config.max_approach:
         raise DeviceError(
