@@ -1,0 +1,104 @@
+"""The ``ray`` backend: batches as Ray tasks, on this machine or on a Ray cluster.
+
+``address="local"`` starts a private Ray instance here (``num_cpus = workers``, no dashboard,
+its files in a temporary directory) and shuts it down with :meth:`RayBackend.close`;
+``"auto"`` joins the cluster this machine belongs to (``ray start --head`` / ``ray start
+--address``), ``"ray://HOST:PORT"`` one reached through Ray Client. Each task runs one batch
+(:func:`eval.sweep.session.run_batch`); a worker that dies has its task run again by Ray
+(``max_retries``), and at most ``4 x`` the cluster's CPUs tasks wait at once.
+
+Ray is an optional dependency (``pip install -e ".[sweep]"``), imported here only.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+from eval.sweep.backend import Batch
+from eval.sweep.session import run_batch
+
+__all__ = ["MAX_RETRIES", "RayBackend", "import_ray"]
+
+#: Times Ray runs a task again whose worker died.
+MAX_RETRIES = 3
+
+
+def import_ray() -> Any:
+    """The ``ray`` module.
+
+    Raises:
+        DeviceError: Ray is not installed (naming the extra that installs it).
+    """
+    try:
+        import ray
+    except ImportError as exc:
+        from langenv.errors import DeviceError
+
+        raise DeviceError(
+            f'--backend ray needs Ray ({exc}): pip install -e ".[sweep]" '
+            "(or run with --backend processes)"
+        ) from None
+    return ray
+
+
+class RayBackend:
+    """Batches as Ray tasks.
+
+    Args:
+        workers: CPUs of the local Ray instance (``address="local"``); on a cluster its CPUs
+            decide and ``workers`` is ignored.
+        address: ``"local"``, ``"auto"`` or ``"ray://HOST:PORT"``.
+    """
+
+    def __init__(self, workers: int, address: str = "local") -> None:
+        ray = import_ray()
+        self._ray = ray
+        self._tmp: Path | None = None
+        root = str(Path(__file__).resolve().parents[2])  # the tree this code runs from
+        job = ray.job_config.JobConfig(code_search_path=[root])
+        if address == "local":
+            # A short path: Ray's sockets live in it (a Unix socket path has ~100 characters).
+            self._tmp = Path(
+                tempfile.mkdtemp(prefix="ray-", dir="/tmp" if os.name == "posix" else None)
+            )
+            ray.init(
+                address="local",
+                num_cpus=workers,
+                include_dashboard=False,
+                log_to_driver=False,
+                logging_level="warning",
+                configure_logging=True,
+                job_config=job,
+                _temp_dir=str(self._tmp),
+            )
+        else:
+            ray.init(address=address, job_config=job, log_to_driver=False, logging_level="warning")
+        self.workers = max(1, int(ray.cluster_resources().get("CPU", workers)))
+        self._task = ray.remote(num_cpus=1, max_retries=MAX_RETRIES)(run_batch)
+
+    def run(self, batches: Sequence[Batch]) -> Iterator[tuple[int, list[dict[str, Any]]]]:
+        """Run every batch; yield ``(index, rows)`` as each finishes."""
+        ray = self._ray
+        todo = list(range(len(batches)))[::-1]
+        running: dict[Any, int] = {}
+        limit = 4 * self.workers
+        while todo or running:
+            while todo and len(running) < limit:
+                k = todo.pop()
+                running[self._task.remote(list(batches[k]))] = k
+            done, _ = ray.wait(list(running), num_returns=1)
+            for ref in done:
+                yield running.pop(ref), ray.get(ref)
+
+    def close(self) -> None:
+        """Shut Ray down (the local instance with it) and remove its temporary files."""
+        if self._ray.is_initialized():
+            self._ray.shutdown()
+        if self._tmp is not None:
+            shutil.rmtree(self._tmp, ignore_errors=True)
+            self._tmp = None

@@ -1,0 +1,50 @@
+"""What a worker does: run a batch of sessions, one row each, an error a row too.
+
+:func:`run_batch` is the one task every backend runs (in a local process or a Ray worker). A
+session that raises becomes a row with ``status = "error"``, its error (type, message and the
+last frames of its traceback), its coordinates and seed, and NaN metrics; the batch goes on.
+"""
+
+from __future__ import annotations
+
+import math
+import traceback
+from collections.abc import Sequence
+from typing import Any
+
+from eval.sweep.grid import SweepSession
+
+__all__ = ["ROW_KEYS", "run_batch", "session_row"]
+
+#: Keys a row has besides the episode's columns and the coordinates.
+ROW_KEYS = ("session_id", "seed", "status", "error", "version")
+
+
+def run_batch(sessions: Sequence[SweepSession]) -> list[dict[str, Any]]:
+    """Run ``sessions`` one after the other in this process; their rows, in order."""
+    return [session_row(s) for s in sessions]
+
+
+def session_row(session: SweepSession) -> dict[str, Any]:
+    """Run one session; its row (never raises for an error in the episode)."""
+    import langenv
+    from eval.compare import EPISODE_COLUMNS, run_episode
+
+    try:
+        episode = run_episode(session.job)
+        status, error = "ok", ""
+    except Exception as exc:  # a failed session is a row, the others go on
+        frames = traceback.format_exception(exc, limit=-4)
+        error = "".join(frames)[-4000:]
+        status = "error"
+        episode = {c: math.nan for c in EPISODE_COLUMNS}
+        episode.update(policy=session.coords["policy"], user=session.coords["user"], stop_limit="")
+    return {
+        **episode,
+        **session.coords,
+        "session_id": session.session_id,
+        "seed": session.seed,
+        "status": status,
+        "error": error,
+        "version": langenv.__version__,
+    }
