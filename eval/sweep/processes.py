@@ -9,7 +9,10 @@ had not finished are run again, up to :data:`MAX_RESTARTS` times.
 from __future__ import annotations
 
 import multiprocessing
+import os
 import sys
+import threading
+import time
 from collections.abc import Iterator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
@@ -22,6 +25,19 @@ __all__ = ["MAX_RESTARTS", "ProcessBackend"]
 
 #: Times the pool is rebuilt after a worker died before the sweep stops (``--resume`` goes on).
 MAX_RESTARTS = 3
+
+
+def _follow_parent() -> None:
+    """In a worker: end this process once the driver is gone (killed with SIGKILL, say), so
+    that no orphaned worker holds memory or CPU; checked every second on a daemon thread."""
+    parent = os.getppid()
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(1.0)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="follow-parent", daemon=True).start()
 
 
 class ProcessBackend:
@@ -37,7 +53,9 @@ class ProcessBackend:
         context = multiprocessing.get_context()
         if context.get_start_method() == "fork":
             _preload()
-        return ProcessPoolExecutor(max_workers=self.workers, mp_context=context)
+        return ProcessPoolExecutor(
+            max_workers=self.workers, mp_context=context, initializer=_follow_parent
+        )
 
     def run(self, batches: Sequence[Batch]) -> Iterator[tuple[int, list[dict[str, Any]]]]:
         """Run every batch; yield ``(index, rows)`` as each finishes."""

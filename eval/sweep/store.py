@@ -76,7 +76,8 @@ class SweepStore:
         self.schema = schema
         self._lock = open(root / ".lock", "w")  # held for the store's life
         try:
-            fcntl.flock(self._lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            # A POSIX record lock: held by this process only, not by the workers it forks.
+            fcntl.lockf(self._lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
             self._lock.close()
             raise SweepError(root, "", "another eval.sweep is running in this directory") from None
