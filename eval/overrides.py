@@ -60,7 +60,8 @@ def policy_parameters(policy: Any) -> tuple[str, ...]:
     """Dotted paths of ``policy``'s parameters (empty for a policy that is not a dataclass)."""
     if not dataclasses.is_dataclass(policy):
         return ()
-    return _float_paths(type(policy))
+    cls: type = type(policy)
+    return _float_paths(cls)
 
 
 def resolve_policy_param(policy: Any, name: str) -> str:

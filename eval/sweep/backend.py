@@ -12,11 +12,10 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from types import MappingProxyType
 from typing import Any, Protocol, runtime_checkable
 
-from eval.sweep.grid import SweepSession
+from eval.sweep.session import Batch
 
 __all__ = ["SWEEP_BACKENDS", "Backend", "Batch", "default_backend", "make_backend"]
 
-Batch = Sequence[SweepSession]
 Rows = list[dict[str, Any]]
 
 

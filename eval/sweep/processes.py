@@ -18,8 +18,7 @@ from concurrent.futures import Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
-from eval.sweep.backend import Batch
-from eval.sweep.session import run_batch
+from eval.sweep.session import Batch, run_batch
 
 __all__ = ["MAX_RESTARTS", "ProcessBackend"]
 

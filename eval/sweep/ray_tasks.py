@@ -19,8 +19,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
-from eval.sweep.backend import Batch
-from eval.sweep.session import run_batch
+from eval.sweep.session import Batch, run_batch
 
 __all__ = ["MAX_RETRIES", "RayBackend", "import_ray"]
 

@@ -14,7 +14,10 @@ from typing import Any
 
 from eval.sweep.grid import SweepSession
 
-__all__ = ["ROW_KEYS", "run_batch", "session_row"]
+__all__ = ["ROW_KEYS", "Batch", "run_batch", "session_row"]
+
+Batch = Sequence[SweepSession]
+"""Sessions one task runs, one after the other."""
 
 #: Keys a row has besides the episode's columns and the coordinates.
 ROW_KEYS = ("session_id", "seed", "status", "error", "version")
