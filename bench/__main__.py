@@ -19,6 +19,10 @@ Figures (all measured here, on this machine, in this process):
 | ``train_steps_per_s`` | PPO with the shipped config (``configs/ppo.yaml``: 2 envs, in subprocesses where the machine has more cores than envs (``--vec-env auto``), the residual LC wrappers) for 4096 steps: env steps per second of ``model.learn`` (rollouts and updates; building the envs not counted) |
 | ``audio_rtf`` | seconds of speech rendered by the variable-rate phase vocoder per second of wall time |
 | ``compare_s`` | wall time of the main job: ``eval.compare`` with AC, LC-noAP and LC on 12 synthetic users (all outputs) |
+| ``sweep_sps_1``, ``sweep_sps_2`` | sessions per second of a small sweep (``bench/sweep.py``) with 1 and 2 local worker processes |
+| ``sweep_scaling`` | ``sweep_sps_2 / sweep_sps_1`` |
+| ``sweep_session_s`` | wall time per session with 1 worker (s) |
+| ``sweep_ray_sps_2``, ``sweep_ray_overhead`` | the same sweep on Ray (``--address local``, 2 workers): sessions per second, and Ray's extra time per session as a share of a session's time (where Ray is installed) |
 """
 
 from __future__ import annotations
@@ -188,6 +192,13 @@ def measure_audio() -> dict[str, float]:
     return {"audio_rtf": float(measure_audio_rtf())}
 
 
+def measure_sweep() -> dict[str, float]:
+    """Sweep throughput with 1 and 2 workers, and Ray's overhead (``bench/sweep.py``)."""
+    from bench.sweep import measure_sweep as sweep
+
+    return sweep()
+
+
 def measure_compare() -> dict[str, float]:
     """The three-controller comparison on 12 synthetic users, every output written."""
     import contextlib
@@ -225,6 +236,7 @@ SECTIONS: dict[str, Callable[[], dict[str, float]]] = {
     "train": measure_train,
     "audio": measure_audio,
     "compare": measure_compare,
+    "sweep": measure_sweep,
 }
 
 

@@ -29,3 +29,16 @@ def test_nominal_exercise_matches_the_study() -> None:
     assert 0.11 <= fig["plateau_speed"] <= 0.14
     assert fig["max_path_dev_m"] <= 0.01
     assert fig["max_path_dev_m"] <= fig["corner_overshoot_m"] <= 0.04
+
+
+@pytest.mark.slow
+def test_sweep_figures() -> None:
+    """The sweep section runs its three sweeps and reports every figure (values not judged)."""
+    from bench.sweep import measure_sweep
+
+    fig = measure_sweep(users=2)
+    assert {"sweep_sps_1", "sweep_sps_2", "sweep_scaling", "sweep_session_s"} <= set(fig)
+    assert fig["sweep_sps_1"] > 0 and fig["sweep_sps_2"] > 0
+    assert fig["sweep_scaling"] == pytest.approx(fig["sweep_sps_2"] / fig["sweep_sps_1"])
+    if __import__("importlib").util.find_spec("ray") is not None:
+        assert fig["sweep_ray_sps_2"] > 0 and "sweep_ray_overhead" in fig
