@@ -185,10 +185,13 @@ def _run(todo: list[SweepSession], store: Any, ns: argparse.Namespace, spec: Swe
     batches = [todo[i : i + size] for i in range(0, len(todo), size)]
     bar = tqdm(total=len(todo), desc="sessions", unit="s", file=sys.stderr)
     t0 = time.perf_counter()
+    busy = cpu = 0.0
     try:
-        for _, rows in backend.run(batches):
-            store.write_part(rows)
-            bar.update(len(rows))
+        for _, result in backend.run(batches):
+            store.write_part(result.rows)
+            busy += result.wall_s
+            cpu += result.cpu_s
+            bar.update(len(result.rows))
     finally:
         bar.close()
         backend.close()
@@ -201,6 +204,12 @@ def _run(todo: list[SweepSession], store: Any, ns: argparse.Namespace, spec: Swe
         "sessions": len(todo),
         "wall_s": round(wall, 3),
         "sessions_per_s": round(len(todo) / wall, 4),
+        # Per session, in the workers: wall time and CPU time of the batches that ran it.
+        "session_wall_s": round(busy / len(todo), 5),
+        "session_cpu_s": round(cpu / len(todo), 5),
+        # The workers' time not spent in batches (start-up, task hand-off, idle at the end) as a
+        # share of the time spent in them.
+        "overhead": round((backend.workers * wall - busy) / busy, 4),
         "time": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
     }
     with (store.root / "runs.jsonl").open("a", encoding="utf-8") as fh:

@@ -10,13 +10,11 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from types import MappingProxyType
-from typing import Any, Protocol, runtime_checkable
+from typing import Protocol, runtime_checkable
 
-from eval.sweep.session import Batch
+from eval.sweep.session import Batch, BatchResult
 
 __all__ = ["SWEEP_BACKENDS", "Backend", "Batch", "default_backend", "make_backend"]
-
-Rows = list[dict[str, Any]]
 
 
 @runtime_checkable
@@ -29,8 +27,8 @@ class Backend(Protocol):
 
     workers: int
 
-    def run(self, batches: Sequence[Batch]) -> Iterator[tuple[int, Rows]]:
-        """Run every batch; yield ``(index into batches, its rows)`` as each finishes."""
+    def run(self, batches: Sequence[Batch]) -> Iterator[tuple[int, BatchResult]]:
+        """Run every batch; yield ``(index into batches, its result)`` as each finishes."""
         ...
 
     def close(self) -> None:

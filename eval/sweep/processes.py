@@ -16,9 +16,8 @@ import time
 from collections.abc import Iterator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
-from typing import Any
 
-from eval.sweep.session import Batch, run_batch
+from eval.sweep.session import Batch, BatchResult, run_batch
 
 __all__ = ["MAX_RESTARTS", "ProcessBackend"]
 
@@ -56,8 +55,8 @@ class ProcessBackend:
             max_workers=self.workers, mp_context=context, initializer=_follow_parent
         )
 
-    def run(self, batches: Sequence[Batch]) -> Iterator[tuple[int, list[dict[str, Any]]]]:
-        """Run every batch; yield ``(index, rows)`` as each finishes."""
+    def run(self, batches: Sequence[Batch]) -> Iterator[tuple[int, BatchResult]]:
+        """Run every batch; yield ``(index, result)`` as each finishes."""
         if self.workers == 1:
             for k, batch in enumerate(batches):
                 yield k, run_batch(batch)
@@ -66,7 +65,7 @@ class ProcessBackend:
         restarts = 0
         while pending:
             self._pool = self._pool or self._new_pool()
-            futures: dict[Future[list[dict[str, Any]]], int] = {
+            futures: dict[Future[BatchResult], int] = {
                 self._pool.submit(run_batch, batches[k]): k for k in sorted(pending)
             }
             try:
@@ -74,9 +73,9 @@ class ProcessBackend:
                     done, _ = wait(futures, return_when="FIRST_COMPLETED")
                     for future in done:
                         k = futures.pop(future)
-                        rows = future.result()
+                        result = future.result()
                         pending.discard(k)
-                        yield k, rows
+                        yield k, result
             except BrokenProcessPool:
                 restarts += 1
                 self._pool.shutdown(wait=False, cancel_futures=True)

@@ -19,7 +19,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
-from eval.sweep.session import Batch, run_batch
+from eval.sweep.session import Batch, BatchResult, run_batch
 
 __all__ = ["MAX_RETRIES", "RayBackend", "import_ray"]
 
@@ -80,8 +80,8 @@ class RayBackend:
         self.workers = max(1, int(ray.cluster_resources().get("CPU", workers)))
         self._task = ray.remote(num_cpus=1, max_retries=MAX_RETRIES)(run_batch)
 
-    def run(self, batches: Sequence[Batch]) -> Iterator[tuple[int, list[dict[str, Any]]]]:
-        """Run every batch; yield ``(index, rows)`` as each finishes."""
+    def run(self, batches: Sequence[Batch]) -> Iterator[tuple[int, BatchResult]]:
+        """Run every batch; yield ``(index, result)`` as each finishes."""
         ray = self._ray
         todo = list(range(len(batches)))[::-1]
         running: dict[Any, int] = {}

@@ -8,13 +8,15 @@ last frames of its traceback), its coordinates and seed, and NaN metrics; the ba
 from __future__ import annotations
 
 import math
+import time
 import traceback
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 from eval.sweep.grid import SweepSession
 
-__all__ = ["ROW_KEYS", "Batch", "run_batch", "session_row"]
+__all__ = ["ROW_KEYS", "Batch", "BatchResult", "run_batch", "session_row"]
 
 Batch = Sequence[SweepSession]
 """Sessions one task runs, one after the other."""
@@ -23,9 +25,27 @@ Batch = Sequence[SweepSession]
 ROW_KEYS = ("session_id", "seed", "status", "error", "version")
 
 
-def run_batch(sessions: Sequence[SweepSession]) -> list[dict[str, Any]]:
-    """Run ``sessions`` one after the other in this process; their rows, in order."""
-    return [session_row(s) for s in sessions]
+@dataclass(frozen=True)
+class BatchResult:
+    """What a task returns: the rows of its batch, in order, and what running them cost.
+
+    Attributes:
+        rows: One row per session.
+        wall_s: Wall time of the batch in the worker (s).
+        cpu_s: CPU time of the worker process during the batch (s): unlike wall time, not
+            stretched when other programs share the cores.
+    """
+
+    rows: list[dict[str, Any]]
+    wall_s: float
+    cpu_s: float
+
+
+def run_batch(sessions: Sequence[SweepSession]) -> BatchResult:
+    """Run ``sessions`` one after the other in this process."""
+    wall, cpu = time.perf_counter(), time.process_time()
+    rows = [session_row(s) for s in sessions]
+    return BatchResult(rows, time.perf_counter() - wall, time.process_time() - cpu)
 
 
 def session_row(session: SweepSession) -> dict[str, Any]:
