@@ -112,11 +112,21 @@ def env_parameters() -> Mapping[str, type | None]:
             params[name] = None
             continue
         for arg in typing.get_args(kind):  # ``X | None``
-            if isinstance(arg, type) and dataclasses.is_dataclass(arg):
+            if isinstance(arg, type) and dataclasses.is_dataclass(arg) and _has_defaults(arg):
                 if arg.__dataclass_params__.frozen:  # type: ignore[attr-defined]
                     for sub in _float_paths(arg):
                         params[f"{name}.{sub}"] = arg
     return params
+
+
+def _has_defaults(cls: type) -> bool:
+    """Whether dataclass ``cls`` can be built from defaults alone (parameter sets like
+    ``AdmittanceParams`` can; data like an exercise, which a file gives, cannot)."""
+    return all(
+        f.default is not dataclasses.MISSING or f.default_factory is not dataclasses.MISSING
+        for f in dataclasses.fields(cls)
+        if f.init
+    )
 
 
 def resolve_env_param(name: str) -> str:

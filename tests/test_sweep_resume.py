@@ -135,3 +135,27 @@ def test_worker_killed_then_resumed(spec: Path, reference: list[str], tmp_path: 
     assert "a worker died" in err, err
     _resume(spec, out)
     assert _comparable(_rows(out)) == reference
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="finds workers through /proc")
+def test_ray_driver_killed_then_resumed(spec: Path, reference: list[str], tmp_path: Path) -> None:
+    """The same on local Ray: the driver (and the Ray it started) killed, resumed on Ray."""
+    pytest.importorskip("ray")
+    out = tmp_path / "sweep"
+    cmd = [sys.executable, "-m", "eval.sweep", str(spec), "--out", str(out), "--no-summary"]
+    cmd += ["--backend", "ray", "--workers", "2", "--batch-size", "1"]
+    proc = subprocess.Popen(
+        cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
+    )
+    try:
+        _wait_for_parts(proc, out, 2)
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=60)
+    finally:
+        _end_group(proc)  # Ray's processes started by the driver are in its group
+    before = _rows(out)
+    assert 2 <= len(before) < TOTAL
+    args = [str(spec), "--out", str(out), "--resume", "--backend", "ray", "--workers", "2"]
+    assert main(args) == 0
+    assert _comparable(_rows(out)) == reference

@@ -202,3 +202,18 @@ def test_resume_refuses_another_sweep_and_a_taken_dir(tmp_path: Path) -> None:
 def test_expansion_matches_the_rows(reference: list[dict[str, Any]], tmp_path: Path) -> None:
     sessions = expand(load_spec_from(tmp_path))
     assert sorted(s.session_id for s in sessions) == [r["session_id"] for r in reference]
+
+
+def test_import_needs_neither_ray_nor_pyarrow() -> None:
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; sys.modules['ray'] = None; import eval.sweep, eval.sweep.__main__; "
+        "assert 'pyarrow' not in sys.modules, 'pyarrow imported'"
+    )
+    root = Path(__file__).resolve().parents[1]
+    proc = subprocess.run(
+        [sys.executable, "-c", code], cwd=root, capture_output=True, text=True, timeout=120
+    )
+    assert proc.returncode == 0, proc.stderr

@@ -130,12 +130,11 @@ def _todo(
         if unknown:
             raise SweepError(out, "--only", f"no session {', '.join(unknown)} in this sweep")
         return [s for s in sessions if s.session_id in set(ns.only)]
-    redo = {"error"} if ns.retry_failed else set()
-    return [
-        s
-        for s in sessions
-        if statuses.get(s.session_id, "error" if redo else None) in redo | {None}
-    ]
+
+    def wanted(status: str | None) -> bool:  # no row yet, or a failed one to run again
+        return status is None or (ns.retry_failed and status == "error")
+
+    return [s for s in sessions if wanted(statuses.get(s.session_id))]
 
 
 def main(argv: Sequence[str] | None = None) -> int:

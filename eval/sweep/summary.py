@@ -6,7 +6,8 @@ ci_hi``), ``DIR/summary.md`` (the main metrics, ``median [ci_lo, ci_hi]``) and
 ``DIR/plots/COORDINATE.png`` (each main metric's median and interval against the coordinate's
 values, one line per policy) for each coordinate with more than one value. Only sessions with
 ``status == "ok"`` count; the intervals are percentile-bootstrap 95 % intervals of the median
-(:func:`eval.stats.bootstrap_ci`, a fixed seed: the same rows give the same summary).
+(:func:`eval.stats.bootstrap_ci`, :data:`N_BOOT` resamples, a fixed seed: the same rows give the
+same summary).
 """
 
 from __future__ import annotations
@@ -28,6 +29,8 @@ __all__ = ["MAIN_METRICS", "coordinate_rows", "write_summary"]
 
 #: Metrics of the markdown table and the figures.
 MAIN_METRICS = ("abs_am", "em_mean_abs", "a_within_0_1", "coop_mean")
+#: Bootstrap resamples per interval.
+N_BOOT = 1000
 _FIELDS = ("coordinate", "value", "policy", "metric", "n", "median", "ci_lo", "ci_hi")
 
 
@@ -49,23 +52,23 @@ def coordinate_rows(
     ok = [r for r in rows if r["status"] == "ok"]
     out = []
     for coord in _varying(ok, coordinates):
-        policies = [None] if coord == "policy" else _order({r["policy"] for r in ok})
-        for value in _order({r[coord] for r in ok if r[coord] is not None}):
-            for policy in policies:
-                group = [
-                    r for r in ok if r[coord] == value and (policy is None or r["policy"] == policy)
-                ]
-                if not group:
-                    continue
+        groups: dict[tuple[Any, Any], list[dict[str, Any]]] = {}
+        for r in ok:
+            if r[coord] is not None:
+                policy = r[coord] if coord == "policy" else r["policy"]
+                groups.setdefault((r[coord], policy), []).append(r)
+        for value in _order({v for v, _ in groups}):
+            for policy in _order({p for v, p in groups if v == value}):
+                group = groups[(value, policy)]
                 for metric in NUMERIC_METRICS:
                     x = np.array([float(r[metric]) for r in group])
                     rng = np.random.default_rng(seed)
-                    ci = bootstrap_ci(x[~np.isinf(x)], rng=rng)
+                    ci = bootstrap_ci(x[~np.isinf(x)], n_boot=N_BOOT, rng=rng)
                     out.append(
                         {
                             "coordinate": coord,
                             "value": value,
-                            "policy": policy if policy is not None else value,
+                            "policy": policy,
                             "metric": metric,
                             "n": int(np.isfinite(x).sum()),
                             "median": ci.estimate,
