@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 
 from eval.compare import EPISODE_COLUMNS, Job, run_episode
-from eval.sweep import SweepError, expand, load_spec
+from eval.sweep import expand, load_spec
 from eval.sweep.__main__ import main
 from eval.sweep.backend import make_backend
 from eval.sweep.store import SweepStore, row_schema
@@ -195,8 +195,23 @@ def test_resume_refuses_another_sweep_and_a_taken_dir(tmp_path: Path) -> None:
     other = tmp_path / "other.yaml"
     other.write_text(TINY)
     assert main([str(other), "--out", str(out), "--resume", "--workers", "1"]) == 1
-    with pytest.raises(SweepError, match=r"another eval\.sweep"):
-        SweepStore(out, None), SweepStore(out, None)
+    import subprocess
+    import sys
+
+    store = SweepStore(out, None)  # a driver holds the directory: a second one is refused
+    try:
+        cmd = [sys.executable, "-m", "eval.sweep", str(tmp_path / "tiny.yaml"), "--out", str(out)]
+        proc = subprocess.run(
+            [*cmd, "--resume", "--backend", "processes"],
+            cwd=Path(__file__).resolve().parents[1],
+            capture_output=True,
+            text=True,
+            timeout=120,
+            check=False,
+        )
+    finally:
+        store.close()
+    assert proc.returncode == 1 and "another eval.sweep is running" in proc.stderr, proc.stderr
 
 
 def test_expansion_matches_the_rows(reference: list[dict[str, Any]], tmp_path: Path) -> None:
