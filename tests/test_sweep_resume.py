@@ -6,9 +6,11 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 from typing import Any
@@ -145,8 +147,14 @@ def test_ray_driver_killed_then_resumed(spec: Path, reference: list[str], tmp_pa
     out = tmp_path / "sweep"
     cmd = [sys.executable, "-m", "eval.sweep", str(spec), "--out", str(out), "--no-summary"]
     cmd += ["--backend", "ray", "--workers", "2", "--batch-size", "1"]
+    short = tempfile.mkdtemp(prefix="rk")  # the killed Ray's files go here (a short path)
     proc = subprocess.Popen(
-        cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
+        cmd,
+        cwd=ROOT,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+        env={**os.environ, "TMPDIR": short},
     )
     try:
         _wait_for_parts(proc, out, 2)
@@ -154,6 +162,7 @@ def test_ray_driver_killed_then_resumed(spec: Path, reference: list[str], tmp_pa
         proc.wait(timeout=60)
     finally:
         _end_group(proc)  # Ray's processes started by the driver are in its group
+        shutil.rmtree(short, ignore_errors=True)
     before = _rows(out)
     assert 2 <= len(before) < TOTAL
     args = [str(spec), "--out", str(out), "--resume", "--backend", "ray", "--workers", "2"]

@@ -45,7 +45,10 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     """The command line."""
     from eval.compare import usable_cores
 
-    p = argparse.ArgumentParser(prog="python -m eval.sweep", description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(
+        prog="python -m eval.sweep",
+        description="Run a sweep (a grid or sample of sessions) resumably; summarise it.",
+    )
     p.add_argument("spec", type=Path, help="the sweep file (YAML)")
     p.add_argument("--out", type=Path, required=True, help="the sweep's directory")
     p.add_argument(

@@ -12,7 +12,6 @@ Ray is an optional dependency (``pip install -e ".[sweep]"``), imported here onl
 
 from __future__ import annotations
 
-import os
 import shutil
 import tempfile
 from collections.abc import Iterator, Sequence
@@ -25,6 +24,8 @@ __all__ = ["MAX_RETRIES", "RayBackend", "import_ray"]
 
 #: Times Ray runs a task again whose worker died.
 MAX_RETRIES = 3
+#: Longest temporary directory given to a local Ray (its socket paths must stay short).
+_MAX_TEMP_DIR = 40
 
 
 def import_ray() -> Any:
@@ -61,10 +62,12 @@ class RayBackend:
         root = str(Path(__file__).resolve().parents[2])  # the tree this code runs from
         job = ray.job_config.JobConfig(code_search_path=[root])
         if address == "local":
-            # A short path: Ray's sockets live in it (a Unix socket path has ~100 characters).
-            self._tmp = Path(
-                tempfile.mkdtemp(prefix="ray-", dir="/tmp" if os.name == "posix" else None)
-            )
+            # Ray's sockets live in its temporary directory, and a Unix socket's path has about
+            # 100 characters: a long temporary directory (macOS's) leaves Ray its own default.
+            tmp = Path(tempfile.mkdtemp(prefix="ray-"))
+            self._tmp = tmp if len(str(tmp)) <= _MAX_TEMP_DIR else None
+            if self._tmp is None:
+                tmp.rmdir()
             ray.init(
                 address="local",
                 num_cpus=workers,
@@ -73,7 +76,7 @@ class RayBackend:
                 logging_level="warning",
                 configure_logging=True,
                 job_config=job,
-                _temp_dir=str(self._tmp),
+                _temp_dir=str(self._tmp) if self._tmp is not None else None,
             )
         else:
             ray.init(address=address, job_config=job, log_to_driver=False, logging_level="warning")
