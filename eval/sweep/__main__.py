@@ -23,7 +23,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import signal
 import sys
+import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -143,6 +145,18 @@ def _todo(
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the process exit code."""
     ns = parse_args(argv)
+    if threading.current_thread() is not threading.main_thread():
+        return _main(ns)
+    # SIGTERM (a scheduler's stop, `kill`) unwinds like Ctrl-C: the workers and a local Ray are
+    # shut down, the parts written stay.
+    previous = signal.signal(signal.SIGTERM, _terminate)
+    try:
+        return _main(ns)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _main(ns: argparse.Namespace) -> int:
     from eval.sweep.store import SweepStore, row_schema
 
     t0 = time.perf_counter()
@@ -167,6 +181,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     finally:
         store.close()
     return _report(rows, sessions, spec, ns, out, ran, time.perf_counter() - t0)
+
+
+def _terminate(signum: int, frame: Any) -> None:
+    raise SystemExit(128 + signum)
 
 
 def _run(todo: list[SweepSession], store: Any, ns: argparse.Namespace, spec: SweepSpec) -> float:
