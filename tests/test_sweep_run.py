@@ -93,6 +93,7 @@ def test_a_row_is_the_episode_of_eval_compare(reference: list[dict[str, Any]]) -
         params=(("gains.k_c", 20.0),), env_params=(("admittance.damping", 70.0),), save_log=False,
     )  # fmt: skip
     episode = run_episode(job)
+    assert set(episode) == set(EPISODE_COLUMNS)  # every column of sessions.csv is in the rows
     for column in EPISODE_COLUMNS:
         assert episode[column] == row[column] or (
             isinstance(row[column], float)

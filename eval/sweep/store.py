@@ -102,6 +102,9 @@ class SweepStore:
 
         from eval.atomic import atomic_write
 
+        unknown = {k for r in rows for k in r} - set(self.schema.names)
+        if unknown:  # Arrow would drop them without a word
+            raise KeyError(f"rows hold columns the sweep's schema lacks: {sorted(unknown)}")
         table = pa.Table.from_pylist([dict(r) for r in rows], schema=self.schema)
         buf = io.BytesIO()
         pq.write_table(table, buf, compression="zstd")
