@@ -21,6 +21,13 @@ Figures (all measured here, on this machine, in this process):
 | ``robot_compute_median_ms``, ``robot_compute_p999_ms``, ``robot_compute_max_ms`` | the UR bridge's loop against the fake ur-rtde (virtual clock, no audio): compute time per 2 ms period, wall clock (read, control, speech, LC policy, log, ``speedL``) over 3 whole sessions (targets: median < 0.5 ms, p99.9 < 1.5 ms); preemption by other processes included |
 | ``robot_cpu_median_ms``, ``robot_cpu_p999_ms`` | the same periods in the thread's CPU time: what the loop's code costs |
 | ``compare_s`` | wall time of the main job: ``eval.compare`` with AC, LC-noAP and LC on 12 synthetic users (all outputs) |
+| ``sweep_sps_1``, ``sweep_sps_2`` | sessions per second of a small sweep (``bench/sweep.py``) with 1 and 2 local worker processes |
+| ``sweep_scaling`` | ``sweep_sps_2 / sweep_sps_1`` |
+| ``cpu_scaling``, ``sweep_scaling_efficiency`` | a pure-Python loop's throughput in 2 processes over 1 (what a shared machine gives), and ``sweep_scaling / cpu_scaling`` |
+| ``sweep_session_s`` | wall time per session with 1 worker (s) |
+| ``sweep_cpu_per_session_1``, ``sweep_cpu_per_session_2``, ``sweep_task_overhead_2`` | CPU time per session in the workers (s) with 1 and 2 workers, and with 2 the workers' time outside batches over their time in batches |
+| ``sweep_ray_cpu_per_session``, ``sweep_ray_overhead_cpu``, ``sweep_ray_task_overhead`` | the same on Ray, and Ray's extra CPU time per session as a share of the process backend's |
+| ``sweep_ray_sps_2``, ``sweep_ray_overhead`` | the same sweep on Ray (``--address local``, 2 workers): sessions per second, and Ray's extra time per session as a share of a session's time (where Ray is installed) |
 """
 
 from __future__ import annotations
@@ -193,6 +200,13 @@ def measure_audio() -> dict[str, float]:
     return {"audio_rtf": float(measure_audio_rtf())}
 
 
+def measure_sweep() -> dict[str, float]:
+    """Sweep throughput with 1 and 2 workers, and Ray's overhead (``bench/sweep.py``)."""
+    from bench.sweep import measure_sweep as sweep
+
+    return sweep()
+
+
 def measure_compare() -> dict[str, float]:
     """The three-controller comparison on 12 synthetic users, every output written."""
     import contextlib
@@ -265,6 +279,7 @@ SECTIONS: dict[str, Callable[[], dict[str, float]]] = {
     "audio": measure_audio,
     "compare": measure_compare,
     "robot": measure_robot,
+    "sweep": measure_sweep,
 }
 
 

@@ -37,7 +37,6 @@ import os
 import re
 import shutil
 import sys
-import tempfile
 import time
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -47,7 +46,10 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["CompareArgs", "Job", "main", "parse_args", "run_episode", "run_jobs"]
+from eval.atomic import OutTaken, move_into_place
+from eval.metrics import METRIC_COLUMNS
+
+__all__ = ["EPISODE_COLUMNS", "CompareArgs", "Job", "main", "parse_args", "run_episode", "run_jobs"]
 
 
 @dataclass(frozen=True)
@@ -119,6 +121,9 @@ class Job:
     video: bool = False
     user_params: Any = None  # SyntheticUserParams for synthetic users (default: calibrated)
     exercise: str | None = None  # a shipped exercise or an exercise YAML (default: the study's)
+    params: tuple[tuple[str, float], ...] = ()  # the policy's parameters set (eval.overrides)
+    env_params: tuple[tuple[str, float], ...] = ()  # the env's parameters set (eval.overrides)
+    save_log: bool = True  # write the episode log (.npz) into out_dir
 
 
 class UsageError(Exception):
@@ -321,7 +326,13 @@ def _check_out(out: Path, overwrite: bool) -> None:
         raise UsageError(f"--out {out}: {parent} is a file, not a directory")
 
 
-_ENVS: dict[tuple[str, int, str, str | None], Any] = {}
+#: The keys of :func:`run_episode`'s row, in ``sessions.csv``'s order: the paper's metrics, then
+#: whether the episode was cut by the time limit or ended in a protective stop (and which).
+EPISODE_COLUMNS = (*METRIC_COLUMNS, "truncated", "protective_stop", "stop_limit")
+
+_ENVS: dict[tuple[Any, ...], Any] = {}
+#: Most envs one worker process keeps for reuse (a sweep over env parameters builds one per value).
+MAX_ENVS = 8
 
 
 def run_episode(job: Job) -> dict[str, Any]:
@@ -338,14 +349,22 @@ def run_episode(job: Job) -> dict[str, Any]:
     from policies import load_policy
 
     policy = load_policy(job.policy)
+    if job.params:
+        from eval.overrides import apply_policy_params
+
+        policy = apply_policy_params(policy, job.params)
     if job.name is not None:
         policy.name = job.name
     hz = job.decision_hz or policy.decision_hz
     graph = _episode_graph(job, policy.phrase_graph)
-    key = (job.policy, hz, str(graph), job.exercise)
+    key = (job.policy, hz, str(graph), job.exercise, job.env_params)
     env = _ENVS.get(key)
     if env is None:  # one env per policy and worker process: building one costs ~0.3 s
-        kwargs = dict(policy.env_kwargs)
+        from eval.overrides import env_kwargs_with
+
+        if len(_ENVS) >= MAX_ENVS:  # the oldest goes
+            _ENVS.pop(next(iter(_ENVS))).close()
+        kwargs = env_kwargs_with(policy.env_kwargs, job.env_params)
         if job.exercise is not None:
             kwargs["exercise"] = job.exercise
         env = _ENVS[key] = gym.make(
@@ -390,7 +409,8 @@ def run_episode(job: Job) -> dict[str, Any]:
         path=base.motion.trajectory.sample(200),
     )
     stem = Path(job.out_dir) / f"{policy.name}_{job.user}"
-    log.save_npz(stem.with_suffix(".npz"))
+    if job.save_log:
+        log.save_npz(stem.with_suffix(".npz"))
     if job.figures:
         session_figure(log, stem.with_suffix(".png"))
     if job.audio or job.video:
@@ -506,8 +526,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         _write_outputs(rows, list(labels.values()), tmp, args)
         cfg = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(args).items()}
         (tmp / "config.json").write_text(json.dumps(cfg, indent=2) + "\n")
-        _move_into_place(tmp, out, args.overwrite)
-    except _OutTaken as exc:
+        move_into_place(tmp, out, args.overwrite)
+    except OutTaken as exc:
         print(f"eval.compare: error: {exc}; the outputs are in {tmp}", file=sys.stderr)
         return 1
     except BaseException:
@@ -665,48 +685,12 @@ def policy_names(specs: Sequence[str]) -> dict[str, str]:
 
 def _make_tmp(out: Path) -> Path:
     """The temporary directory the outputs are made in: beside ``out`` (same file system)."""
+    from eval.atomic import make_tmp_dir
+
     try:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        return Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
+        return make_tmp_dir(out)
     except OSError as exc:
         raise UsageError(f"--out {out}: cannot write there ({exc.strerror or exc})") from None
-
-
-def _move_into_place(tmp: Path, out: Path, overwrite: bool) -> None:
-    """Move the finished outputs from ``tmp`` to ``out``.
-
-    A missing or empty ``out`` is replaced by ``tmp`` whole (one rename). Otherwise, with
-    ``overwrite``, each output replaces the entry of the same name, which is moved aside first and
-    deleted only once the new one is in place; every other entry stays.
-
-    Raises:
-        _OutTaken: ``out`` was filled by someone else during the run (without ``overwrite``).
-    """
-    if not out.exists():
-        tmp.rename(out)
-        return
-    if not any(out.iterdir()):
-        out.rmdir()
-        tmp.rename(out)
-        return
-    if not overwrite:
-        raise _OutTaken(f"--out {out}: files appeared in it during the run")
-    for entry in sorted(tmp.iterdir()):
-        target = out / entry.name
-        old = None
-        if target.exists() or target.is_symlink():
-            old = out / f".{entry.name}.old-{os.getpid()}"
-            target.rename(old)
-        entry.rename(target)
-        if old is not None:
-            if old.is_dir() and not old.is_symlink():
-                shutil.rmtree(old)
-            else:
-                old.unlink()
-
-
-class _OutTaken(Exception):
-    """``--out`` is no longer ours to write: the outputs stay in the temporary directory."""
 
 
 if __name__ == "__main__":

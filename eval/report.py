@@ -15,14 +15,13 @@ import argparse
 import csv
 import io
 import math
-import os
-import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from eval.atomic import atomic_write
 from eval.metrics import A_TOLERANCE, METRIC_COLUMNS, METRICS, NUMERIC_METRICS, OPTIONAL_METRICS
 from eval.stats import MetricSummary, Stat, SummaryTable, median_iqr, summarise
 from langenv.errors import ConfigError, SessionDataError
@@ -58,29 +57,6 @@ Row = Mapping[str, object]
 def display_name(policy: str) -> str:
     """The paper's name of a policy (``"lc-noap"`` -> ``"LC-noAP"``); others unchanged."""
     return _NAMES.get(policy, policy)
-
-
-def atomic_write(path: str | Path, data: str | bytes) -> Path:
-    """Write ``data`` to ``path`` via a temporary file in the same directory and a rename.
-
-    Args:
-        path: Destination; its directory must exist.
-        data: Text (written as UTF-8) or bytes.
-
-    Returns:
-        The path written.
-    """
-    path = Path(path)
-    payload = data.encode("utf-8") if isinstance(data, str) else data
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(payload)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
 
 
 def _columns(rows: Sequence[Row]) -> list[str]:

@@ -28,6 +28,7 @@ __all__ = [
     "MetricSummary",
     "Stat",
     "SummaryTable",
+    "bootstrap_ci",
     "bootstrap_diff_ci",
     "median_iqr",
     "summarise",
@@ -188,6 +189,45 @@ def bootstrap_diff_ci(
         estimate = float(_stat_rows(xa[None, :], stat)[0] - _stat_rows(ya[None, :], stat)[0])
         reps = _boot(xa, stat, n_boot, rng) - _boot(ya, stat, n_boot, rng)
     lo, hi = np.percentile(reps, tails)
+    return DiffCI(estimate, float(lo), float(hi))
+
+
+def bootstrap_ci(
+    x: Sequence[float] | np.ndarray,
+    *,
+    stat: Stat = "median",
+    n_boot: int = 2_000,
+    rng: np.random.Generator,
+    level: float = 0.95,
+) -> DiffCI:
+    """Percentile-bootstrap interval for a statistic of one sample.
+
+    Args:
+        x: The sample, shape ``(n,)``; NaNs are dropped first.
+        stat: ``"mean"`` or ``"median"``.
+        n_boot: Number of bootstrap resamples, >= 100.
+        rng: Source of randomness.
+        level: Confidence level in (0, 1).
+
+    Returns:
+        ``DiffCI(estimate, lo, hi)``; all NaN for an empty sample.
+
+    Raises:
+        ConfigError: as :func:`bootstrap_diff_ci`.
+    """
+    xa = _as_1d(x, "x")
+    if stat not in ("mean", "median"):
+        raise ConfigError(f"stat must be 'mean' or 'median', got {stat!r}")
+    if isinstance(n_boot, bool) or not isinstance(n_boot, int) or n_boot < 100:
+        raise ConfigError(f"n_boot must be an int >= 100, got {n_boot!r}")
+    if not (isinstance(level, int | float) and 0.0 < level < 1.0):
+        raise ConfigError(f"level must lie in (0, 1), got {level!r}")
+    xa = xa[~np.isnan(xa)]
+    if xa.size == 0:
+        nan = float("nan")
+        return DiffCI(nan, nan, nan)
+    estimate = float(_stat_rows(xa[None, :], stat)[0])
+    lo, hi = np.percentile(_boot(xa, stat, n_boot, rng), [50.0 * (1 - level), 50.0 * (1 + level)])
     return DiffCI(estimate, float(lo), float(hi))
 
 

@@ -41,3 +41,16 @@ def test_robot_section_prints_the_loop_figures(capsys: pytest.CaptureFixture[str
         "robot_cpu_median_ms",
     }
     assert 0.0 < figures["robot_cpu_median_ms"] < 50.0  # a sanity bound, not a timing target
+
+
+@pytest.mark.slow
+def test_sweep_figures() -> None:
+    """The sweep section runs its three sweeps and reports every figure (values not judged)."""
+    from bench.sweep import measure_sweep
+
+    fig = measure_sweep(users=2)
+    assert {"sweep_sps_1", "sweep_sps_2", "sweep_scaling", "sweep_session_s"} <= set(fig)
+    assert fig["sweep_sps_1"] > 0 and fig["sweep_sps_2"] > 0
+    assert fig["sweep_scaling"] == pytest.approx(fig["sweep_sps_2"] / fig["sweep_sps_1"])
+    if __import__("importlib").util.find_spec("ray") is not None:
+        assert fig["sweep_ray_sps_2"] > 0 and "sweep_ray_overhead" in fig

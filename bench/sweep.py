@@ -1,0 +1,98 @@
+"""Sweep throughput: sessions per second with 1 and 2 local workers, and Ray's cost per session
+against the process backend (``python -m bench --only sweep``).
+
+One small sweep (AC, LC-noAP and LC on :data:`USERS` synthetic users) runs through
+``python -m eval.sweep``'s own code: the process backend with 1 worker and with 2, then Ray
+(``--address local``) with 2, and the process backend with 2 again. Each figure is the wall time
+of running the sessions as the driver records it in ``runs.jsonl`` (workers started, batches
+run, parts written; the spec check, the kernels' warm-up and Ray's own start-up not counted).
+
+``session_cpu_s`` and ``overhead`` come from the workers: the CPU time of the batches per
+session (which other programs on the machine do not stretch, unlike wall time), and the workers'
+time outside batches (start-up, hand-off, idle at the end) over their time in batches.
+
+On a shared machine two processes do not get two cores: ``cpu_scaling`` is what this machine
+gave a pure-Python loop in 2 processes against 1, measured just before, and
+``sweep_scaling_efficiency`` the sweep's scaling as a share of it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import tempfile
+from pathlib import Path
+
+__all__ = ["USERS", "cpu_scaling", "measure_sweep"]
+
+#: Synthetic users of the benchmark's sweep (3 sessions each).
+USERS = 32
+
+
+def _run(spec: Path, out: Path, *args: str) -> dict[str, float]:
+    from eval.sweep.__main__ import main
+
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        code = main([str(spec), "--out", str(out), "--no-summary", *args])
+    if code != 0:
+        raise RuntimeError(f"eval.sweep exited with {code}")
+    return json.loads((out / "runs.jsonl").read_text().splitlines()[-1])
+
+
+def _burn(n: int) -> int:
+    total = 0
+    for i in range(n):
+        total += i
+    return total
+
+
+def cpu_scaling(n: int = 20_000_000) -> float:
+    """Throughput of a pure-Python loop in 2 processes over that in 1 (2.0 on 2 free cores)."""
+    import multiprocessing
+    import time
+
+    t0 = time.perf_counter()
+    _burn(n)
+    one = time.perf_counter() - t0
+    with multiprocessing.get_context().Pool(2) as pool:
+        t0 = time.perf_counter()
+        pool.map(_burn, [n, n])
+        two = time.perf_counter() - t0
+    return 2.0 * one / two
+
+
+def measure_sweep(users: int = USERS) -> dict[str, float]:
+    """``sweep_sps_1``, ``sweep_sps_2`` (sessions/s), ``sweep_scaling`` (their ratio),
+    ``sweep_session_s`` (s per session, 1 worker) and, where Ray is installed, ``sweep_ray_sps_2``
+    and ``sweep_ray_overhead`` (Ray's extra wall time per session over the process backend's, as
+    a share of a session's time, both with 2 workers)."""
+    import importlib.util
+
+    figures: dict[str, float] = {"cpu_scaling": cpu_scaling()}
+    with tempfile.TemporaryDirectory() as tmp:
+        spec = Path(tmp) / "bench.yaml"
+        spec.write_text(f"grid: {{policy: [ac, lc-noap, lc]}}\nusers: {{synthetic: {users}}}\n")
+        one = _run(spec, Path(tmp) / "p1", "--backend", "processes", "--workers", "1")
+        two = _run(spec, Path(tmp) / "p2", "--backend", "processes", "--workers", "2")
+        figures["sweep_sps_1"] = one["sessions_per_s"]
+        figures["sweep_sps_2"] = two["sessions_per_s"]
+        figures["sweep_scaling"] = two["sessions_per_s"] / one["sessions_per_s"]
+        figures["sweep_session_s"] = one["wall_s"] / one["sessions"]
+        figures["sweep_scaling_efficiency"] = figures["sweep_scaling"] / figures["cpu_scaling"]
+        figures["sweep_cpu_per_session_1"] = one["session_cpu_s"]
+        figures["sweep_cpu_per_session_2"] = two["session_cpu_s"]
+        figures["sweep_task_overhead_2"] = two["overhead"]
+        if importlib.util.find_spec("ray") is not None:
+            ray = _run(spec, Path(tmp) / "r2", "--backend", "ray", "--workers", "2")
+            # The process backend again after Ray: a machine whose load drifts during the
+            # benchmark moves both sides of the comparison alike.
+            again = _run(spec, Path(tmp) / "p2b", "--backend", "processes", "--workers", "2")
+            base = (two["wall_s"] + again["wall_s"]) / 2
+            figures["sweep_ray_sps_2"] = ray["sessions_per_s"]
+            figures["sweep_ray_overhead"] = (ray["wall_s"] - base) / base
+            cpu = (two["session_cpu_s"] + again["session_cpu_s"]) / 2
+            figures["sweep_ray_cpu_per_session"] = ray["session_cpu_s"]
+            figures["sweep_ray_overhead_cpu"] = (ray["session_cpu_s"] - cpu) / cpu
+            figures["sweep_ray_task_overhead"] = ray["overhead"]
+    return figures
