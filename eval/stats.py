@@ -161,12 +161,7 @@ def bootstrap_diff_ci(
             an unknown ``stat``, ``n_boot < 100``, ``level`` outside (0, 1) or a non-Generator rng.
     """
     xa, ya = _as_1d(x, "x"), _as_1d(y, "y")
-    if stat not in ("mean", "median"):
-        raise ConfigError(f"stat must be 'mean' or 'median', got {stat!r}")
-    if isinstance(n_boot, bool) or not isinstance(n_boot, int) or n_boot < 100:
-        raise ConfigError(f"n_boot must be an int >= 100, got {n_boot!r}")
-    if not (isinstance(level, int | float) and 0.0 < level < 1.0):
-        raise ConfigError(f"level must lie in (0, 1), got {level!r}")
+    _check_boot_args(stat, n_boot, level)
     if not isinstance(rng, np.random.Generator):
         raise ConfigError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
     nan = float("nan")
@@ -216,12 +211,7 @@ def bootstrap_ci(
         ConfigError: as :func:`bootstrap_diff_ci`.
     """
     xa = _as_1d(x, "x")
-    if stat not in ("mean", "median"):
-        raise ConfigError(f"stat must be 'mean' or 'median', got {stat!r}")
-    if isinstance(n_boot, bool) or not isinstance(n_boot, int) or n_boot < 100:
-        raise ConfigError(f"n_boot must be an int >= 100, got {n_boot!r}")
-    if not (isinstance(level, int | float) and 0.0 < level < 1.0):
-        raise ConfigError(f"level must lie in (0, 1), got {level!r}")
+    _check_boot_args(stat, n_boot, level)
     xa = xa[~np.isnan(xa)]
     if xa.size == 0:
         nan = float("nan")
@@ -390,3 +380,13 @@ def summarise(
         n_sessions={p: len(by_policy[p]) for p in order},
         cells=cells,
     )
+
+
+def _check_boot_args(stat: str, n_boot: int, level: float) -> None:
+    """The bootstrap functions' shared arguments, checked (ConfigError naming the argument)."""
+    if stat not in ("mean", "median"):
+        raise ConfigError(f"stat must be 'mean' or 'median', got {stat!r}")
+    if isinstance(n_boot, bool) or not isinstance(n_boot, int) or n_boot < 100:
+        raise ConfigError(f"n_boot must be an int >= 100, got {n_boot!r}")
+    if not (isinstance(level, int | float) and 0.0 < level < 1.0):
+        raise ConfigError(f"level must lie in (0, 1), got {level!r}")

@@ -42,7 +42,7 @@ from langenv.robot.io_arm import IOArm
 from langenv.safety import SafetyStop
 from langenv.speech.vocoder import VariableRateVocoder
 from langenv.users.base import User
-from langenv.users.session_csv import write_session
+from langenv.users.session_csv import OPTIONAL_COLUMNS, REQUIRED_COLUMNS, write_session
 
 __all__ = ["FADE_S", "LOG_COLUMNS", "RobotLoop", "RobotSessionReport"]
 
@@ -50,14 +50,8 @@ FADE_S = 0.1
 """Seconds over which the speech fades out when a session ends or stops."""
 
 LOG_COLUMNS = (
-    "t",
-    "cooperation",
-    "ee_speed",
-    "audio_pace",
-    "physical_pace",
-    "t_a",
-    "t_x",
-    "em",
+    *REQUIRED_COLUMNS,
+    *OPTIONAL_COLUMNS,
     "x",
     "y",
     "z",
