@@ -84,6 +84,7 @@ from langenv.errors import ConfigError
 __all__ = [
     "TrainArgs",
     "checkpoint_files",
+    "code_version",
     "init_files",
     "load_config",
     "main",
@@ -530,9 +531,11 @@ def _config_dict(run: _Run, residual: dict[str, Any], extra: dict[str, Any]) -> 
     import stable_baselines3
 
     import langenv
-    from policies.learned import graph_digest
+    from policies.learned import graph_digest, observation_layout
 
     graph = str(run.env_kwargs.get("phrase_graph", "lc"))
+    if residual:
+        extra = {"observation_layout": observation_layout(int(residual["max_children"])), **extra}
     return {
         run.args.env_id: _plain(run.hyper),
         "train": recorded_args(run.args),
@@ -542,12 +545,63 @@ def _config_dict(run: _Run, residual: dict[str, Any], extra: dict[str, Any]) -> 
         "n_envs": run.n_envs,
         "total_timesteps": run.total,
         "versions": {
-            "langctrl": langenv.__version__,
+            **code_version(langenv.__version__),
             "stable_baselines3": stable_baselines3.__version__,
             "python": sys.version.split()[0],
         },
         **extra,
     }
+
+
+def code_version(installed: str) -> dict[str, str]:
+    """The version of the code that trains: ``{"langctrl": VERSION}`` plus ``git_commit`` (with
+    ``+dirty`` for uncommitted changes) when the code runs from a git checkout.
+
+    ``installed`` is ``langenv.__version__`` (the installed package metadata). An editable
+    install keeps the metadata of the day it was installed, so when the source tree beside the
+    imported ``langenv`` has a ``pyproject.toml`` whose version differs, that version is the
+    one recorded (it is the code that runs) and a line on stderr says to reinstall.
+
+    Args:
+        installed: The installed metadata's version.
+    """
+    import subprocess
+    import tomllib
+
+    import langenv
+
+    root = Path(langenv.__file__).resolve().parents[1]
+    version = installed
+    try:
+        source = tomllib.loads((root / "pyproject.toml").read_text())["project"]["version"]
+    except (OSError, KeyError, tomllib.TOMLDecodeError):
+        source = None
+    if isinstance(source, str) and source != installed:
+        print(
+            f"train.ppo: the installed metadata says langctrl {installed} but the code that runs "
+            f"is {source} ({root / 'pyproject.toml'}); recording {source} (reinstall: pip "
+            "install -e .)",
+            file=sys.stderr,
+        )
+        version = source
+    out = {"langctrl": version}
+    try:
+        commit = subprocess.run(
+            ["git", "-C", str(root), "rev-parse", "HEAD"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return out
+    out["git_commit"] = commit + ("+dirty" if dirty else "")
+    return out
 
 
 def _plain(obj: Any) -> Any:
