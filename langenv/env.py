@@ -317,6 +317,29 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self._am_paid = False
         self._reset_episode_state()
 
+    def use_phrase_graph(self, graph: PhraseGraph) -> None:
+        """Speak ``graph`` from the next :meth:`reset` on, instead of the one given at
+        construction (a variant of the script, :func:`langenv.speech.variant.vary_graph`, for
+        training across worlds). Call it between episodes.
+
+        Raises:
+            ConfigError: if ``graph`` is not a :class:`PhraseGraph`, or its largest number of
+                choices differs from the env's (the observation would change size).
+        """
+        if not isinstance(graph, PhraseGraph):
+            raise ConfigError(f"use_phrase_graph: expected a PhraseGraph, got {graph!r}")
+        if max(1, graph.max_children) != self.max_children:
+            raise ConfigError(
+                f"use_phrase_graph: the graph has {graph.max_children} choices at most, the "
+                f"env's observation {self.max_children}"
+            )
+        self.graph = graph
+        self.speech = SpeechTimeline(graph)
+        durations = {u: (graph.t_min(u), graph.t_max(u)) for u in graph.phrases}
+        self._encoder = ObservationEncoder(self.max_children, durations)
+        if self._steps is not None:
+            self._steps = CompiledSteps(self)
+
     # ------------------------------------------------------------------ gym API
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
