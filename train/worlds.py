@@ -28,7 +28,6 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from types import MappingProxyType
 from typing import Any, Literal
 
 import gymnasium as gym
@@ -54,14 +53,14 @@ _KEYS = (
 )
 
 
-def _seed_range(where: str, name: str, value: object) -> tuple[int, int]:
+def _seed_range(where: str, name: str, value: Any) -> tuple[int, int]:
     ok = isinstance(value, list | tuple) and len(value) == 2
-    ok = ok and all(isinstance(v, int) and not isinstance(v, bool) for v in value)  # type: ignore[union-attr]
-    if not ok or not 0 <= value[0] < value[1]:  # type: ignore[index]
+    ok = ok and all(isinstance(v, int) and not isinstance(v, bool) for v in value)
+    if not ok or not 0 <= value[0] < value[1]:
         raise ConfigError(
             f"{where}: {name} must be [lo, hi) seeds with 0 <= lo < hi, got {value!r}"
         )
-    return int(value[0]), int(value[1])  # type: ignore[index]
+    return int(value[0]), int(value[1])
 
 
 @dataclass(frozen=True)
@@ -114,9 +113,7 @@ class WorldSplit:
                     raise ConfigError(f"{where}: {a}_users and {b}_users overlap")
         if not isinstance(self.graphs, Mapping):
             raise ConfigError(f"{where}: graphs must map exercise -> phrase graph")
-        object.__setattr__(
-            self, "graphs", MappingProxyType({str(k): str(v) for k, v in self.graphs.items()})
-        )
+        object.__setattr__(self, "graphs", {str(k): str(v) for k, v in self.graphs.items()})
         if not isinstance(self.variation, GraphVariation):
             raise ConfigError(f"{where}: variation must be a GraphVariation")
         if not isinstance(self.perturbations, Perturbations):

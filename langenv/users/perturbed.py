@@ -30,7 +30,6 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
-from types import MappingProxyType
 
 import numpy as np
 
@@ -103,7 +102,7 @@ class Perturbations:
         w = {k: float(self.weights.get(k, 0.0)) for k in PERTURBATIONS}
         if any(not (math.isfinite(v) and v >= 0.0) for v in w.values()) or sum(w.values()) <= 0:
             raise ConfigError(f"{owner}.weights must be >= 0 and not all 0, got {self.weights!r}")
-        object.__setattr__(self, "weights", MappingProxyType(w))
+        object.__setattr__(self, "weights", w)  # a plain dict: picklable for subprocesses
         for f in fields(self):
             if f.name != "weights":
                 object.__setattr__(self, f.name, _range(owner, f.name, getattr(self, f.name), 0.0))
