@@ -9,7 +9,8 @@ whatever the person did so far goes on. :class:`PerturbedUser` draws such a pers
 * ``speeds_up_late``: from a time in ``late_onset`` s on, the person pushes *along* the motion
   with ``push`` N (ramp 0.5 s), resistance dropped: breaks an ETC that assumes the pace so far;
 * ``stop_restart``: at a time in ``stop_onset`` s, holds the handle against the motion with
-  ``hold`` N above the deadband for ``stop_duration`` s (ramps 0.2 s), then goes on as drawn: a
+  ``hold`` N above the deadband (the calibrated population's largest resistance is 10 N) for
+  ``stop_duration`` s (ramps 0.2 s), then goes on as drawn: a
   stall the ETC reads as the new normal;
 * ``tremor``: a sinusoid of ``tremor_hz`` Hz and ``tremor_amplitude`` N along the path on top
   of the resistance (the sensor's 5 N deadband hides the part below it, as it would a real
@@ -84,7 +85,7 @@ class Perturbations:
     push: tuple[float, float] = (6.0, 12.0)
     stop_onset: tuple[float, float] = (2.0, 8.0)
     stop_duration: tuple[float, float] = (1.5, 4.0)
-    hold: tuple[float, float] = (12.0, 20.0)
+    hold: tuple[float, float] = (8.0, 10.0)
     tremor_hz: tuple[float, float] = (4.0, 8.0)
     tremor_amplitude: tuple[float, float] = (3.0, 8.0)
     lag_tau: tuple[float, float] = (0.8, 3.0)
