@@ -119,6 +119,7 @@ class Job:
     video: bool = False
     user_params: Any = None  # SyntheticUserParams for synthetic users (default: calibrated)
     exercise: str | None = None  # a shipped exercise or an exercise YAML (default: the study's)
+    user_model: Any = None  # a User to reset with ``seed`` instead (e.g. a PerturbedUser)
 
 
 class UsageError(Exception):
@@ -358,6 +359,8 @@ def run_episode(job: Job) -> dict[str, Any]:
     options: dict[str, Any] | None = None
     if job.session:
         options = {"user": ReplayUser.from_csv(job.session)}
+    elif job.user_model is not None:
+        options = {"user": job.user_model}
     elif job.user_params is not None:
         options = {"user": SyntheticUser(job.user_params)}
     obs, info = env.reset(seed=job.seed, options=options)

@@ -1,4 +1,4 @@
-"""Training across worlds: the split (train.worlds.WorldSplit) and the env that draws worlds."""
+"""Training across worlds: the split (langenv.worlds.WorldSplit) and the env that draws worlds."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from langenv.errors import ConfigError
-from train.worlds import WorldEnv, WorldSplit
+from langenv.worlds import WorldEnv, WorldSplit
 
 SPLIT: dict[str, Any] = {
     "train": ["external_rotation", "shoulder_flexion"],

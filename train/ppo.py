@@ -376,11 +376,11 @@ class _Run:
     normalize: dict[str, Any] | None
     n_envs: int
     total: int
-    worlds: Any = None  # train.worlds.WorldSplit, from the config's ``worlds`` section
+    worlds: Any = None  # langenv.worlds.WorldSplit, from the config's ``worlds`` section
 
 
 def load_worlds(data: dict[str, Any], path: Path) -> Any:
-    """The :class:`~train.worlds.WorldSplit` of a config's (or a run config's) top-level
+    """The :class:`~langenv.worlds.WorldSplit` of a config's (or a run config's) top-level
     ``worlds`` mapping, or None without one.
 
     Raises:
@@ -389,7 +389,7 @@ def load_worlds(data: dict[str, Any], path: Path) -> Any:
     section = data.get("worlds")
     if section is None:
         return None
-    from train.worlds import WorldSplit
+    from langenv.worlds import WorldSplit
 
     try:
         return WorldSplit.from_dict(section)
@@ -498,7 +498,7 @@ def _make_envs(run: _Run) -> tuple[Any, Any]:
 
 def _make_world_envs(run: _Run, cls: Any) -> tuple[Any, Any]:
     """Training and validation VecEnvs across the worlds of ``run.worlds``
-    (:mod:`train.worlds`): training env ``i`` draws its worlds from seed ``seed + i``; the
+    (:mod:`langenv.worlds`): training env ``i`` draws its worlds from seed ``seed + i``; the
     periodic evaluation cycles through ``n_eval_episodes`` validation (exercise, user) pairs."""
     from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import DummyVecEnv
@@ -515,7 +515,7 @@ def _make_world_envs(run: _Run, cls: Any) -> tuple[Any, Any]:
     eval_env: Any = None
     if a.n_eval_episodes > 0:
         split.pairs("validation", a.n_eval_episodes)  # enough validation users, before training
-        from train.worlds import WorldEnv
+        from langenv.worlds import WorldEnv
 
         wrap = run.wrapper if run.wrapper is not None else (lambda e: e)
         n = a.n_eval_episodes
@@ -531,7 +531,7 @@ def _make_world_envs(run: _Run, cls: Any) -> tuple[Any, Any]:
 @dataclass(frozen=True)
 class _WorldFn:
     """One training env across worlds (picklable for subprocesses): a
-    :class:`~train.worlds.WorldEnv` with its TimeLimit's steps, a Monitor and the wrappers."""
+    :class:`~langenv.worlds.WorldEnv` with its TimeLimit's steps, a Monitor and the wrappers."""
 
     split: Any
     role: str
@@ -543,7 +543,7 @@ class _WorldFn:
     def __call__(self) -> Any:
         from stable_baselines3.common.monitor import Monitor
 
-        from train.worlds import WorldEnv
+        from langenv.worlds import WorldEnv
 
         env: Any = Monitor(WorldEnv(self.split, self.role, self.env_kwargs))
         if self.seed is not None:
