@@ -196,7 +196,9 @@ def plot_metric(
             color=policy_color(p, i),
         )
     top.set_ylabel(COMPARED[metric][1])
-    top.legend(fontsize=7, ncols=min(5, len(policies)))
+    top.legend(
+        fontsize=7, ncols=min(5, len(policies)), loc="lower center", bbox_to_anchor=(0.5, 1.0)
+    )
     est = np.array([c.vs_best[0] for c in mine])
     lo = np.array([c.vs_best[1] for c in mine])
     hi = np.array([c.vs_best[2] for c in mine])
@@ -278,6 +280,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         for spec in [*analytic, learned_spec]:
             load_policy(spec)  # every policy loads before any episode runs
         split = _split(ns)
+        split.pairs(ns.role, ns.users * len(split.exercises(ns.role)))  # enough users
     except (ConfigError, ModelError, FileNotFoundError, KeyError) as exc:
         print(f"eval.generalise: error: {exc}", file=sys.stderr)
         return 2
