@@ -201,7 +201,8 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     * v0 (langctrl 0.5): ``exercise`` added (exercises as data), ``robot`` (a
       :class:`~langenv.robot.io.RobotIO`) and ``robot_acceleration`` added, the default phrase
       graph has pauses and fillers (the study's is ``"study"``); the study's exercise with the
-      study's graph gives the episodes it gave.
+      study's graph gives the episodes it gave; ``use_phrase_graph`` (another graph of as many
+      choices from the next reset: training across worlds) added.
     * v0 (langctrl 0.4): ``run_law`` and ``observation()`` added; episodes unchanged.
     * v0 (langctrl 0.2): plant, speech and synthetic users fitted to the study's recordings (the
       lab's leg switching instead of a rest at each end, the acceleration-limited command, a 43 deg
