@@ -124,6 +124,7 @@ class Job:
     params: tuple[tuple[str, float], ...] = ()  # the policy's parameters set (eval.overrides)
     env_params: tuple[tuple[str, float], ...] = ()  # the env's parameters set (eval.overrides)
     save_log: bool = True  # write the episode log (.npz) into out_dir
+    user_model: Any = None  # a User to reset with ``seed`` instead (e.g. a PerturbedUser)
 
 
 class UsageError(Exception):
@@ -377,6 +378,8 @@ def run_episode(job: Job) -> dict[str, Any]:
     options: dict[str, Any] | None = None
     if job.session:
         options = {"user": ReplayUser.from_csv(job.session)}
+    elif job.user_model is not None:
+        options = {"user": job.user_model}
     elif job.user_params is not None:
         options = {"user": SyntheticUser(job.user_params)}
     obs, info = env.reset(seed=job.seed, options=options)

@@ -202,7 +202,8 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     * v0 (langctrl 0.5): ``exercise`` added (exercises as data), ``robot`` (a
       :class:`~langenv.robot.io.RobotIO`) and ``robot_acceleration`` added, the default phrase
       graph has pauses and fillers (the study's is ``"study"``); the study's exercise with the
-      study's graph gives the episodes it gave.
+      study's graph gives the episodes it gave; ``use_phrase_graph`` (another graph of as many
+      choices from the next reset: training across worlds) added.
     * v0 (langctrl 0.4): ``run_law`` and ``observation()`` added; episodes unchanged.
     * v0 (langctrl 0.2): plant, speech and synthetic users fitted to the study's recordings (the
       lab's leg switching instead of a rest at each end, the acceleration-limited command, a 43 deg
@@ -327,6 +328,29 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self._terminated = False
         self._am_paid = False
         self._reset_episode_state()
+
+    def use_phrase_graph(self, graph: PhraseGraph) -> None:
+        """Speak ``graph`` from the next :meth:`reset` on, instead of the one given at
+        construction (a variant of the script, :func:`langenv.speech.variant.vary_graph`, for
+        training across worlds). Call it between episodes.
+
+        Raises:
+            ConfigError: if ``graph`` is not a :class:`PhraseGraph`, or its largest number of
+                choices differs from the env's (the observation would change size).
+        """
+        if not isinstance(graph, PhraseGraph):
+            raise ConfigError(f"use_phrase_graph: expected a PhraseGraph, got {graph!r}")
+        if max(1, graph.max_children) != self.max_children:
+            raise ConfigError(
+                f"use_phrase_graph: the graph has {graph.max_children} choices at most, the "
+                f"env's observation {self.max_children}"
+            )
+        self.graph = graph
+        self.speech = SpeechTimeline(graph)
+        durations = {u: (graph.t_min(u), graph.t_max(u)) for u in graph.phrases}
+        self._encoder = ObservationEncoder(self.max_children, durations)
+        if self._steps is not None:
+            self._steps = CompiledSteps(self)
 
     # ------------------------------------------------------------------ gym API
     def reset(

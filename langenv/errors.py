@@ -46,6 +46,28 @@ class DeviceError(LangEnvError, OSError):
     """A device the live mode needs is missing: a display, a sound card or its library."""
 
 
+class ModelError(LangEnvError, ValueError):
+    """A saved model (a learned policy's files) is unreadable or inconsistent (names the file)."""
+
+
+class ObservationLayoutError(ModelError):
+    """A saved model was trained for another observation layout than the one it would read.
+
+    Attributes:
+        path: The model file (or its config) at fault.
+        expected: The layout the code and the phrase graph give now: ``size=N signature=HEX``.
+        found: The layout the model was trained with (its recorded signature, or its input size).
+    """
+
+    def __init__(self, path: object, expected: str, found: str, hint: str = "") -> None:
+        self.path, self.expected, self.found = path, expected, found
+        tail = f"; {hint}" if hint else ""
+        super().__init__(
+            f"{path}: trained for another observation layout: the model reads {found}, "
+            f"this code and phrase graph give {expected}{tail}"
+        )
+
+
 class ExerciseError(ConfigError):
     """An exercise file is malformed, or its exercise is unsafe for the arm (names the file).
 

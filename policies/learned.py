@@ -36,7 +36,7 @@ import numpy as np
 import yaml
 
 from langenv import observation as ob
-from langenv.errors import ConfigError
+from langenv.errors import ConfigError, ModelError, ObservationLayoutError
 from langenv.observation import Obs
 from langenv.pacing import PaceLimits, action_from_command, command_from_action
 from policies.analytic import LanguageController
@@ -50,6 +50,7 @@ __all__ = [
     "file_sha256",
     "graph_digest",
     "model_files",
+    "observation_layout",
 ]
 
 #: Names of the features :class:`ResidualLC` appends to the env's observation, in order.
@@ -64,6 +65,33 @@ FEATURES: tuple[str, ...] = (
     "residual_p",  # the previous correction (pace), as applied
     "residual_a",
 )
+
+
+def observation_layout(max_children: int) -> dict[str, Any]:
+    """The learned policy's input layout for a phrase graph whose largest out-degree is
+    ``max_children``: the env's fields (:mod:`langenv.observation`, with its scales), the child
+    blocks, then :data:`FEATURES`.
+
+    Returns:
+        ``{"size": N, "signature": HEX}``: the input size and the first 16 hex digits of the
+        SHA-256 of the fields' names and scales in order. A model's config records it
+        (``observation_layout``); :meth:`PPOPolicy.load` compares it with the code's.
+    """
+    import hashlib
+
+    children = [f"child{k}.{c.name}" for k in range(max_children) for c in ob.ChildField]
+    names = [f.name for f in Obs] + children + list(FEATURES)
+    scales = (
+        f"T={ob.T_SCALE},PACE={ob.PACE_SCALE},SPEED={ob.SPEED_SCALE},ELAPSED={ob.ELAPSED_SCALE},"
+        f"TREND={ob.TREND_WINDOW},FINE={_FINE_SCALE},LOST={_LOST_SCALE},RATE={_RATE_TAU}"
+    )
+    text = ",".join(names) + ";" + scales
+    return {"size": len(names), "signature": hashlib.sha256(text.encode()).hexdigest()[:16]}
+
+
+def _layout_text(layout: dict[str, Any]) -> str:
+    return f"size={layout.get('size')} signature={layout.get('signature')}"
+
 
 _RATE_TAU = 1.0  # s, time constant of the motion-rate average
 _LOST_SCALE = 10.0  # s
@@ -435,7 +463,10 @@ class PPOPolicy:
 
         Raises:
             FileNotFoundError: naming the file, if one of the three is missing.
-            ValueError: naming the file, if one is corrupt or inconsistent with the others.
+            ModelError: (a ValueError) naming the file, if one is corrupt or inconsistent with
+                the others; :class:`~langenv.errors.ObservationLayoutError` if the model was
+                trained for another observation layout (its recorded signature, or for an older
+                model its input size, differs from this code's).
         """
         zip_path, norm_path, cfg_path = model_files(path)
         for f in (zip_path, norm_path, cfg_path):
@@ -447,20 +478,21 @@ class PPOPolicy:
         try:
             spec = ResidualSpec(**spec_kw)
         except (TypeError, ConfigError) as exc:
-            raise ValueError(f"{cfg_path}: invalid 'residual' section: {exc}") from None
+            raise ModelError(f"{cfg_path}: invalid 'residual' section: {exc}") from None
         normalizer = _read_normalizer(norm_path)
         model = _read_model(zip_path)
         n_obs, n_act = model.n_inputs, model.n_actions
         if n_act != spec.action_dim:
-            raise ValueError(
+            raise ModelError(
                 f"{zip_path}: model has {n_act} actions but its config's residual needs "
                 f"{spec.action_dim} ({cfg_path})"
             )
         mean = getattr(getattr(normalizer, "obs_rms", None), "mean", None)
         if mean is None or int(np.prod(np.shape(mean))) != n_obs:
-            raise ValueError(
+            raise ModelError(
                 f"{norm_path}: observation normaliser does not match the model's {n_obs} inputs"
             )
+        _check_layout(config, cfg_path, zip_path, n_obs, spec.max_children)
         hz = int(env_kwargs.pop("decision_hz", spec.decision_hz))
         digest = config.get("phrase_graph_sha256")
         graph = str(env_kwargs.pop("phrase_graph", None) or _shipped_graph_of(digest) or "lc")
@@ -493,6 +525,15 @@ class PPOPolicy:
         ``self.residual.action(r)`` for this observation, as :meth:`act` does.
         """
         if not self._started:
+            n_env = int(np.shape(observation)[0]) + self.residual.n_features
+            if n_env != self.model.n_inputs:
+                raise ObservationLayoutError(
+                    self.path,
+                    f"size={n_env} (this env's observation and the features)",
+                    f"size={self.model.n_inputs}",
+                    "the phrase graph spoken has another largest number of choices than the "
+                    "one the model was trained on",
+                )
             aug = self.residual.start(observation)
             self._started = True
         else:
@@ -509,13 +550,34 @@ class PPOPolicy:
         return asdict(self.residual.spec)
 
 
+def _check_layout(
+    config: dict[str, Any], cfg_path: Path, zip_path: Path, n_obs: int, max_children: int
+) -> None:
+    """Refuse a model trained for another observation layout than this code gives.
+
+    A config that records ``observation_layout`` (every model trained since it was introduced) is
+    compared by signature; an older one (the shipped model) by the model's input size.
+
+    Raises:
+        ObservationLayoutError: naming the file, the expected and the found layout.
+    """
+    now = observation_layout(max_children)
+    recorded = config.get("observation_layout")
+    hint = "retrain it with this code (python -m train.ppo)"
+    if isinstance(recorded, dict) and recorded.get("signature") != now["signature"]:
+        raise ObservationLayoutError(cfg_path, _layout_text(now), _layout_text(recorded), hint)
+    if n_obs != now["size"]:
+        found = f"size={n_obs} (its network's inputs)"
+        raise ObservationLayoutError(zip_path, _layout_text(now), found, hint)
+
+
 def _read_config(path: Path) -> dict[str, Any]:
     try:
         data = yaml.safe_load(path.read_text())
     except (OSError, yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path}: cannot read model config: {exc}") from None
+        raise ModelError(f"{path}: cannot read model config: {exc}") from None
     if not isinstance(data, dict):
-        raise ValueError(f"{path}: model config must be a YAML mapping")
+        raise ModelError(f"{path}: model config must be a YAML mapping")
     return data
 
 
@@ -524,9 +586,9 @@ def _read_normalizer(path: Path) -> Any:
         with path.open("rb") as fh:
             normalizer = pickle.load(fh)
     except (OSError, pickle.UnpicklingError, EOFError, AttributeError, ImportError) as exc:
-        raise ValueError(f"{path}: cannot read VecNormalize statistics: {exc}") from None
+        raise ModelError(f"{path}: cannot read VecNormalize statistics: {exc}") from None
     if not hasattr(normalizer, "normalize_obs"):
-        raise ValueError(f"{path}: not a VecNormalize pickle")
+        raise ModelError(f"{path}: not a VecNormalize pickle")
     normalizer.training = False
     return normalizer
 
@@ -535,4 +597,4 @@ def _read_model(path: Path) -> MlpActor:
     try:
         return MlpActor.from_sb3_zip(path)
     except (zipfile.BadZipFile, OSError, ValueError, KeyError, RuntimeError, EOFError) as exc:
-        raise ValueError(f"{path}: cannot read PPO model: {exc}") from None
+        raise ModelError(f"{path}: cannot read PPO model: {exc}") from None

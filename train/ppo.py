@@ -84,6 +84,7 @@ from langenv.errors import ConfigError
 __all__ = [
     "TrainArgs",
     "checkpoint_files",
+    "code_version",
     "init_files",
     "load_config",
     "main",
@@ -375,6 +376,25 @@ class _Run:
     normalize: dict[str, Any] | None
     n_envs: int
     total: int
+    worlds: Any = None  # langenv.worlds.WorldSplit, from the config's ``worlds`` section
+
+
+def load_worlds(data: dict[str, Any], path: Path) -> Any:
+    """The :class:`~langenv.worlds.WorldSplit` of a config's (or a run config's) top-level
+    ``worlds`` mapping, or None without one.
+
+    Raises:
+        ConfigError: naming the file, for a bad split.
+    """
+    section = data.get("worlds")
+    if section is None:
+        return None
+    from langenv.worlds import WorldSplit
+
+    try:
+        return WorldSplit.from_dict(section)
+    except ConfigError as exc:
+        raise ConfigError(f"{path}: {exc}") from None
 
 
 def _resolve(args: TrainArgs, given: set[str] | None = None) -> _Run:
@@ -390,7 +410,13 @@ def _resolve(args: TrainArgs, given: set[str] | None = None) -> _Run:
     env_kwargs = dict(hyper.get("env_kwargs") or {})
     wrapper = _wrapper_class(hyper.get("env_wrapper"), args.config)
     normalize = _normalize_kwargs(hyper.get("normalize"), args.config)
-    return _Run(args, hyper, env_kwargs, wrapper, normalize, n_envs, total)
+    worlds = load_worlds(_read_config(args.config, ()), args.config)
+    if worlds is not None and "exercise" in env_kwargs:
+        raise ConfigError(
+            f"{args.config}: with 'worlds' the exercises are the split's; remove "
+            "env_kwargs.exercise"
+        )
+    return _Run(args, hyper, env_kwargs, wrapper, normalize, n_envs, total, worlds)
 
 
 def _ppo_kwargs(run: _Run) -> dict[str, Any]:
@@ -429,6 +455,8 @@ def _make_envs(run: _Run) -> tuple[Any, Any]:
 
     a = run.args
     cls = _SubprocVecEnv if use_subprocesses(a.vec_env, run.n_envs) else DummyVecEnv
+    if run.worlds is not None:
+        return _make_world_envs(run, cls)
     per_env = _exercise_kwargs(run.env_kwargs)
     if len(per_env) == 1:
         env = make_vec_env(
@@ -466,6 +494,61 @@ def _make_envs(run: _Run) -> tuple[Any, Any]:
             kw = {k: v for k, v in run.normalize.items() if k != "norm_reward"}
             eval_env = VecNormalize(eval_env, training=False, norm_reward=False, **kw)
     return env, eval_env
+
+
+def _make_world_envs(run: _Run, cls: Any) -> tuple[Any, Any]:
+    """Training and validation VecEnvs across the worlds of ``run.worlds``
+    (:mod:`langenv.worlds`): training env ``i`` draws its worlds from seed ``seed + i``; the
+    periodic evaluation cycles through ``n_eval_episodes`` validation (exercise, user) pairs."""
+    from stable_baselines3.common.monitor import Monitor
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    a, split = run.args, run.worlds
+    split.check()
+    fns: list[Any] = [
+        _WorldFn(split, "train", run.env_kwargs, run.wrapper, a.seed, i) for i in range(run.n_envs)
+    ]
+    env = cls(fns)
+    env.seed(a.seed)
+    if run.normalize is not None:
+        env = VecNormalize(env, **run.normalize)
+    eval_env: Any = None
+    if a.n_eval_episodes > 0:
+        split.pairs("validation", a.n_eval_episodes)  # enough validation users, before training
+        from langenv.worlds import WorldEnv
+
+        wrap = run.wrapper if run.wrapper is not None else (lambda e: e)
+        n = a.n_eval_episodes
+        eval_env = DummyVecEnv(
+            [lambda: wrap(Monitor(WorldEnv(split, "validation", run.env_kwargs, n)))]
+        )
+        if run.normalize is not None:
+            kw = {k: v for k, v in run.normalize.items() if k != "norm_reward"}
+            eval_env = VecNormalize(eval_env, training=False, norm_reward=False, **kw)
+    return env, eval_env
+
+
+@dataclass(frozen=True)
+class _WorldFn:
+    """One training env across worlds (picklable for subprocesses): a
+    :class:`~langenv.worlds.WorldEnv` with its TimeLimit's steps, a Monitor and the wrappers."""
+
+    split: Any
+    role: str
+    env_kwargs: dict[str, Any]
+    wrapper: Any
+    seed: int | None
+    rank: int
+
+    def __call__(self) -> Any:
+        from stable_baselines3.common.monitor import Monitor
+
+        from langenv.worlds import WorldEnv
+
+        env: Any = Monitor(WorldEnv(self.split, self.role, self.env_kwargs))
+        if self.seed is not None:
+            env.action_space.seed(self.seed + self.rank)
+        return self.wrapper(env) if self.wrapper is not None else env
 
 
 def _exercise_kwargs(env_kwargs: dict[str, Any]) -> list[dict[str, Any]]:
@@ -537,24 +620,80 @@ def _config_dict(run: _Run, residual: dict[str, Any], extra: dict[str, Any]) -> 
     import stable_baselines3
 
     import langenv
-    from policies.learned import graph_digest
+    from policies.learned import graph_digest, observation_layout
 
     graph = str(run.env_kwargs.get("phrase_graph", "lc"))
+    if run.worlds is not None:
+        extra = {"worlds": run.worlds.to_dict(), **extra}
+    if residual:
+        extra = {"observation_layout": observation_layout(int(residual["max_children"])), **extra}
     return {
         run.args.env_id: _plain(run.hyper),
         "train": recorded_args(run.args),
         "env_kwargs": _plain(run.env_kwargs),
         "residual": residual,
-        "phrase_graph_sha256": graph_digest(graph),
+        # across worlds each exercise speaks its own script: no one graph to record
+        "phrase_graph_sha256": graph_digest(graph) if run.worlds is None else None,
         "n_envs": run.n_envs,
         "total_timesteps": run.total,
         "versions": {
-            "langctrl": langenv.__version__,
+            **code_version(langenv.__version__),
             "stable_baselines3": stable_baselines3.__version__,
             "python": sys.version.split()[0],
         },
         **extra,
     }
+
+
+def code_version(installed: str) -> dict[str, str]:
+    """The version of the code that trains: ``{"langctrl": VERSION}`` plus ``git_commit`` (with
+    ``+dirty`` for uncommitted changes) when the code runs from a git checkout.
+
+    ``installed`` is ``langenv.__version__`` (the installed package metadata). An editable
+    install keeps the metadata of the day it was installed, so when the source tree beside the
+    imported ``langenv`` has a ``pyproject.toml`` whose version differs, that version is the
+    one recorded (it is the code that runs) and a line on stderr says to reinstall.
+
+    Args:
+        installed: The installed metadata's version.
+    """
+    import subprocess
+    import tomllib
+
+    import langenv
+
+    root = Path(langenv.__file__).resolve().parents[1]
+    version = installed
+    try:
+        source = tomllib.loads((root / "pyproject.toml").read_text())["project"]["version"]
+    except (OSError, KeyError, tomllib.TOMLDecodeError):
+        source = None
+    if isinstance(source, str) and source != installed:
+        print(
+            f"train.ppo: the installed metadata says langctrl {installed} but the code that runs "
+            f"is {source} ({root / 'pyproject.toml'}); recording {source} (reinstall: pip "
+            "install -e .)",
+            file=sys.stderr,
+        )
+        version = source
+    out = {"langctrl": version}
+    try:
+        commit = subprocess.run(
+            ["git", "-C", str(root), "rev-parse", "HEAD"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return out
+    out["git_commit"] = commit + ("+dirty" if dirty else "")
+    return out
 
 
 def _plain(obj: Any) -> Any:
@@ -839,6 +978,7 @@ def _resolve_resume(args: TrainArgs, given: set[str]) -> tuple[_Run, dict[str, A
         _normalize_kwargs(hyper.get("normalize"), path),
         n_envs,
         total,
+        load_worlds(config, path),
     )
     return run, config
 

@@ -23,7 +23,7 @@ import numpy as np
 from langenv.kernels import jit
 from langenv.kernels import tick as tk
 from langenv.kernels.mjc import P_POW, py_square
-from langenv.users import ReplayUser, SyntheticUser
+from langenv.users import PerturbedUser, ReplayUser, SyntheticUser
 
 __all__ = ["CompiledSteps", "eta", "pack_graph", "run"]
 
@@ -240,9 +240,10 @@ class CompiledSteps:
     module): loads the env's state into ``es`` before the ticks and writes it back after them.
 
     The compiled ticks apply when the motion's tick is compiled and running, the user is a
-    :class:`~langenv.users.SyntheticUser` or :class:`~langenv.users.ReplayUser` (a tabulated
-    force against the motion), the force sensor has no noise (its draws stay in Python) and the
-    arm's joints are the model's (:meth:`usable`); otherwise the env ticks in Python.
+    :class:`~langenv.users.SyntheticUser`, :class:`~langenv.users.PerturbedUser` or
+    :class:`~langenv.users.ReplayUser` (a tabulated force against the motion), the force sensor
+    has no noise (its draws stay in Python) and the arm's joints are the model's (:meth:`usable`);
+    otherwise the env ticks in Python.
     """
 
     def __init__(self, env: Any) -> None:
@@ -267,7 +268,7 @@ class CompiledSteps:
             and m.safety_stop is None
             and tick._full_dofs
             and not m.sensor.noise_std > 0.0
-            and type(self.env.user) in (SyntheticUser, ReplayUser)
+            and type(self.env.user) in (SyntheticUser, PerturbedUser, ReplayUser)
         )
 
     def run(

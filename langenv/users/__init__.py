@@ -3,6 +3,8 @@
 - :class:`User`: the protocol the environment calls every tick (``reset(rng)``, ``force(...)``).
 - :class:`SyntheticUser`: seeded random resistance episodes, calibrated against the study's
   sessions (``assets/users/synthetic.yaml``, written by ``python -m eval.calibrate``).
+- :class:`PerturbedUser`: a synthetic person plus a drawn behaviour the analytic aligners do not
+  model (speeds up late, stops and restarts, tremor, lagged cooperation).
 - :class:`ReplayUser`: the force that reproduces a recorded session's cooperation.
 - :class:`CallableUser`: any ``fn(t, hand_velocity, tangent) -> (3,)``.
 - :func:`load_session`, :func:`load_sessions`: recorded-session CSVs (:class:`Session`).
@@ -18,6 +20,7 @@ from langenv.users.base import (
     User,
     against_motion,
 )
+from langenv.users.perturbed import PERTURBATIONS, Perturbations, PerturbedUser
 from langenv.users.replay import ReplayUser, invert_cooperation
 from langenv.users.session_csv import Session, load_session, load_sessions
 from langenv.users.synthetic import Episode, LogNormal, SyntheticUser, SyntheticUserParams
@@ -26,9 +29,12 @@ __all__ = [
     "DEFAULT_ALPHA",
     "DEFAULT_DEADBAND",
     "DEFAULT_F_MAX",
+    "PERTURBATIONS",
     "CallableUser",
     "Episode",
     "LogNormal",
+    "Perturbations",
+    "PerturbedUser",
     "ReplayUser",
     "Session",
     "SyntheticUser",

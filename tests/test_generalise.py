@@ -1,0 +1,130 @@
+"""Training across worlds end to end (train.ppo with a worlds section) and eval.generalise."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+
+from eval.generalise import COMPARED, compare_rows, main
+from langenv.errors import ConfigError
+from langenv.worlds import WorldSplit
+from policies.learned import PPOPolicy, model_files, observation_layout
+
+ROOT = Path(__file__).resolve().parents[1]
+RECIPE = ROOT / "configs" / "ppo_general.yaml"
+
+
+@pytest.fixture(scope="module")
+def tiny_general_model(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A learned aligner of the general recipe, trained in-process for two short rollouts on
+    two envs (worlds drawn per episode) with a periodic evaluation on two validation users."""
+    from train.ppo import TrainArgs, train
+
+    root = tmp_path_factory.mktemp("tiny_general")
+    config = root / "tiny.yaml"
+    config.write_text(
+        f"inherit: {RECIPE}\nLangCtrl-v0: {{n_steps: 32, batch_size: 32, n_epochs: 1}}\n"
+    )
+    args = TrainArgs(
+        config=config,
+        out=root / "run",
+        total_timesteps=128,
+        n_envs=2,
+        vec_env="dummy",
+        n_eval_episodes=2,
+        eval_freq=64,
+        progress_bar=False,
+        tensorboard=False,
+    )
+    given = {"out", "n_envs", "n_eval_episodes", "eval_freq", "total_timesteps"}
+    return train(args, given=given)
+
+
+def test_model_records_the_split_and_its_layout(tiny_general_model: Path) -> None:
+    cfg = yaml.safe_load(model_files(tiny_general_model)[2].read_text())
+    assert WorldSplit.from_dict(cfg["worlds"]) == WorldSplit.load(RECIPE)
+    assert WorldSplit.load(model_files(tiny_general_model)[2]) == WorldSplit.load(RECIPE)
+    assert cfg["observation_layout"] == observation_layout(6)
+    assert cfg["phrase_graph_sha256"] is None  # each exercise speaks its own script
+    evals = np.load(tiny_general_model.parent / "eval" / "evaluations.npz")
+    assert evals["abs_am"].shape == (2, 2)  # two evaluations of the two validation users
+    PPOPolicy.load(tiny_general_model)
+
+
+def test_worlds_and_an_exercise_list_are_refused(tmp_path: Path) -> None:
+    from train.ppo import TrainArgs, train
+
+    config = tmp_path / "bad.yaml"
+    config.write_text(f"inherit: {RECIPE}\nLangCtrl-v0: {{env_kwargs: {{exercise: [a, b]}}}}\n")
+    with pytest.raises(ConfigError, match=r"env_kwargs\.exercise"):
+        train(TrainArgs(config=config, out=tmp_path / "run"))
+
+
+def _rows(learned_shift: float, n: int = 40) -> list[dict[str, Any]]:
+    rng = np.random.default_rng(0)
+    rows = []
+    for k in range(n):
+        base = {m: float(rng.uniform(0.2, 1.5)) for m in COMPARED}
+        base["protective_stop"] = 0.0
+        base["abs_am_le_1s"] = float(base["abs_am"] <= 1.0)
+        ex = "a" if k % 2 else "b"
+        for policy, shift in (("lc", 0.3), ("lc-em-end", 0.0), ("ppo", learned_shift)):
+            row = {m: v + (shift if m == "em_mean_abs" else 0.0) for m, v in base.items()}
+            rows.append({"policy": policy, "exercise": ex, "key": f"{ex}/{k}", **row})
+    return rows
+
+
+def test_paired_intervals_find_a_constructed_gain() -> None:
+    comps = compare_rows(_rows(-0.05), "ppo", ["lc", "lc-em-end"], n_boot=500)
+    em = next(c for c in comps if c.metric == "em_mean_abs" and c.group == "all")
+    assert em.best == "lc-em-end" and em.n == 40
+    assert em.vs_best[0] == pytest.approx(-0.05) and em.vs_best[2] < 0.0
+    assert em.vs_reference == em.vs_best
+    same = compare_rows(_rows(0.0), "ppo", ["lc", "lc-em-end"], n_boot=500)
+    em0 = next(c for c in same if c.metric == "em_mean_abs" and c.group == "a")
+    assert em0.vs_best == (0.0, 0.0, 0.0)
+
+
+def test_unpaired_episodes_are_refused() -> None:
+    rows = _rows(0.0)[:-1]  # the learned policy misses an episode
+    with pytest.raises(ConfigError, match="same episodes"):
+        compare_rows(rows, "ppo", ["lc", "lc-em-end"], n_boot=200)
+
+
+def test_generalise_on_validation(tiny_general_model: Path, tmp_path: Path) -> None:
+    out = tmp_path / "gen"
+    args = ["--model", str(tiny_general_model), "--users", "1", "--workers", "1"]
+    assert main([*args, "--n-boot", "200", "--out", str(out)]) == 0
+    rows = (out / "sessions.csv").read_text().splitlines()
+    assert len(rows) == 1 + 5  # four analytic policies and the learned one, one episode each
+    text = (out / "generalise.md").read_text()
+    assert "shoulder_extension" in text and "ppo - lc-em-end" in text
+    assert all((out / f"{m}.png").is_file() for m in COMPARED)
+    cfg = json.loads((out / "config.json").read_text())
+    assert cfg["role"] == "validation" and cfg["test_look"] is False
+    assert main([*args, "--out", str(out)]) == 2  # a non-empty --out is refused
+
+
+def test_a_test_role_says_it_is_a_look(
+    tiny_general_model: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # a split of its own: the recipe's test exercises and users stay unseen in the tests
+    split = tmp_path / "split.yaml"
+    split.write_text(
+        "worlds: {train: [external_rotation], validation: [hand_to_mouth], "
+        "test: [shoulder_extension, shoulder_abduction], test_users: [7000000, 7000001], "
+        "graphs: {external_rotation: study}}\n"
+    )
+    args = ["--model", str(tiny_general_model), "--split", str(split), "--role", "test"]
+    out = tmp_path / "look"
+    assert (
+        main([*args, "--users", "1", "--workers", "1", "--n-boot", "200", "--out", str(out)]) == 0
+    )
+    assert "TEST" in capsys.readouterr().err
+    assert json.loads((out / "config.json").read_text())["test_look"] is True
+    assert main([*args, "--users", "2", "--out", str(tmp_path / "x")]) != 0  # 1 test user only
