@@ -49,7 +49,7 @@ def test_model_records_the_split_and_its_layout(tiny_general_model: Path) -> Non
     cfg = yaml.safe_load(model_files(tiny_general_model)[2].read_text())
     assert WorldSplit.from_dict(cfg["worlds"]) == WorldSplit.load(RECIPE)
     assert WorldSplit.load(model_files(tiny_general_model)[2]) == WorldSplit.load(RECIPE)
-    assert cfg["observation_layout"] == observation_layout(6)
+    assert cfg["observation_layout"] == observation_layout(9)  # the shipped LC scripts: 9 choices
     assert cfg["phrase_graph_sha256"] is None  # each exercise speaks its own script
     evals = np.load(tiny_general_model.parent / "eval" / "evaluations.npz")
     assert evals["abs_am"].shape == (2, 2)  # two evaluations of the two validation users
@@ -118,7 +118,7 @@ def test_a_test_role_says_it_is_a_look(
     split.write_text(
         "worlds: {train: [external_rotation], validation: [hand_to_mouth], "
         "test: [shoulder_extension, shoulder_abduction], test_users: [7000000, 7000001], "
-        "graphs: {external_rotation: study}}\n"
+        "graphs: {}}\n"
     )
     args = ["--model", str(tiny_general_model), "--split", str(split), "--role", "test"]
     out = tmp_path / "look"
