@@ -3,16 +3,21 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from dataclasses import fields
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+from langenv.errors import ConfigError
 
 __all__ = [
     "MAX_SESSION_S",
     "MIN_SAMPLE_SPACING",
     "as_vec3",
     "check_time_axis",
+    "dataclass_from_dict",
     "finite_positive",
 ]
 
@@ -24,6 +29,28 @@ buffer) before any of it is made."""
 MIN_SAMPLE_SPACING = 1e-4
 """Smallest spacing (s) between two samples of a session CSV or speech trace (10 kHz). Sparse
 samples are fine (values are interpolated in between)."""
+
+
+T = TypeVar("T")
+
+
+def dataclass_from_dict(cls: type[T], data: object, where: str) -> T:
+    """The frozen dataclass ``cls`` built from plain data (a config's mapping of its fields).
+
+    Raises:
+        ConfigError: naming ``where``, for data that is not a mapping, an unknown field, or a
+            field that ``cls`` refuses (its own message, prefixed with ``where``).
+    """
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"{where}: expected a mapping, got {type(data).__name__}")
+    unknown = sorted(set(data) - {f.name for f in fields(cls)})  # type: ignore[arg-type]
+    if unknown:
+        raise ConfigError(f"{where}: unknown field(s) {', '.join(unknown)}")
+    try:
+        built: Any = cls(**data)
+    except ConfigError as exc:
+        raise ConfigError(f"{where}: {exc}") from None
+    return built
 
 
 def as_vec3(value: ArrayLike, name: str, error: type[Exception]) -> NDArray[np.float64]:

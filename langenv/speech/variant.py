@@ -23,12 +23,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 
 from langenv.errors import ConfigError, PhraseGraphError
 from langenv.speech.graph import _MAX_PAUSE, MAX_FILLER, Phrase, PhraseGraph
+from langenv.validation import dataclass_from_dict
 
 __all__ = ["GraphVariation", "vary_graph"]
 
@@ -78,15 +79,7 @@ class GraphVariation:
     @classmethod
     def from_dict(cls, data: Mapping[str, object], where: str = "GraphVariation") -> GraphVariation:
         """From plain data (a config's mapping); ConfigError naming ``where`` and the field."""
-        if not isinstance(data, Mapping):
-            raise ConfigError(f"{where}: expected a mapping, got {type(data).__name__}")
-        unknown = sorted(set(data) - {f.name for f in fields(cls)})
-        if unknown:
-            raise ConfigError(f"{where}: unknown field(s) {', '.join(unknown)}")
-        try:
-            return cls(**data)  # type: ignore[arg-type]
-        except ConfigError as exc:
-            raise ConfigError(f"{where}: {exc}") from None
+        return dataclass_from_dict(cls, data, where)
 
 
 def vary_graph(

@@ -37,6 +37,7 @@ import numpy as np
 from langenv.errors import ConfigError
 from langenv.users.base import against_motion, sample_table, sample_table_array
 from langenv.users.synthetic import SyntheticUser, SyntheticUserParams
+from langenv.validation import dataclass_from_dict
 
 __all__ = ["PERTURBATIONS", "Perturbations", "PerturbedUser"]
 
@@ -113,16 +114,7 @@ class Perturbations:
     @classmethod
     def from_dict(cls, data: Mapping[str, object], where: str = "Perturbations") -> Perturbations:
         """From plain data (a config's mapping); ConfigError naming ``where`` and the field."""
-        if not isinstance(data, Mapping):
-            raise ConfigError(f"{where}: expected a mapping, got {type(data).__name__}")
-        names = {f.name for f in fields(cls)}
-        unknown = sorted(set(data) - names)
-        if unknown:
-            raise ConfigError(f"{where}: unknown field(s) {', '.join(unknown)}")
-        try:
-            return cls(**data)  # type: ignore[arg-type]
-        except ConfigError as exc:
-            raise ConfigError(f"{where}: {exc}") from None
+        return dataclass_from_dict(cls, data, where)
 
     def probabilities(self) -> np.ndarray:
         """The weights of :data:`PERTURBATIONS` normalised, shape ``(5,)``."""
