@@ -14,6 +14,7 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
+from langenv import vec
 from langenv.robot.handles import ArmHandles
 from langenv.robot.rotation import rotation_vector
 
@@ -61,23 +62,17 @@ def solve_ik(
         mujoco.mj_comPos(model, data)
         jac = jacobian()
         err[:3] = target - site_xpos
-        residual = _norm(err[:3])
+        residual = vec.norm(err[:3])
         step = err[:3] * min(1.0, IK_MAX_STEP / max(residual, 1e-300))
         err[:3] = step
         if rotation is not None:
             err[3:] = rotation_vector(site_xmat.reshape(3, 3), rotation)
-        if _norm(err) < IK_TOL:
+        if vec.norm(err) < IK_TOL:
             break
         q = data.qpos[handles.qadr] + _damped_step(jac, err)
         data.qpos[handles.qadr] = np.clip(q, handles.lower, handles.upper)
     mujoco.mj_kinematics(model, data)
-    return _norm(target - site_xpos)
-
-
-def _norm(v: NDArray[np.float64]) -> float:
-    """Euclidean norm of a short vector, summed in index order (no BLAS kernel: the same
-    on any CPU)."""
-    return math.sqrt(sum(x * x for x in v.tolist()))
+    return vec.norm(target - site_xpos)
 
 
 def _damped_step(jac: NDArray[np.float64], err: NDArray[np.float64]) -> NDArray[np.float64]:
