@@ -410,6 +410,7 @@ def run_episode(job: Job) -> dict[str, Any]:
         utterances=base.speech.utterances(),
         phrase_graph=graph_ref,
         path=base.motion.trajectory.sample(200),
+        voice=graph.voice,
     )
     stem = Path(job.out_dir) / f"{policy.name}_{job.user}"
     if job.save_log:

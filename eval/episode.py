@@ -23,6 +23,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from langenv.errors import ConfigError, SessionDataError
+from langenv.speech.voice import VOICES
 
 __all__ = [
     "FLAG_TRACES",
@@ -140,6 +141,8 @@ class EpisodeLog:
             not recorded.
         phrase_graph: The phrase graph spoken: a shipped graph's key (``"lc"``...) or the YAML's
             absolute path; empty when unknown. With the utterances it re-renders the speech.
+        voice: How the graph voices the speech pace (:data:`langenv.speech.voice.VOICES`):
+            ``"stretch"`` (the paper's; recorded sessions) or ``"natural"``.
 
     Raises:
         ConfigError: (a ``ValueError``) naming the field, if a trace has the wrong shape, differing
@@ -167,6 +170,7 @@ class EpisodeLog:
     f_user: np.ndarray | None = None
     path: np.ndarray | None = None
     phrase_graph: str = ""
+    voice: str = "stretch"
 
     _scalars: ClassVar[tuple[str, ...]] = ("t_motion", "t_speech", "ret")
 
@@ -182,6 +186,8 @@ class EpisodeLog:
             raise ConfigError(
                 f"EpisodeLog.phrase_graph must be a str, got {type(self.phrase_graph).__name__}"
             )
+        if self.voice not in VOICES:
+            raise ConfigError(f"EpisodeLog.voice must be one of {list(VOICES)}, got {self.voice!r}")
         for name in self._scalars:
             value = getattr(self, name)
             try:
@@ -327,6 +333,7 @@ class EpisodeLog:
         for name in (*FLOAT_TRACES, *FLAG_TRACES):
             payload[name] = getattr(self, name)
         payload["phrase_graph"] = np.array(self.phrase_graph)
+        payload["voice"] = np.array(self.voice)
         for name in (*SCENE_TRACES, "path"):
             if getattr(self, name) is not None:
                 payload[name] = getattr(self, name)
@@ -379,6 +386,7 @@ class EpisodeLog:
                 t_motion, t_speech, ret = (float(v) for v in data["scalars"])
                 scene = {n: data[n] for n in (*SCENE_TRACES, "path") if n in data.files}
                 graph = str(data["phrase_graph"]) if "phrase_graph" in data.files else ""
+                voice = str(data["voice"]) if "voice" in data.files else "stretch"
                 return cls(
                     policy=str(data["policy"]),
                     user=str(data["user"]),
@@ -389,6 +397,7 @@ class EpisodeLog:
                     **traces,
                     **scene,
                     phrase_graph=graph,
+                    voice=voice,
                 )
         except SessionDataError:
             raise
@@ -502,6 +511,7 @@ class EpisodeRecorder:
         utterances: Sequence[Any] | None = None,
         phrase_graph: str = "",
         path: np.ndarray | None = None,
+        voice: str = "stretch",
     ) -> EpisodeLog:
         """The log of the recorded samples.
 
@@ -517,6 +527,7 @@ class EpisodeRecorder:
                 ``SpeechTimeline.utterances()``); default: read off the recorded ``phrase`` key.
             phrase_graph: The phrase graph spoken (see :attr:`EpisodeLog.phrase_graph`).
             path: The exercise path drawn in videos, shape ``(m, 3)`` (m).
+            voice: How the graph voices the speech pace (see :attr:`EpisodeLog.voice`).
 
         Raises:
             ConfigError: if fewer than two samples were recorded, a completion time is unknown,
@@ -576,6 +587,7 @@ class EpisodeRecorder:
             **scene,
             path=path,
             phrase_graph=phrase_graph,
+            voice=voice,
         )
 
     def _phrase_runs(self, t: np.ndarray, texts: Mapping[str, str]) -> list[Utterance]:

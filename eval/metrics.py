@@ -16,6 +16,10 @@ column             window       definition
 ``a_mean``         ``speech``   mean audio pace while speech is going on
 ``a_dev``          ``speech``   mean ``|a - 1|`` while speech is going on
 ``a_within_0_1``   ``speech``   share (0-1) of the speech time with ``|a - 1| <= 0.1``
+``voice_natural``  ``speech``   share (0-1) of the speech time in which the voice is heard within
+                                0.1 of its natural rate: ``|v - 1| <= 0.1`` with ``v`` the voice's
+                                rate (:func:`voice_trace`); equal to ``a_within_0_1`` for a
+                                stretched voice
 ``pause_share``    ``speech``   share (0-1) of the speech time in silence: pauses between clips
                                 and pause vertices
 ``filler_share``   ``speech``   share (0-1) of the speech time spent saying fillers
@@ -40,6 +44,7 @@ import numpy as np
 
 from eval.episode import EpisodeLog
 from langenv.errors import ConfigError
+from langenv.speech.voice import voice_rate
 
 __all__ = [
     "A_TOLERANCE",
@@ -54,6 +59,7 @@ __all__ = [
     "time_mean",
     "time_samples",
     "time_weights",
+    "voice_trace",
     "window_mask",
 ]
 
@@ -94,6 +100,9 @@ METRICS: dict[str, MetricSpec] = {
     "a_within_0_1": MetricSpec(
         "|a-1| <= 0.1", "%", 1, "share of speech time at near-natural pace", False
     ),
+    "voice_natural": MetricSpec(
+        "voice natural", "%", 1, "share of speech time with the voice within 0.1 of natural", False
+    ),
     "pause_share": MetricSpec("pauses", "%", 1, "share of speech time in silence (pauses)"),
     "filler_share": MetricSpec("fillers", "%", 1, "share of speech time saying fillers"),
     "p_mean": MetricSpec("mean p", "", 3, "mean physical pace while moving"),
@@ -110,8 +119,9 @@ NUMERIC_METRICS: tuple[str, ...] = tuple(METRICS)
 METRIC_COLUMNS: tuple[str, ...] = ("policy", "user", *NUMERIC_METRICS)
 """All columns of a session row (``sessions.csv``), in order."""
 
-OPTIONAL_METRICS: frozenset[str] = frozenset({"pause_share", "filler_share"})
-"""Metrics that tables of older runs lack (langctrl 0.4 and before): read as NaN."""
+OPTIONAL_METRICS: frozenset[str] = frozenset({"pause_share", "filler_share", "voice_natural"})
+"""Metrics that tables of older runs lack (langctrl 0.4 and before; ``voice_natural``: 0.5):
+read as NaN."""
 
 
 def time_weights(t: np.ndarray) -> np.ndarray:
@@ -220,9 +230,14 @@ def time_samples(log: EpisodeLog, name: str, window: Window, hz: float = 50.0) -
     return values[idx][mask[idx]]
 
 
-def speech_shares(log: EpisodeLog) -> dict[str, float]:
+def speech_shares(log: EpisodeLog, waiting: np.ndarray | None = None) -> dict[str, float]:
     """Shares of the speech time (from the log's start to the speech's end) in silence and in
     fillers, from the log's utterances.
+
+    Args:
+        log: The episode.
+        waiting: Samples at which a natural voice waits in silence inside a clip's slot
+            (:func:`voice_trace`), shape ``(n,)``; they count as silence.
 
     Returns:
         ``{"pause_share": ..., "filler_share": ...}``, each in [0, 1]; NaN when the speech took
@@ -233,11 +248,31 @@ def speech_shares(log: EpisodeLog) -> dict[str, float]:
     if span <= 0.0 or not clips:
         return {"pause_share": float("nan"), "filler_share": float("nan")}
     said = sum(min(u.t_end, log.t_speech) - u.t_start for u in clips)
+    if waiting is not None and waiting.any():
+        before_end = (log.t < log.t_speech) & waiting
+        said -= float(np.sum(time_weights(log.t)[before_end]))
     filler = sum(min(u.t_end, log.t_speech) - u.t_start for u in clips if u.filler)
     return {
         "pause_share": min(1.0, max(0.0, 1.0 - said / span)),
         "filler_share": min(1.0, max(0.0, filler / span)),
     }
+
+
+def voice_trace(log: EpisodeLog) -> tuple[np.ndarray, np.ndarray]:
+    """The rate at which the voice is heard at each sample of ``log``, and whether it waits in
+    silence there; shape ``(n,)`` each.
+
+    A stretched voice (``log.voice == "stretch"``) is heard at the speech pace ``a``. A natural
+    voice (:mod:`langenv.speech.voice`) says every clip but the last at ``max(a, 1)`` and then
+    waits at rate 1 until the clip's slot ends (:func:`langenv.speech.voice.voice_rate`); the
+    last clip of a finished speech follows ``a``.
+    """
+    if log.voice != "natural":
+        return log.a, np.zeros(log.n, dtype=bool)
+    clips = [u for u in log.utterances if not u.is_pause]
+    if clips and bool(log.speech_done[-1]):
+        clips = clips[:-1]  # the final clip ends with the speech: it follows a
+    return voice_rate(log.t, log.a, [(u.t_start, u.t_end) for u in clips])
 
 
 def episode_metrics(log: EpisodeLog) -> dict[str, float | str]:
@@ -255,6 +290,7 @@ def episode_metrics(log: EpisodeLog) -> dict[str, float | str]:
     motion = window_mask(log, "motion")
     either = window_mask(log, "either")
     dev = np.abs(log.a - 1.0)
+    voice, waiting = voice_trace(log)
     am = log.am
     row: dict[str, float | str] = {
         "policy": log.policy,
@@ -265,7 +301,10 @@ def episode_metrics(log: EpisodeLog) -> dict[str, float | str]:
         "a_mean": time_mean(log.a, t, speech),
         "a_dev": time_mean(dev, t, speech),
         "a_within_0_1": time_mean((dev <= A_TOLERANCE + _EPS).astype(np.float64), t, speech),
-        **speech_shares(log),
+        "voice_natural": time_mean(
+            (np.abs(voice - 1.0) <= A_TOLERANCE + _EPS).astype(np.float64), t, speech
+        ),
+        **speech_shares(log, waiting),
         "p_mean": time_mean(log.p, t, motion),
         "coop_mean": time_mean(log.cooperation, t, motion),
         "t_motion": log.t_motion,

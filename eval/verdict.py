@@ -39,6 +39,7 @@ Row = Mapping[str, Any]
 
 _SHARE_COLUMNS = {
     "a_within_0_1": "|a-1|<=0.1 %",
+    "voice_natural": "voice natural %",
     "pause_share": "pauses %",
     "filler_share": "fillers %",
 }
@@ -141,7 +142,7 @@ def print_verdict(
         no_color=not terminal,
         highlight=False,
         emoji=False,
-        width=None if terminal else 120,
+        width=None if terminal else 150,
     )
     header, body = verdict_table(rows, policies)
     table = Table(

@@ -247,9 +247,13 @@ BAD_GRAPHS = {
     "bad yaml": ("start: a\nphrases: {a: [unclosed\n", ["invalid YAML"]),
     "negative pause": ("start: a\npause: -1\nphrases:\n  a: {text: A, next: []}\n", ["pause"]),
     "string pause": ("start: a\npause: long\nphrases:\n  a: {text: A, next: []}\n", ["pause"]),
+    "unknown voice": (
+        "start: a\nvoice: robotic\nphrases:\n  a: {text: A, next: []}\n",
+        ["'voice' must be one of", "robotic"],
+    ),
     "unknown top key": (
-        "start: a\nvoice: en\nphrases:\n  a: {text: A, next: []}\n",
-        ["unknown key", "voice"],
+        "start: a\nlanguage: en\nphrases:\n  a: {text: A, next: []}\n",
+        ["unknown key", "language"],
     ),
     "unknown phrase key": (
         "start: a\nphrases:\n  a: {text: A, nxt: [], next: []}\n",

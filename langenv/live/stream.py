@@ -3,11 +3,12 @@
 A :class:`SpeechStream` follows one session. As the session's :class:`SpeechTimeline` starts a
 phrase, its clip is pushed to a :class:`~langenv.speech.vocoder.VariableRateVocoder`, followed by
 the graph's pause when the phrase has a successor (a pause vertex: its silence, pushed as it
-elapses, since its length is chosen as it goes); the loop records the audio pace of every
-step. Output sample ``j`` (at ``j / sr`` s into the session) is rendered in blocks of
-:data:`BLOCK` samples at the session's audio pace at the middle of its block (linear between the
-recorded steps), exactly as :func:`langenv.speech.render.render_history` renders a finished
-session, so the live audio equals the offline rendering of the same trace.
+elapses, since its length is chosen as it goes); the loop records the audio pace of every step (a
+graph with ``voice: natural`` is voiced by :class:`~langenv.speech.voice.NaturalVoice`). Output
+sample ``j`` (at ``j / sr`` s into the session) is rendered in blocks of :data:`BLOCK` samples at
+the session's audio pace at the middle of its block (linear between the recorded steps), exactly as
+:func:`langenv.speech.render.render_history` renders a finished session, so the live audio equals
+the offline rendering of the same trace.
 
 A block is rendered once the session is ``lag`` seconds past the block's end: by then the
 timeline has chosen the phrase the vocoder reads ahead into (it reads about ``(a + 1) n_fft / 2``
@@ -23,6 +24,7 @@ from langenv.errors import ConfigError
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.graph import PhraseGraph
 from langenv.speech.vocoder import VariableRateVocoder
+from langenv.speech.voice import NaturalVoice
 
 __all__ = ["BLOCK", "DEFAULT_LAG", "SpeechStream"]
 
@@ -67,6 +69,8 @@ class SpeechStream:
         self.next_sample = self.start_sample
         self.starved = 0
         self._voc = VariableRateVocoder(self.sr)
+        self._voice = NaturalVoice(self.sr) if graph.voice == "natural" else None
+        self._content = 0  # content samples pushed so far
         self._gap = np.zeros(round(graph.pause * self.sr), np.float32)
         self._pushed = 0  # phrases of the timeline's path pushed so far
         self._pauses_pushed = 0  # pause vertices among them
@@ -108,19 +112,26 @@ class SpeechStream:
                     )
                 want = round(pause_lengths[k] * self.sr)
                 if want > self._silence:
-                    self._voc.push(np.zeros(want - self._silence, np.float32))
+                    self._push(np.zeros(want - self._silence, np.float32))
                     self._silence = want
                 if self._pushed + 1 == len(path):
                     break  # the pause goes on
                 self._pauses_pushed += 1
                 self._silence = 0
             else:
-                self._voc.push(self.clips.clip(self.graph.phrases[phrase]))
+                clip = self.clips.clip(self.graph.phrases[phrase])
+                if self._voice is not None and self.graph.children(phrase):
+                    self._voice.clip(self._content / self.sr, (self._content + clip.size) / self.sr)
+                self._push(clip)
                 if self.graph.children(phrase) and self._gap.size:
-                    self._voc.push(self._gap)
+                    self._push(self._gap)
             self._pushed += 1
         if speech_done and not self._voc.finished:
             self._voc.finish()
+
+    def _push(self, y: np.ndarray) -> None:
+        self._voc.push(y)
+        self._content += y.size
 
     def trace(self) -> tuple[np.ndarray, np.ndarray]:
         """The recorded times (s) and audio paces, shape (n,) each (copies)."""
@@ -146,7 +157,10 @@ class SpeechStream:
                 y = np.zeros(BLOCK, np.float32)
             else:
                 pace = self._pace_at(t0 + (produced + 0.5 * BLOCK) / self.sr)
-                y = self._voc.pull(BLOCK, pace)
+                if self._voice is not None:
+                    y, _ = self._voice.block(self._voc, BLOCK, pace)
+                else:
+                    y = self._voc.pull(BLOCK, pace)
                 if y.size < BLOCK and not self._voc.done:
                     self.starved += 1
                     if y.size == 0:

@@ -20,6 +20,10 @@ A *script* says what the robot may say, one line per step of the exercise, in or
   its own line (between two steps) or inside an alternative (between two phrases).
 * ``{okay|so}`` is a choice of fillers the speech may say or skip before what follows.
 * ``@pause S`` (once, before the first step) sets the silence after every clip (default 1 s).
+* ``@voice natural`` (before the first step) voices the script as a person speaks: each clip at
+  its natural rate or faster, waiting in silence at its end when the person is slow, instead of
+  the paper's time-stretched voice (``@voice stretch``, the default); see
+  :mod:`langenv.speech.voice`.
 
 :func:`parse_script` turns a script into a :class:`Script` (its vertices, with the line and column
 each came from), :func:`graph_yaml` writes the YAML of a phrase graph (SPEC §4), deterministic
@@ -41,6 +45,7 @@ from pathlib import Path
 from langenv.errors import PhraseGraphError, ScriptError
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.graph import _MAX_PAUSE, DEFAULT_PAUSE, PhraseGraph
+from langenv.speech.voice import VOICES
 
 __all__ = ["Script", "Vertex", "author", "graph_yaml", "parse_script"]
 
@@ -78,6 +83,7 @@ class Script:
     path: Path
     pause: float
     vertices: dict[str, Vertex]
+    voice: str = "stretch"
 
     @property
     def start(self) -> str:
@@ -310,7 +316,7 @@ def parse_script(source: str, path: str | Path = "<script>") -> Script:
     """
     path = Path(path)
     b = _Builder(path)
-    pause = DEFAULT_PAUSE
+    settings: dict[str, object] = {"@pause": DEFAULT_PAUSE, "@voice": "stretch"}
     frontier: list[str] = []
     for number, raw in enumerate(source.splitlines(), start=1):
         text = raw.rstrip()
@@ -318,7 +324,7 @@ def parse_script(source: str, path: str | Path = "<script>") -> Script:
             continue
         line = _Line(path, number, text)
         if text.lstrip().startswith("@"):
-            pause = _directive(line, text, bool(frontier))
+            _directive(line, text, bool(frontier), settings)
             continue
         outs: list[list[str]] = []
         alternatives = line.alternatives()
@@ -344,16 +350,30 @@ def parse_script(source: str, path: str | Path = "<script>") -> Script:
             f"{path}:{v.line}:{v.column}: the speech can end with this pause; it must end with "
             "its last words (move the pause before a step, or make the last step required)"
         )
-    return Script(path, pause, b.vertices)
+    pause = settings["@pause"]
+    assert isinstance(pause, float)
+    return Script(path, pause, b.vertices, str(settings["@voice"]))
 
 
-def _directive(line: _Line, text: str, started: bool) -> float:
+def _directive(line: _Line, text: str, started: bool, settings: dict[str, object]) -> None:
+    """Apply one ``@`` line to ``settings``."""
     col = len(text) - len(text.lstrip()) + 1
     parts = text.split()
-    if parts[0] != "@pause":
-        raise line.error(col, f"unknown directive {parts[0]!r}; known: @pause SECONDS")
+    if parts[0] not in settings:
+        raise line.error(
+            col, f"unknown directive {parts[0]!r}; known: @pause SECONDS, @voice stretch|natural"
+        )
     if started:
-        raise line.error(col, "@pause must come before the first step")
+        raise line.error(col, f"{parts[0]} must come before the first step")
+    if parts[0] == "@voice":
+        if len(parts) != 2 or parts[1] not in VOICES:
+            raise line.error(col, f"@voice takes one of {', '.join(VOICES)}, got {text.strip()!r}")
+        settings["@voice"] = parts[1]
+        return
+    settings["@pause"] = _pause_seconds(line, text, col, parts)
+
+
+def _pause_seconds(line: _Line, text: str, col: int, parts: list[str]) -> float:
     try:
         value = float(parts[1]) if len(parts) == 2 else float("nan")
     except ValueError:
@@ -375,6 +395,10 @@ def graph_yaml(script: Script, source_name: str) -> str:
         "# edit the script and run the command again rather than editing this file.",
         f"start: {script.start}",
         f"pause: {_num(script.pause)}   # s of silence after each clip at a = 1",
+    ]
+    if script.voice != "stretch":
+        out.append(f"voice: {script.voice}   # how the speech pace is voiced")
+    out += [
         "phrases:",
     ]
     for v in script.vertices.values():

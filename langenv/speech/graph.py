@@ -12,7 +12,8 @@ Speech starts at ``start`` and ends at a terminal vertex (no ``next``). A vertex
 
 Between a clip (phrase or filler) and the vertex after it there is ``pause`` seconds of silence at
 audio pace 1 (a pause vertex lengthens that gap); there is none after the final phrase: the speech
-is over when its last word ends.
+is over when its last word ends. How the speech pace is voiced (the graph's ``voice``:
+time-stretched, or a natural voice that waits at a clip's end) is :mod:`langenv.speech.voice`.
 
 Time conventions (all at audio pace ``a = 1``, in seconds):
 
@@ -42,6 +43,7 @@ from typing import Any
 
 from langenv.errors import AudioError, ConfigError, PhraseGraphError
 from langenv.speech.audio import ClipLibrary
+from langenv.speech.voice import VOICES, Voice
 
 __all__ = [
     "DEFAULT_PAUSE",
@@ -85,7 +87,7 @@ SHIPPED_GRAPHS: Mapping[str, Path] = MappingProxyType(
 """The shipped phrase graphs of the default exercise, by name (the one place names resolve):
 ``default`` (also ``lc``, LC's graph), ``study`` (the study's LC graph), ``lc-noap`` and ``ac``."""
 
-_TOP_KEYS = frozenset({"start", "pause", "phrases"})
+_TOP_KEYS = frozenset({"start", "pause", "phrases", "voice"})
 _PHRASE_KEYS = frozenset({"text", "audio", "next", "filler", "pause"})
 _MAX_PAUSE = 10.0
 
@@ -205,6 +207,10 @@ class PhraseGraph:
         start: Id of the first phrase.
         duration: Clip length at a = 1 of every phrase and filler (s, > 0; pauses need none).
         pause: Silence after each clip at a = 1 (s, in [0, 10]).
+        voice: How the speech pace is voiced: ``"stretch"`` (the paper: the voice is
+            time-stretched by ``a``) or ``"natural"`` (clips said at ``max(a, 1)``, then a wait
+            until the timeline reaches their end); see :mod:`langenv.speech.voice`. It changes
+            the sound only, never the timeline.
         path: File the graph came from, named in error messages (None: built in memory).
 
     Raises:
@@ -222,6 +228,7 @@ class PhraseGraph:
         duration: Mapping[str, float],
         *,
         pause: float = DEFAULT_PAUSE,
+        voice: str = "stretch",
         path: str | Path | None = None,
     ) -> None:
         self.path: Path | None = None if path is None else Path(path)
@@ -245,6 +252,8 @@ class PhraseGraph:
             problems.append(
                 f"{label}: pause must be a number in [0, {_MAX_PAUSE}] s, got {pause!r}"
             )
+        if voice not in VOICES:
+            problems.append(f"{label}: voice must be one of {list(VOICES)}, got {voice!r}")
         problems += _structure_problems(label, table, start)
         if not problems:
             for pid, ph in table.items():
@@ -267,6 +276,8 @@ class PhraseGraph:
 
         self.start: str = start
         self.pause: float = float(pause)
+        self.voice: Voice = voice  # type: ignore[assignment]
+        """How the speech pace is voiced (:data:`langenv.speech.voice.VOICES`)."""
         self.phrases: Mapping[str, Phrase] = MappingProxyType(table)
         self.duration: Mapping[str, float] = MappingProxyType(
             {pid: 0.0 if ph.is_pause else float(duration[pid]) for pid, ph in table.items()}
@@ -344,7 +355,7 @@ class PhraseGraph:
             data = yaml.safe_load(source)
         except yaml.YAMLError as exc:
             raise PhraseGraphError(f"{path}: invalid YAML: {exc}") from None
-        start, pause, phrases = _parse(path, data)
+        start, pause, voice, phrases = _parse(path, data)
         problems = _structure_problems(str(path), phrases, start)
         if not problems:
             problems = _unreachable_problems(str(path), phrases, start)
@@ -366,7 +377,7 @@ class PhraseGraph:
                 problems.append(f"{path}: {exc}")
         if problems:
             raise PhraseGraphError("\n".join(problems))
-        return cls(phrases, start, durations, pause=pause, path=path)
+        return cls(phrases, start, durations, pause=pause, voice=voice, path=path)
 
     # ------------------------------------------------------------------ structure
     def children(self, u: str) -> tuple[str, ...]:
@@ -630,7 +641,7 @@ def _is_number(x: object) -> bool:
     return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
 
 
-def _parse(path: Path, data: object) -> tuple[str, float, dict[str, Phrase]]:
+def _parse(path: Path, data: object) -> tuple[str, float, str, dict[str, Phrase]]:
     """Check the YAML document's shape; build the phrases (all problems at once)."""
     if not isinstance(data, dict):
         kind = "empty" if data is None else f"a {type(data).__name__}"
@@ -650,6 +661,9 @@ def _parse(path: Path, data: object) -> tuple[str, float, dict[str, Phrase]]:
         problems.append(
             f"{path}: 'pause' must be a number of seconds in [0, {_MAX_PAUSE}], got {pause!r}"
         )
+    voice = data.get("voice", "stretch")
+    if voice not in VOICES:
+        problems.append(f"{path}: 'voice' must be one of {list(VOICES)}, got {voice!r}")
     raw = data.get("phrases")
     phrases: dict[str, Phrase] = {}
     if not isinstance(raw, dict) or not raw:
@@ -666,7 +680,7 @@ def _parse(path: Path, data: object) -> tuple[str, float, dict[str, Phrase]]:
     if problems:
         raise PhraseGraphError("\n".join(problems))
     assert isinstance(start, str)
-    return start, float(pause), phrases
+    return start, float(pause), str(voice), phrases
 
 
 def _parse_vertex(path: Path, pid: str, spec: object) -> tuple[Phrase | None, list[str]]:

@@ -11,9 +11,10 @@ until it is.
 * :func:`render_history` renders phrases already chosen (a finished env session's history).
 
 Both stream the content (clips and silences, at base pace) block by block through
-:class:`~langenv.speech.vocoder.VariableRateVocoder`. Silence goes through the vocoder like a clip
-(zeros), so it lasts its base-pace length divided by the pace, as in the speech timeline: a
-pause vertex sounds as the length chosen for it (:attr:`SpeechTimeline.pause_lengths
+:class:`~langenv.speech.vocoder.VariableRateVocoder`, voiced as the graph's ``voice`` says
+(stretched by the pace, or :class:`~langenv.speech.voice.NaturalVoice`). Silence goes through the
+vocoder like a clip (zeros), so it lasts its base-pace length divided by the pace, as in the speech
+timeline: a pause vertex sounds as the length chosen for it (:attr:`SpeechTimeline.pause_lengths
 <langenv.speech.timeline.SpeechTimeline.pause_lengths>`, or the ``length`` of its utterance).
 """
 
@@ -29,11 +30,13 @@ from langenv.errors import ConfigError
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.graph import PhraseGraph
 from langenv.speech.timeline import SpeechTimeline, Utterance
+from langenv.speech.voice import NaturalVoice
 from langenv.validation import check_time_axis
 
 __all__ = [
     "MAX_AUDIO_PACE",
     "MIN_AUDIO_PACE",
+    "natural_voice",
     "plan_speech",
     "render_history",
     "render_speech",
@@ -218,10 +221,33 @@ def render_history(
     # content kept pushed ahead of the vocoder's read position: its window plus two blocks
     lookahead = 4.0 * (vocoder_kw or {}).get("n_fft", 1024) / sr + 3.0 * _BLOCK / sr
     feeder = _Feeder(voc, _content(graph, clips, ids, pauses), sr, lookahead)
+    if graph.voice == "natural":
+        feeder.voice = natural_voice(graph, clips, ids, pauses)
     n_trace = round((tt[-1] - tt[0]) * sr)
     # the speech may outlast the trace: at most its content at the last pace, plus slack
     n_cap = n_trace + int((total / float(aa[-1]) + 1.0) * sr)
     return _render_blocks(voc, feeder, tt, aa, n_trace, n_cap, progress)
+
+
+def natural_voice(
+    graph: PhraseGraph, clips: ClipLibrary, ids: Sequence[str], pauses: Sequence[float]
+) -> NaturalVoice:
+    """The :class:`~langenv.speech.voice.NaturalVoice` of a path: every clip that has a
+    successor in the graph, at its place in the content of :func:`_content`."""
+    voice = NaturalVoice(clips.sr)
+    lengths = iter(pauses)
+    pos = 0
+    for k, u in enumerate(ids):
+        if u in graph.pauses:
+            pos += silence(next(lengths), clips.sr).size
+            continue
+        n = clips.clip(graph.phrases[u]).size
+        if graph.children(u):
+            voice.clip(pos / clips.sr, (pos + n) / clips.sr)
+        pos += n
+        if k + 1 < len(ids):
+            pos += silence(graph.pause, clips.sr).size
+    return voice
 
 
 def _pause_lengths(
@@ -278,6 +304,7 @@ class _Feeder:
         self.voc, self.pieces, self.sr, self.lookahead = voc, pieces, sr, lookahead
         self.pushed = 0.0
         self.finished = False
+        self.voice: NaturalVoice | None = None  # None: the voice is stretched by the pace
 
     def feed(self, force: bool = False) -> None:
         """Push pieces until the lookahead is covered (at least one with ``force``)."""
@@ -293,9 +320,11 @@ class _Feeder:
                 self.pushed += y.size / self.sr
 
     def pull(self, n: int, pace: float) -> np.ndarray:
-        """Up to ``n`` samples at ``pace``, topping the content up if the vocoder starves while
-        content remains."""
+        """Up to ``n`` samples at ``pace`` (the speech pace; voiced by :attr:`voice` when set),
+        topping the content up if the vocoder starves while content remains."""
         self.feed()
+        if self.voice is not None:
+            return self._pull_natural(n, pace, self.voice)
         y = self.voc.pull(n, pace)
         if y.size < n and not self.finished:
             parts = [y]
@@ -307,6 +336,17 @@ class _Feeder:
                 got += z.size
             y = np.concatenate(parts)
         return np.asarray(y)
+
+    def _pull_natural(self, n: int, pace: float, voice: NaturalVoice) -> np.ndarray:
+        y, starved = voice.block(self.voc, n, pace)
+        parts = [y]
+        got = y.size
+        while starved and got < n and not self.finished:
+            self.feed(force=True)
+            z, starved = voice.block(self.voc, n - got, pace)
+            parts.append(z)
+            got += z.size
+        return np.concatenate(parts) if len(parts) > 1 else y
 
 
 def _render_blocks(

@@ -147,6 +147,7 @@ def _variant(
         graph.start,
         {u: d for u, d in durations.items() if u in live},
         pause=min(graph.pause * scale, _MAX_PAUSE),
+        voice=graph.voice,
     )
 
 

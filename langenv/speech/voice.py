@@ -1,0 +1,180 @@
+"""How a speech pace is heard: the voice stretched (the paper) or a natural voice that waits.
+
+The pace law sets the *speech pace* ``a``: how fast the speech timeline moves through its
+content (clips, the silences after them and pause vertices, in seconds at ``a = 1``). How that
+pace is *voiced* is a property of the phrase graph (its ``voice`` key):
+
+``"stretch"`` (the study's graphs; the default)
+    The voice is time-stretched by ``a`` at every instant, as in the paper: a resisting person
+    hears slow speech.
+``"natural"`` (the product's scripts)
+    As a person speaks: a clip that has a successor is said at ``max(a, 1)`` from the moment the
+    timeline starts it, so the voice never drags, and once its words are said the voice *waits*
+    in silence until the timeline reaches the clip's end. The timeline, its ETC ``t_a``, every
+    phrase boundary and the speech's end are exactly those of ``"stretch"``: only where the
+    silence falls inside a clip's slot changes. The last clip (no successor) follows ``a``
+    itself, so the voice ends when the speech ends.
+
+The rule is causal (it needs only the pace so far and where the current clip ends), so the live
+audio stream and the offline rendering apply it block by block (:class:`NaturalVoice`), and the
+evaluation applies it to a session's log (:func:`voice_rate`) to measure how natural the voice
+was.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any, Literal
+
+import numpy as np
+
+from langenv.errors import ConfigError
+
+__all__ = ["VOICES", "NaturalVoice", "Voice", "check_voice", "voice_rate"]
+
+Voice = Literal["stretch", "natural"]
+VOICES: tuple[Voice, ...] = ("stretch", "natural")
+"""The ways a speech pace may be voiced (see the module docstring)."""
+
+_EPS = 1e-9
+
+
+def check_voice(value: object, where: str) -> Voice:
+    """``value`` as a :data:`Voice`.
+
+    Raises:
+        ConfigError: naming ``where``, for anything but one of :data:`VOICES`.
+    """
+    if value not in VOICES:
+        raise ConfigError(f"{where}: voice must be one of {list(VOICES)}, got {value!r}")
+    return value
+
+
+class NaturalVoice:
+    """The natural voice, block by block: how much of the vocoder to pull, at what pace.
+
+    The caller keeps the vocoder and declares each clip with a successor (:meth:`clip`: where
+    its words start and end in the content) as the clips are pushed. For every output block it
+    calls :meth:`block` with the speech pace of the block; the speech's own position (content
+    seconds the timeline has covered, the integral of ``a``) is kept here. Outside those clips
+    (the silence after a clip, pause vertices, the last clip) the voice follows ``a``.
+
+    Args:
+        sr: Sample rate (Hz) of content and output.
+    """
+
+    def __init__(self, sr: int) -> None:
+        if isinstance(sr, bool) or not isinstance(sr, int) or sr <= 0:
+            raise ConfigError(f"sr must be a positive integer (Hz), got {sr!r}")
+        self.sr = sr
+        self.speech_pos = 0.0
+        """Content seconds the speech timeline has covered (the integral of ``a``)."""
+        self._spans: list[tuple[float, float]] = []
+        self._k = 0  # first clip whose end the speech has not reached
+
+    def clip(self, start: float, end: float) -> None:
+        """Declare a clip with a successor: its words span content ``[start, end)`` (s).
+
+        Raises:
+            ConfigError: if the span is empty or clips are not declared in order.
+        """
+        if not end > start or (self._spans and start < self._spans[-1][1] - _EPS):
+            last = self._spans[-1] if self._spans else None
+            raise ConfigError(
+                f"NaturalVoice.clip: clips must be non-empty and in order, got "
+                f"[{start}, {end}) after {last}"
+            )
+        self._spans.append((float(start), float(end)))
+
+    def block(self, voc: Any, n: int, a: float) -> tuple[np.ndarray, bool]:
+        """Up to ``n`` output samples while the speech moves at pace ``a``.
+
+        Args:
+            voc: The :class:`~langenv.speech.vocoder.VariableRateVocoder` holding the content.
+            n: Samples wanted.
+            a: The speech pace over this block (> 0).
+
+        Returns:
+            ``(samples, starved)``: float32 audio, ``n`` samples unless the vocoder ran out of
+            content; ``starved`` when it did so before its content was finished.
+        """
+        parts: list[np.ndarray] = []
+        left = n
+        while left > 0:
+            m, pace, silent = self._plan(left, a, voc.content_time)
+            y = np.zeros(m, np.float32) if silent else np.asarray(voc.pull(m, pace), np.float32)
+            if y.size:
+                parts.append(y)
+                self.speech_pos += a * y.size / self.sr
+                left -= y.size
+            if y.size < m:
+                out = np.concatenate(parts) if parts else np.zeros(0, np.float32)
+                return out, not voc.done
+        return np.concatenate(parts), False
+
+    def _plan(self, n: int, a: float, voice_pos: float) -> tuple[int, float, bool]:
+        """``(samples, pace, silent)`` for the next piece of a block of ``n`` samples."""
+        spans, p = self._spans, self.speech_pos
+        while self._k < len(spans) and p >= spans[self._k][1] - _EPS:
+            self._k += 1
+        if self._k == len(spans):
+            return n, a, False
+        start, end = spans[self._k]
+        if p < start - _EPS:  # the speech is in the silence before the clip: follow a
+            if voice_pos < start - _EPS:
+                return self._upto(n, start - voice_pos, a), a, False
+            return self._upto(n, start - p, a), a, True
+        if voice_pos < end - 0.5 / self.sr:  # the clip's words: never slower than natural
+            pace = max(a, 1.0)
+            return self._upto(n, end - voice_pos, pace), pace, False
+        return self._upto(n, end - p, a), a, True  # said: wait for the speech
+
+    def _upto(self, n: int, content: float, pace: float) -> int:
+        """Samples (1..n) that cover ``content`` seconds of content at ``pace``."""
+        return min(n, max(1, math.ceil(content * self.sr / pace - 1e-6)))
+
+
+def voice_rate(
+    t: np.ndarray, a: np.ndarray, spans: Sequence[tuple[float, float]]
+) -> tuple[np.ndarray, np.ndarray]:
+    """The natural voice's rate at each sample of a session's log.
+
+    Each sample stands for the interval until the next one (zero-order hold, as in the
+    evaluation's metrics). Inside each span ``[t_start, t_end)`` of a clip with a successor the
+    voice says the clip at ``max(a, 1)`` until it has said as much as the speech covers in the
+    span, then waits (rate 1: silence, nothing stretched); elsewhere it follows ``a``.
+
+    Args:
+        t: Sample times (s), shape ``(n,)``, strictly increasing.
+        a: Speech pace at those times, shape ``(n,)``.
+        spans: ``(t_start, t_end)`` of the clips that wait (s), in order, not overlapping.
+
+    Returns:
+        ``(v, waiting)``: the voice's rate, shape ``(n,)`` (``a`` outside the spans), and whether
+        it waits in silence, shape ``(n,)``, bool.
+    """
+    t = np.asarray(t, dtype=np.float64)
+    a = np.asarray(a, dtype=np.float64)
+    if t.shape != a.shape or t.ndim != 1 or t.size < 2:
+        raise ConfigError(
+            f"t and a must have the same shape (n,), n >= 2; got {t.shape}, {a.shape}"
+        )
+    v = a.copy()
+    waiting = np.zeros(t.shape, dtype=bool)
+    ends = np.append(t[1:], t[-1] + (t[-1] - t[-2]))
+    for t0, t1 in spans:
+        lo = int(np.searchsorted(t, t0, side="right")) - 1
+        hi = int(np.searchsorted(t, t1, side="left"))
+        lo = max(lo, 0)
+        if hi <= lo:
+            continue
+        idx = np.arange(lo, hi)
+        w = np.clip(np.minimum(ends[idx], t1) - np.maximum(t[idx], t0), 0.0, None)
+        covered = float(np.sum(a[idx] * w))
+        said = np.cumsum(np.maximum(a[idx], 1.0) * w)
+        before = said - np.maximum(a[idx], 1.0) * w  # said when each sample starts
+        speaking = before < covered - _EPS
+        v[idx] = np.where(speaking, np.maximum(a[idx], 1.0), 1.0)
+        waiting[idx] = ~speaking
+    return v, waiting
