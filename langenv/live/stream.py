@@ -121,7 +121,9 @@ class SpeechStream:
             else:
                 clip = self.clips.clip(self.graph.phrases[phrase])
                 if self._voice is not None and self.graph.children(phrase):
-                    self._voice.clip(self._content / self.sr, (self._content + clip.size) / self.sr)
+                    start = self._content / self.sr
+                    gap = self._gap.size / self.sr
+                    self._voice.clip(start, start + clip.size / self.sr, gap)
                 self._push(clip)
                 if self.graph.children(phrase) and self._gap.size:
                     self._push(self._gap)

@@ -242,11 +242,10 @@ def natural_voice(
             pos += silence(next(lengths), clips.sr).size
             continue
         n = clips.clip(graph.phrases[u]).size
+        gap = silence(graph.pause, clips.sr).size if k + 1 < len(ids) else 0
         if graph.children(u):
-            voice.clip(pos / clips.sr, (pos + n) / clips.sr)
-        pos += n
-        if k + 1 < len(ids):
-            pos += silence(graph.pause, clips.sr).size
+            voice.clip(pos / clips.sr, (pos + n) / clips.sr, gap / clips.sr)
+        pos += n + gap
     return voice
 
 

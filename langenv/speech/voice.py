@@ -31,13 +31,18 @@ import numpy as np
 
 from langenv.errors import ConfigError
 
-__all__ = ["VOICES", "NaturalVoice", "Voice", "check_voice", "voice_rate"]
+__all__ = ["VOICES", "WAIT_AFTER", "NaturalVoice", "Voice", "check_voice", "voice_rate"]
 
 Voice = Literal["stretch", "natural"]
 VOICES: tuple[Voice, ...] = ("stretch", "natural")
 """The ways a speech pace may be voiced (see the module docstring)."""
 
 _EPS = 1e-9
+
+WAIT_AFTER = 0.06
+"""How far into the silence after a clip the natural voice goes before it waits (s, at most that
+silence): the vocoder's last frames of the clip (its window is 46 ms) are heard before the wait,
+not after it."""
 
 
 def check_voice(value: object, where: str) -> Voice:
@@ -73,8 +78,10 @@ class NaturalVoice:
         self._spans: list[tuple[float, float]] = []
         self._k = 0  # first clip whose end the speech has not reached
 
-    def clip(self, start: float, end: float) -> None:
-        """Declare a clip with a successor: its words span content ``[start, end)`` (s).
+    def clip(self, start: float, end: float, silence_after: float = 0.0) -> None:
+        """Declare a clip with a successor: its words span content ``[start, end)`` (s), and
+        ``silence_after`` seconds of silence follow them (the voice waits up to
+        :data:`WAIT_AFTER` into it).
 
         Raises:
             ConfigError: if the span is empty or clips are not declared in order.
@@ -85,7 +92,7 @@ class NaturalVoice:
                 f"NaturalVoice.clip: clips must be non-empty and in order, got "
                 f"[{start}, {end}) after {last}"
             )
-        self._spans.append((float(start), float(end)))
+        self._spans.append((float(start), float(end) + min(max(silence_after, 0.0), WAIT_AFTER)))
 
     def block(self, voc: Any, n: int, a: float) -> tuple[np.ndarray, bool]:
         """Up to ``n`` output samples while the speech moves at pace ``a``.

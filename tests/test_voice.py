@@ -1,0 +1,201 @@
+"""The natural voice: clips said at max(a, 1), then a wait until the timeline reaches their end."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from eval.episode import EpisodeLog, Utterance
+from eval.metrics import episode_metrics, voice_trace
+from langenv.errors import ConfigError, PhraseGraphError, ScriptError
+from langenv.speech.audio import ClipLibrary
+from langenv.speech.author import author, parse_script
+from langenv.speech.graph import Phrase, PhraseGraph
+from langenv.speech.render import render_history
+from langenv.speech.variant import GraphVariation, vary_graph
+from langenv.speech.voice import NaturalVoice, check_voice, voice_rate
+
+
+@pytest.fixture(scope="module")
+def clips(tmp_path_factory: pytest.TempPathFactory) -> ClipLibrary:
+    return ClipLibrary(cache_dir=tmp_path_factory.mktemp("tts"))
+
+
+def two_clips(clips: ClipLibrary, voice: str) -> PhraseGraph:
+    phrases = [
+        Phrase("a", "I want you to move your hand away from your body.", None, ("b",)),
+        Phrase("b", "And you're done.", None, ()),
+    ]
+    dur = {p.id: clips.duration(p) for p in phrases}
+    return PhraseGraph(phrases, "a", dur, pause=0.3, voice=voice)
+
+
+def sound_runs(y: np.ndarray, sr: int, gap: float = 0.15) -> list[tuple[float, float]]:
+    """(start, end) in s of the stretches of sound separated by silences longer than ``gap``."""
+    loud = np.flatnonzero(np.abs(y) > 1e-3)
+    runs = [[loud[0], loud[0]]]
+    for k in loud[1:]:
+        if k - runs[-1][1] > gap * sr:
+            runs.append([k, k])
+        runs[-1][1] = k
+    return [(s / sr, e / sr) for s, e in runs]
+
+
+def test_at_a_slow_pace_the_natural_voice_says_the_clip_at_its_rate_then_waits(
+    clips: ClipLibrary,
+) -> None:
+    a_slow = 0.6
+    t = np.linspace(0.0, 12.0, 601)
+    a = np.full_like(t, a_slow)
+    sr = clips.sr
+    stretched = render_history(two_clips(clips, "stretch"), clips, ["a", "b"], t, a)
+    natural = render_history(two_clips(clips, "natural"), clips, ["a", "b"], t, a)
+    length_a = two_clips(clips, "natural").duration["a"]
+    slot_end = length_a / a_slow  # where the timeline leaves the first clip
+    first_n = sound_runs(natural, sr)[0]
+    first_s = [r for r in sound_runs(stretched, sr) if r[0] < slot_end][-1]
+    # the first clip: said in about its own length (natural rate), not stretched to 1/0.6 of it
+    assert first_n[1] - first_n[0] < 1.05 * length_a
+    assert first_s[1] - first_n[0] > 1.4 * length_a
+    # ...and then silence until the slot ends: the second clip starts where the stretched one does
+    second_n = next(r for r in sound_runs(natural, sr) if r[0] > first_n[1] + 0.2)
+    second_s = next(r for r in sound_runs(stretched, sr) if r[0] > slot_end)
+    assert second_n[0] == pytest.approx(second_s[0], abs=0.03)
+    # the last clip follows the pace: both voices end together
+    assert sound_runs(natural, sr)[-1][1] == pytest.approx(
+        sound_runs(stretched, sr)[-1][1], abs=0.03
+    )
+
+
+def test_at_paces_of_one_or_more_the_natural_voice_is_the_stretched_one(clips: ClipLibrary) -> None:
+    t = np.linspace(0.0, 8.0, 401)
+    a = 1.0 + 0.3 * (t / 8.0)
+    stretched = render_history(two_clips(clips, "stretch"), clips, ["a", "b"], t, a)
+    natural = render_history(two_clips(clips, "natural"), clips, ["a", "b"], t, a)
+    assert natural.shape == stretched.shape
+    np.testing.assert_allclose(natural, stretched, atol=1e-5)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    paces=st.lists(st.floats(0.6, 1.4), min_size=8, max_size=60),
+    start=st.floats(0.0, 0.3),
+    width=st.floats(0.2, 0.7),
+)
+def test_voice_rate_says_exactly_what_the_speech_covers(
+    paces: list[float], start: float, width: float
+) -> None:
+    n = len(paces)
+    t = np.arange(n) * 0.05
+    a = np.asarray(paces)
+    t0 = start * t[-1]
+    t1 = t0 + width * t[-1]
+    v, waiting = voice_rate(t, a, [(t0, t1)])
+    inside = (t >= t0 - 0.05) & (t < t1)
+    np.testing.assert_array_equal(v[~inside], a[~inside])  # outside the clip: the pace itself
+    speaking = inside & ~waiting
+    assert np.all(v[speaking] >= np.maximum(a[speaking], 1.0) - 1e-12)  # never slower than 1
+    assert np.all(v[waiting] == 1.0) and not waiting[~inside].any()
+    ends = np.append(t[1:], t[-1] + 0.05)
+    w = np.clip(np.minimum(ends, t1) - np.maximum(t, t0), 0.0, None)
+    covered, said = float(np.sum(a * w)), float(np.sum((v * w)[speaking]))
+    # the voice says what the timeline covers, to within the sample it finishes in
+    assert said >= covered - 1e-9
+    assert said <= covered + 1.4 * 0.05 + 1e-9
+    # once waiting, it waits until the clip's slot ends
+    if waiting.any():
+        first = int(np.flatnonzero(waiting)[0])
+        assert waiting[first : int(np.flatnonzero(inside)[-1]) + 1].all()
+
+
+def test_voice_rate_and_natural_voice_reject_bad_input() -> None:
+    with pytest.raises(ConfigError, match="same shape"):
+        voice_rate(np.zeros(3), np.ones(4), [])
+    with pytest.raises(ConfigError, match="sr must be"):
+        NaturalVoice(0)
+    voice = NaturalVoice(100)
+    voice.clip(0.0, 1.0)
+    with pytest.raises(ConfigError, match="in order"):
+        voice.clip(0.5, 2.0)
+    with pytest.raises(ConfigError, match="voice must be one of"):
+        check_voice("robotic", "test")
+
+
+def log_of(voice: str, a_slow: float = 0.6) -> EpisodeLog:
+    t = np.arange(0.0, 6.0, 0.02)
+    n = t.size
+    a = np.full(n, a_slow)
+    done = t >= 5.0
+    utt = (Utterance("a", "A", 0.0, 2.5), Utterance("b", "B", 2.9, 5.0))
+    return EpisodeLog(
+        policy="lc",
+        user="u",
+        t=t,
+        cooperation=np.full(n, 0.9),
+        hand_speed=np.zeros(n),
+        p=np.ones(n),
+        a=a,
+        t_x=np.zeros(n),
+        t_a=np.zeros(n),
+        em=np.zeros(n),
+        motion_done=done,
+        speech_done=done,
+        utterances=utt,
+        t_motion=5.0,
+        t_speech=5.0,
+        ret=0.0,
+        voice=voice,
+    )
+
+
+def test_metrics_hear_the_natural_voice_and_count_its_waits_as_pauses(tmp_path: Path) -> None:
+    stretched, natural = episode_metrics(log_of("stretch")), episode_metrics(log_of("natural"))
+    assert stretched["voice_natural"] == stretched["a_within_0_1"] == 0.0
+    # clip 'a' (2.5 s slot at a = 0.6: 1.5 s of words) is said in 1.5 s, then 1 s of waiting;
+    # the gap (0.4 s) and the last clip (2.1 s) follow a = 0.6: (1.5 + 1.0) / 5 s natural
+    assert natural["voice_natural"] == pytest.approx(2.5 / 5.0, abs=0.01)
+    assert natural["a_within_0_1"] == 0.0  # the speech pace itself is the same
+    assert stretched["pause_share"] == pytest.approx(0.4 / 5.0, abs=0.01)
+    assert natural["pause_share"] == pytest.approx(1.4 / 5.0, abs=0.01)
+    _v, waiting = voice_trace(log_of("natural"))
+    assert waiting.sum() * 0.02 == pytest.approx(1.0, abs=0.03)
+    path = log_of("natural").save_npz(tmp_path / "log.npz")
+    assert EpisodeLog.load_npz(path).voice == "natural"
+    with pytest.raises(ConfigError, match="voice"):
+        log_of("robotic")
+
+
+def test_the_graph_and_its_variants_carry_the_voice(tmp_path: Path, clips: ClipLibrary) -> None:
+    g = two_clips(clips, "natural")
+    assert g.voice == "natural"
+    varied = vary_graph(g, np.random.default_rng(0), GraphVariation(p_add=0.0, p_drop=0.0))
+    assert varied.voice == "natural"
+    with pytest.raises(PhraseGraphError, match="voice must be one of"):
+        PhraseGraph([Phrase("a", "A", None, ())], "a", {"a": 1.0}, voice="robotic")
+    assert PhraseGraph.load("langenv/assets/graphs/study.yaml").voice == "stretch"
+    assert PhraseGraph.load("langenv/assets/graphs/default.yaml").voice == "natural"
+
+
+def test_scripts_choose_their_voice_with_a_directive(tmp_path: Path, clips: ClipLibrary) -> None:
+    script = tmp_path / "s.txt"
+    script.write_text("@voice natural\nGo on.\nAnd you're done.\n")
+    graph = author(script, tmp_path / "s.yaml", clips)
+    assert graph.voice == "natural"
+    assert "voice: natural" in (tmp_path / "s.yaml").read_text()
+    assert parse_script("Go on.\n").voice == "stretch"
+    assert "voice" not in (tmp_path / "s.yaml").read_text().split("phrases:")[1]
+    bad = {
+        "@voice robotic\nGo.\n": "s.txt:1:1: @voice takes one of stretch, natural",
+        "Go.\n@voice natural\nDone.\n": "s.txt:2:1: @voice must come before the first step",
+        "@voice\nGo.\n": "s.txt:1:1: @voice takes one of",
+    }
+    for text, message in bad.items():
+        script.write_text(text)
+        with pytest.raises(ScriptError) as info:
+            author(script, tmp_path / "bad.yaml", clips)
+        assert message in str(info.value)
+        assert not (tmp_path / "bad.yaml").exists()
