@@ -7,12 +7,12 @@ Run::
 runs ``python -m eval.compare --exercise NAME --policies ac,lc-noap,lc`` for each shipped exercise
 (into ``OUT/NAME``, figures and WAVs as usual), then reads the runs back and prints, per exercise
 and controller, the medians of motion time, ``|AM|``, mean ``|EM|``, the share of speech time with
-``|a - 1| <= 0.1``, the protective stops, and the hand's largest distance from the path (from the
-logged joint positions: the handle's position by forward kinematics, its distance to the nearest
-point of the exercise's path). ``--table-only`` reads existing runs without running anything.
-Exit status 1 when an episode ended in a protective stop or left the path by more than the
-safety's ``max_deviation``, or LC's median ``|AM|`` is not below AC's.
-"""
+``|a - 1| <= 0.1`` and with the voice heard within 0.1 of its natural rate, the protective stops,
+and the hand's largest distance from the path (from the logged joint positions: the handle's
+position by forward kinematics, its distance to the nearest point of the exercise's path).
+``--table-only`` reads existing runs without running anything. Exit status 1 when an episode ended
+in a protective stop or left the path by more than the safety's ``max_deviation``, or LC's median
+``|AM|`` is not below AC's. """
 
 from __future__ import annotations
 
@@ -71,6 +71,7 @@ def exercise_rows(run_dir: Path, name: str) -> list[dict[str, Any]]:
             dev = max(dev, path_deviation(np.asarray(log.qpos, np.float64), ex))
         values = {k: [float(r[k]) for r in mine] for k in ("t_motion", "abs_am", "em_mean_abs")}
         share = [float(r["a_within_0_1"]) for r in mine]
+        voice = [float(r.get("voice_natural", math.nan)) for r in mine]
         finite = all(math.isfinite(v) for vs in values.values() for v in vs)
         out.append(
             {
@@ -81,6 +82,7 @@ def exercise_rows(run_dir: Path, name: str) -> list[dict[str, Any]]:
                 "abs_am": float(np.median(values["abs_am"])),
                 "em": float(np.median(values["em_mean_abs"])),
                 "a_share": float(np.median(share)),
+                "voice_share": float(np.median(voice)),
                 "stops": int(sum(float(r["protective_stop"]) for r in mine)),
                 "truncated": int(sum(float(r["truncated"]) for r in mine)),
                 "deviation": dev,
@@ -94,13 +96,14 @@ def table(rows: list[dict[str, Any]]) -> str:
     """The rows as a Markdown table."""
     lines = [
         "| exercise | controller | motion time (s) | median abs(AM) (s) | median mean abs(EM) (s) "
-        "| share abs(a - 1) <= 0.1 | protective stops | max path deviation (mm) |",
-        "|---|---|---|---|---|---|---|---|",
+        "| share abs(a - 1) <= 0.1 | voice natural | protective stops | max path deviation (mm) |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         lines.append(
             f"| {r['exercise']} | {r['policy']} | {r['t_motion']:.2f} | {r['abs_am']:.2f} | "
-            f"{r['em']:.2f} | {100 * r['a_share']:.0f} % | {r['stops']} | "
+            f"{r['em']:.2f} | {100 * r['a_share']:.0f} % | {100 * r['voice_share']:.0f} % | "
+            f"{r['stops']} | "
             f"{1000 * r['deviation']:.0f} |"
         )
     return "\n".join(lines)
@@ -131,9 +134,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--out", type=Path, required=True)
     p.add_argument("--table-only", action="store_true", help="read existing runs in --out")
+    p.add_argument(
+        "--exercises",
+        default=",".join(SHIPPED_EXERCISES),
+        help="comma-separated shipped exercises (default: all)",
+    )
     ns = p.parse_args(argv)
+    names = [n.strip() for n in ns.exercises.split(",") if n.strip()]
+    unknown = sorted(set(names) - set(SHIPPED_EXERCISES))
+    if unknown or not names:
+        p.error(f"--exercises: unknown {unknown or 'none given'}; known: {list(SHIPPED_EXERCISES)}")
     rows: list[dict[str, Any]] = []
-    for name in SHIPPED_EXERCISES:
+    for name in names:
         run_dir = ns.out / name
         if not ns.table_only:
             from eval.compare import main as compare

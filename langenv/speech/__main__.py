@@ -209,7 +209,7 @@ def _summary(graph: PhraseGraph) -> str:
     return (
         f"{graph.path}: OK, {', '.join(kinds)}, {_n(graph.count_paths(), 'path')}, speech "
         f"{graph.t_min(start):.2f}-{graph.t_max(start):.2f} s at a = 1 "
-        f"(shortest-longest, pause {graph.pause:g} s)"
+        f"(shortest-longest, pause {graph.pause:g} s), voice {graph.voice}"
     )
 
 
