@@ -11,11 +11,11 @@ choices cannot read an exercise script with 9, nor be fine-tuned on one (``--ini
 the same spaces). The widened model has the new child blocks inserted after the old ones, with
 zero weights into both first layers (actor and critic) and neutral normalisation statistics
 (mean 0, variance 1): its actions and values are the original's (to rounding) for any values of
-the new inputs, and fine-tuning can learn to read them. Writes ``OUT.zip``, ``OUT_vecnormalize.pkl`` and
-``OUT_config.yaml``, whose ``residual.max_children``, ``observation_layout`` and phrase graph
-(``--phrase-graph``, default ``lc``: the exercise's own script) are the new ones and whose
-``widened_from`` records the source (file name, SHA-256, ``max_children``). The result is
-loaded once with :meth:`policies.learned.PPOPolicy.load`.
+the new inputs, and fine-tuning can learn to read them. Writes ``OUT.zip``,
+``OUT_vecnormalize.pkl`` and ``OUT_config.yaml``, whose ``residual.max_children``,
+``observation_layout`` and phrase graph (``--phrase-graph``, default ``lc``: the exercise's own
+script) are the new ones and whose ``widened_from`` records the source (file name, SHA-256,
+``max_children``). The result is loaded once with :meth:`policies.learned.PPOPolicy.load`.
 """
 
 from __future__ import annotations
