@@ -122,6 +122,13 @@ class ResidualSpec:
             alignment before that and on the phrase choice).
         k_em: Extra feedback of the base-pace misalignment on the base's physical pace (1/s;
             see :class:`policies.analytic.LanguageController`); 0: the paper's LC, 1: ``lc-em``.
+        gate_em: The correction's gate (s, >= 0; 0: always on). While the misalignment at base
+            pace ``|t_a - t_x|`` is below it, the whole correction is off (paces and phrase
+            choice: the base as it is), so the network acts only where the base lets the
+            alignment slip; a base that keeps it is left alone to the bit.
+        deadband: Dead band of the correction (in ``[0, 1)``; 0: none): each component of ``r``
+            acts as ``sign(r) max(0, |r| - deadband) / (1 - deadband)``, so that small outputs
+            leave the base alone and the network must commit to correct it.
     """
 
     choice_mode: Literal["target", "scores"] = "target"
@@ -132,6 +139,8 @@ class ResidualSpec:
     decision_hz: int = 50
     terminal: float = 0.0
     k_em: float = 0.0
+    gate_em: float = 0.0
+    deadband: float = 0.0
 
     def __post_init__(self) -> None:
         if self.choice_mode not in ("target", "scores"):
@@ -146,7 +155,7 @@ class ResidualSpec:
             raise ConfigError(
                 f"ResidualSpec.decision_hz must be a positive int, got {self.decision_hz!r}"
             )
-        for name in ("pace_scale", "audio_scale", "choice_scale", "terminal", "k_em"):
+        for name in ("pace_scale", "audio_scale", "choice_scale", "terminal", "k_em", "gate_em"):
             value = getattr(self, name)
             if name == "audio_scale" and value is None:
                 continue
@@ -158,6 +167,8 @@ class ResidualSpec:
             ):
                 bound = "> 0" if strict else ">= 0"
                 raise ConfigError(f"ResidualSpec.{name} must be finite and {bound}, got {value!r}")
+        if not (isinstance(self.deadband, int | float) and 0.0 <= self.deadband < 1.0):
+            raise ConfigError(f"ResidualSpec.deadband must be in [0, 1), got {self.deadband!r}")
 
     @property
     def audio_gain(self) -> float:
@@ -280,9 +291,15 @@ class ResidualLC:
         if self._obs.size == 0:
             raise ConfigError("ResidualLC.action called before start(observation)")
         r = np.clip(r, -1.0, 1.0)
+        if spec.deadband > 0.0:
+            r = np.sign(r) * np.maximum(0.0, np.abs(r) - spec.deadband) / (1.0 - spec.deadband)
         obs, lim, lc = self._obs, self.limits, self._base
         if self._base_final:
             r[:2] = 0.0  # the base's terminal law has the last word on the paces
+        if spec.gate_em > 0.0 and abs(ob.seconds(obs, Obs.T_A) - ob.seconds(obs, Obs.T_X)) < (
+            spec.gate_em
+        ):
+            r[:] = 0.0  # the base holds the alignment: no correction at all
         if spec.pace_scale == 0.0:
             r[0] = 0.0  # no physical pace correction (the ignored output is not fed back)
         if spec.audio_gain == 0.0:

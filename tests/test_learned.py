@@ -177,6 +177,39 @@ def test_zero_pace_scales_leave_the_paces_to_the_base() -> None:
     assert np.array_equal(choice_only.observe(obs)[-2:], np.zeros(2))
 
 
+def test_gate_leaves_an_aligned_base_alone() -> None:
+    """gate_em: while |t_a - t_x| is below it, any correction gives the base's action exactly
+    (paces and phrase choice); once the misalignment reaches it, the correction acts."""
+    gated = ResidualLC(ResidualSpec(k_em=1.0, gate_em=0.05))
+    base = ResidualLC(ResidualSpec(k_em=1.0))
+    push = np.array([1.0, -1.0, 0.6])
+    for t_a, acts in ((6.03, False), (6.2, True)):
+        obs = _obs(6.0, t_a, 0.7, [3.0, 8.0], 2)
+        gated.start(obs)
+        base.start(obs)
+        got, zero = gated.action(push), base.action(np.zeros(3))
+        assert np.array_equal(got, zero) != acts
+        if acts:
+            np.testing.assert_array_equal(got, base.action(push))
+        else:
+            assert np.array_equal(gated.observe(obs)[-2:], np.zeros(2))
+
+
+def test_deadband_zeroes_small_corrections_and_rescales_the_rest() -> None:
+    """deadband d: |r| <= d acts as 0; r acts as sign(r) (|r| - d) / (1 - d), up to 1 at |r| = 1."""
+    banded = ResidualLC(ResidualSpec(k_em=1.0, deadband=0.2))
+    plain = ResidualLC(ResidualSpec(k_em=1.0))
+    obs = _obs(6.0, 6.5, 0.7, [3.0, 8.0], 2)
+    banded.start(obs)
+    plain.start(obs)
+    np.testing.assert_array_equal(
+        banded.action(np.array([0.2, -0.15, 0.1])), plain.action(np.zeros(3))
+    )
+    np.testing.assert_allclose(
+        banded.action(np.array([0.6, -1.0, -0.4])), plain.action(np.array([0.5, -1.0, -0.25]))
+    )
+
+
 def test_residual_spec_and_core_reject_bad_input() -> None:
     with pytest.raises(ConfigError, match="choice_mode"):
         ResidualSpec(choice_mode="argmax")  # type: ignore[arg-type]
@@ -192,6 +225,10 @@ def test_residual_spec_and_core_reject_bad_input() -> None:
         ResidualSpec(terminal=-1.0)
     with pytest.raises(ConfigError, match="k_em"):
         ResidualSpec(k_em=float("inf"))
+    with pytest.raises(ConfigError, match="gate_em"):
+        ResidualSpec(gate_em=-0.01)
+    with pytest.raises(ConfigError, match="deadband"):
+        ResidualSpec(deadband=1.0)
     core = ResidualLC(ResidualSpec())
     with pytest.raises(ConfigError, match="before start"):
         core.action(np.zeros(3))

@@ -464,7 +464,9 @@ def test_init_from_rejects_what_does_not_fit(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(
-    "config", sorted((REPO / "configs").glob("ppo*.yaml")), ids=lambda p: p.name
+    "config",
+    sorted([*(REPO / "configs").glob("ppo*.yaml"), *(REPO / "configs/experiments").glob("*.yaml")]),
+    ids=lambda p: p.name,
 )
 def test_every_shipped_config_resolves(config: Path) -> None:
     """Each training config parses: its train section, wrappers, schedules and network."""

@@ -49,6 +49,10 @@ class ResidualLCWrapper(gym.ActionWrapper[np.ndarray, np.ndarray, np.ndarray]):
             :class:`policies.learned.ResidualSpec`).
         k_em: Extra feedback of the base-pace misalignment on the base LC's physical pace (1/s;
             0: the paper's LC; see :class:`policies.learned.ResidualSpec`).
+        gate_em: The correction is off while ``|t_a - t_x|`` is below it (s; 0: always on; see
+            :class:`policies.learned.ResidualSpec`).
+        deadband: Dead band of the correction (0: none; see
+            :class:`policies.learned.ResidualSpec`).
 
     Raises:
         ConfigError: if ``choice_mode`` differs from the env's or a scale is invalid.
@@ -63,6 +67,8 @@ class ResidualLCWrapper(gym.ActionWrapper[np.ndarray, np.ndarray, np.ndarray]):
         audio_scale: float | None = None,
         terminal: float = 0.0,
         k_em: float = 0.0,
+        gate_em: float = 0.0,
+        deadband: float = 0.0,
     ) -> None:
         super().__init__(env)
         base: Any = env.unwrapped
@@ -80,6 +86,8 @@ class ResidualLCWrapper(gym.ActionWrapper[np.ndarray, np.ndarray, np.ndarray]):
             decision_hz=int(base.decision_hz),
             terminal=float(terminal),
             k_em=float(k_em),
+            gate_em=float(gate_em),
+            deadband=float(deadband),
         )
         self.core = ResidualLC(self.residual_spec, base.paces.limits)
         n_obs = int(np.prod(env.observation_space.shape or (0,))) + self.core.n_features

@@ -1,0 +1,159 @@
+"""Widen a saved model to phrase graphs with more choices, acting exactly as before.
+
+Run::
+
+    python -m train.widen models/ppo_aligner.zip --max-children 9 --out runs/widened/ppo_aligner9
+    python -m train.ppo --config configs/ppo_general.yaml --init-from runs/widened/ppo_aligner9.zip
+
+The learned policy's input holds one block of ``langenv.observation.CHILD_FIELDS`` inputs per choice
+of the graph's largest out-degree (``max_children``), so a model trained on a graph with 6
+choices cannot read an exercise script with 9, nor be fine-tuned on one (``--init-from`` needs
+the same spaces). The widened model has the new child blocks inserted after the old ones, with
+zero weights into both first layers (actor and critic) and neutral normalisation statistics
+(mean 0, variance 1): its actions and values are the original's (to rounding) for any values of
+the new inputs, and fine-tuning can learn to read them. Writes ``OUT.zip``,
+``OUT_vecnormalize.pkl`` and ``OUT_config.yaml``, whose ``residual.max_children``,
+``observation_layout`` and phrase graph (``--phrase-graph``, default ``lc``: the exercise's own
+script) are the new ones and whose ``widened_from`` records the source (file name, SHA-256,
+``max_children``). The result is loaded once with :meth:`policies.learned.PPOPolicy.load`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import pickle
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+__all__ = ["main", "widen"]
+
+_FIRST_LAYERS = ("mlp_extractor.policy_net.0.weight", "mlp_extractor.value_net.0.weight")
+
+
+def widen(src: Path, max_children: int, out: Path, phrase_graph: str = "lc") -> Path:
+    """Write the widened copy of model ``src`` (module docstring); returns ``OUT.zip``.
+
+    Args:
+        src: A model zip (``STEM.zip`` with ``STEM_vecnormalize.pkl``, ``STEM_config.yaml``).
+        max_children: The new largest number of choices, > the model's.
+        out: Stem of the widened model.
+        phrase_graph: The graph the widened model speaks (a shipped key or a YAML path).
+
+    Raises:
+        FileNotFoundError: naming a missing input file.
+        FileExistsError: if ``OUT.zip`` exists.
+        ConfigError: (a ValueError) if ``max_children`` is not larger than the model's, or the
+            model's network is not the separate actor/critic MLP this reads.
+    """
+    from stable_baselines3 import PPO
+
+    from langenv import observation as ob
+    from langenv.errors import ConfigError
+    from policies.learned import file_sha256, graph_digest, model_files, observation_layout
+
+    zip_in, pkl_in, cfg_in = model_files(src)
+    zip_out, pkl_out, cfg_out = model_files(out)
+    for f in (zip_in, pkl_in, cfg_in):
+        if not f.is_file():
+            raise FileNotFoundError(f"train.widen: not found: {f}")
+    if zip_out.exists():
+        raise FileExistsError(f"train.widen: {zip_out} exists")
+    config = yaml.safe_load(cfg_in.read_text())
+    old_k = int(config["residual"]["max_children"])
+    if max_children <= old_k:
+        raise ConfigError(f"train.widen: --max-children {max_children} must exceed {old_k}")
+    model = PPO.load(zip_in, device="cpu")
+    n_old = int(np.prod(model.observation_space.shape or (0,)))
+    at = ob.FIRST_CHILD + ob.CHILD_FIELDS * old_k  # where the new child blocks go
+    n_new = ob.CHILD_FIELDS * (max_children - old_k)
+    space = _box(n_old + n_new)
+    state = model.policy.state_dict()
+    for key in _FIRST_LAYERS:
+        if key not in state or tuple(state[key].shape[1:]) != (n_old,):
+            raise ConfigError(f"train.widen: {zip_in}: no first layer {key} of {n_old} inputs")
+        state[key] = _insert_columns(state[key], at, n_new)
+    policy = type(model.policy)(space, model.action_space, model.lr_schedule, **model.policy_kwargs)
+    policy.load_state_dict(state)
+    model.policy, model.observation_space = policy, space
+    norm = _widen_normalizer(pkl_in, space, model.action_space, at, n_new)
+    zip_out.parent.mkdir(parents=True, exist_ok=True)
+    model.save(zip_out)
+    norm.save(pkl_out)
+    config["residual"]["max_children"] = max_children
+    config["observation_layout"] = observation_layout(max_children)
+    config.setdefault("env_kwargs", {})["phrase_graph"] = phrase_graph
+    config["phrase_graph_sha256"] = graph_digest(phrase_graph)
+    config["widened_from"] = {
+        "model": zip_in.name,
+        "sha256": file_sha256(zip_in),
+        "max_children": old_k,
+    }
+    cfg_out.write_text(yaml.safe_dump(config, sort_keys=False))
+    from policies.learned import PPOPolicy
+
+    PPOPolicy.load(zip_out)
+    return zip_out
+
+
+def _box(n: int) -> Any:
+    import gymnasium as gym
+
+    return gym.spaces.Box(-1.0, 1.0, (n,), np.float32)
+
+
+def _insert_columns(weight: Any, at: int, n: int) -> Any:
+    """``weight`` ``(out, in)`` with ``n`` zero columns inserted before column ``at``."""
+    import torch
+
+    zeros = torch.zeros(weight.shape[0], n, dtype=weight.dtype)
+    return torch.cat([weight[:, :at], zeros, weight[:, at:]], dim=1)
+
+
+def _widen_normalizer(src: Path, space: Any, actions: Any, at: int, n: int) -> Any:
+    """The ``VecNormalize`` of ``src`` with ``n`` neutral inputs (mean 0, variance 1) inserted
+    before input ``at``, attached to a bare env of the widened spaces so that it can be saved."""
+    import gymnasium as gym
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    class Spaces(gym.Env[np.ndarray, np.ndarray]):  # never reset nor stepped
+        observation_space, action_space = space, actions
+
+    with src.open("rb") as fh:
+        norm = pickle.load(fh)
+    rms = norm.obs_rms
+    rms.mean = np.insert(np.asarray(rms.mean, np.float64), at, np.zeros(n))
+    rms.var = np.insert(np.asarray(rms.var, np.float64), at, np.ones(n))
+    norm.observation_space = space
+    norm.set_venv(DummyVecEnv([Spaces]))
+    return norm
+
+
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    """The command line (see the module docstring)."""
+    p = argparse.ArgumentParser(prog="python -m train.widen", description=__doc__.split("\n")[0])
+    p.add_argument("model", type=Path, help="the model zip to widen")
+    p.add_argument("--max-children", type=int, required=True, help="the new number of choices")
+    p.add_argument("--out", type=Path, required=True, help="stem of the widened model")
+    p.add_argument("--phrase-graph", default="lc", help="the graph it speaks (default lc)")
+    return p.parse_args(argv)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point; returns the exit status (2: a bad input)."""
+    ns = parse_args(argv)
+    try:
+        path = widen(ns.model, ns.max_children, ns.out, ns.phrase_graph)
+    except (FileNotFoundError, FileExistsError, ValueError, KeyError, TypeError) as exc:
+        print(f"train.widen: error: {exc}", file=sys.stderr)
+        return 2
+    print(path)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
