@@ -12,7 +12,7 @@ and the hand's largest distance from the path (from the logged joint positions: 
 position by forward kinematics, its distance to the nearest point of the exercise's path).
 ``--table-only`` reads existing runs without running anything. Exit status 1 when an episode ended
 in a protective stop or left the path by more than the safety's ``max_deviation``, or LC's median
-``|AM|`` is not below AC's. """
+``|AM|`` is not below AC's."""
 
 from __future__ import annotations
 
