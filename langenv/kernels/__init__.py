@@ -36,7 +36,7 @@ from typing import Any, TypeVar, cast
 
 import numba
 
-__all__ = ["clear_stale_cache", "jit"]
+__all__ = ["clear_stale_cache", "inline", "jit"]
 
 _STAMP = "langctrl-kernels.sha256"
 
@@ -76,4 +76,13 @@ F = TypeVar("F", bound=Callable[..., Any])
 def jit(fn: F) -> F:
     """Compile ``fn`` in nopython mode, cached on disk (no ``fastmath``: IEEE order kept)."""
     compiled: Any = numba.njit(cache=True, nogil=True, error_model="numpy")(fn)
+    return cast(F, compiled)
+
+
+def inline(fn: F) -> F:
+    """:func:`jit`, and inlined into every compiled caller (Numba's ``inline="always"``): for
+    small helpers called many times per tick, whose call would cost more than their arithmetic
+    (arrays passed as structs, their reference counts). The operations and their order are
+    the same as a call's."""
+    compiled: Any = numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")(fn)
     return cast(F, compiled)

@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from langenv.kernels import jit
-from langenv.kernels.blas import chol_factor, chol_solve, mul_mat_mat_t, mul_mat_t_vec, mul_mat_vec
+from langenv.kernels.blas import chol_factor, chol_solve, mul_mat_t_vec, mul_mat_vec, sqr_mat_t
 
 __all__ = ["J0", "LIMITS_DUE", "OK", "apply", "solve"]
 
@@ -91,7 +91,7 @@ def solve(
             for i in range(n):
                 jarm[r * n + i] = jac[r * nv + ai[i]]
     a = aw[A_A : A_A + k * k]
-    mul_mat_mat_t(a, jarm, jarm, k, n, k)
+    sqr_mat_t(a, jarm, k, n)
     for i in range(k):
         a[i * (k + 1)] += aw[A_LAMBDA2]
     chol_factor(a, k, 0.0)

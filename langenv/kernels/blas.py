@@ -10,12 +10,20 @@ from __future__ import annotations
 
 import numpy as np
 
-from langenv.kernels import jit
+from langenv.kernels import inline, jit
 
-__all__ = ["chol_factor", "chol_solve", "dot", "mul_mat_mat_t", "mul_mat_t_vec", "mul_mat_vec"]
+__all__ = [
+    "chol_factor",
+    "chol_solve",
+    "dot",
+    "mul_mat_mat_t",
+    "mul_mat_t_vec",
+    "mul_mat_vec",
+    "sqr_mat_t",
+]
 
 
-@jit
+@inline
 def dot(a: np.ndarray, ia: int, b: np.ndarray, ib: int, n: int) -> float:
     """``mju_dot(a + ia, b + ib, n)`` on flat arrays."""
     res = 0.0
@@ -51,6 +59,19 @@ def mul_mat_mat_t(
     for i in range(r1):
         for j in range(r2):
             res[i * r2 + j] = dot(m1, i * c1, m2, j * c1, c1)
+
+
+@jit
+def sqr_mat_t(res: np.ndarray, mat: np.ndarray, r: int, c: int) -> None:
+    """``mju_mulMatMatT(res, mat, mat, r, c, r)``: ``res (r, r) = mat (r, c) @ mat.T``, one
+    :func:`dot` per entry of the lower triangle, mirrored: entry ``(j, i)``'s dot multiplies the
+    same pairs in the same order as ``(i, j)``'s (each product's factors swapped, which IEEE
+    multiplication does not see), so ``res`` is bit for bit :func:`mul_mat_mat_t`'s."""
+    for i in range(r):
+        for j in range(i + 1):
+            v = dot(mat, i * c, mat, j * c, c)
+            res[i * r + j] = v
+            res[j * r + i] = v
 
 
 @jit
