@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from langenv.kernels import jit
+from langenv.kernels import inline, jit
 from langenv.kernels.blas import chol_factor, chol_solve, mul_mat_t_vec, mul_mat_vec, sqr_mat_t
 
 __all__ = ["J0", "LIMITS_DUE", "OK", "apply", "solve"]
@@ -36,6 +36,23 @@ LIMITS_DUE = 1
 def _joint(aw: np.ndarray, block: int, i: int) -> float:
     n = int(aw[A_N])
     return aw[J0 + block * n + i]
+
+
+@inline
+def _damped_least_squares(
+    aw: np.ndarray, jarm: np.ndarray, xdot: np.ndarray, qdot: np.ndarray, k: int, n: int
+) -> None:
+    """``qdot = J^T (J J^T + lambda^2 I)^-1 xdot`` (``Arm.step``'s 3: MuJoCo's routines, in
+    their order), ``J = jarm`` (k, n). Inlined, so a call with constant sizes is compiled for
+    them (loops unrolled, the same operations)."""
+    a = aw[A_A : A_A + k * k]
+    sqr_mat_t(a, jarm, k, n)
+    for i in range(k):
+        a[i * (k + 1)] += aw[A_LAMBDA2]
+    chol_factor(a, k, 0.0)
+    y = aw[A_Y : A_Y + k]
+    chol_solve(y, a, xdot[:k], k)
+    mul_mat_t_vec(qdot, jarm, y, k, n)
 
 
 @jit
@@ -90,15 +107,11 @@ def solve(
         for r in range(k):
             for i in range(n):
                 jarm[r * n + i] = jac[r * nv + ai[i]]
-    a = aw[A_A : A_A + k * k]
-    sqr_mat_t(a, jarm, k, n)
-    for i in range(k):
-        a[i * (k + 1)] += aw[A_LAMBDA2]
-    chol_factor(a, k, 0.0)
-    y = aw[A_Y : A_Y + k]
-    chol_solve(y, a, xdot[:k], k)
     qdot = aw[J0 + 5 * n : J0 + 6 * n]
-    mul_mat_t_vec(qdot, jarm, y, k, n)
+    if k == 6 and n == 6:  # the UR5 holding its orientation: sizes the compiler unrolls
+        _damped_least_squares(aw, jarm, xdot, qdot, 6, 6)
+    else:
+        _damped_least_squares(aw, jarm, xdot, qdot, k, n)
     # joint-limit margins: checked only when a joint could have reached one
     aw[A_COUNTDOWN] -= 1.0
     if aw[A_COUNTDOWN] <= 0.0:
