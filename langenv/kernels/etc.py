@@ -90,12 +90,28 @@ def ramp_end(prm: np.ndarray, u0: float, w0: float) -> tuple[float, float]:
         lo = (tau if tau < hi else hi) * 1e-3
         while _g(lo, s, ui, u0, w0, tau, acc) <= 0.0 and lo < hi:
             lo *= 2.0
-    for _ in range(60):
+    # Bisection: up to 60 halvings, until the bracket is under 1 us. Two halvings per round,
+    # the second's two possible midpoints evaluated beside the first's (independent, so the
+    # CPU overlaps their exp): the same midpoints and decisions as one halving at a time.
+    k = 0
+    while k < 60:
         mid = 0.5 * (lo + hi)
-        if _g(mid, s, ui, u0, w0, tau, acc) > 0.0:
-            lo = mid
+        left, right = 0.5 * (lo + mid), 0.5 * (mid + hi)
+        g_mid = _g(mid, s, ui, u0, w0, tau, acc)
+        g_left = _g(left, s, ui, u0, w0, tau, acc)
+        g_right = _g(right, s, ui, u0, w0, tau, acc)
+        if g_mid > 0.0:
+            lo, nxt, g_nxt = mid, right, g_right
         else:
-            hi = mid
+            hi, nxt, g_nxt = mid, left, g_left
+        k += 1
+        if hi - lo < 1e-6 or k == 60:
+            break
+        if g_nxt > 0.0:
+            lo = nxt
+        else:
+            hi = nxt
+        k += 1
         if hi - lo < 1e-6:
             break
     return hi, s
