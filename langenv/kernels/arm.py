@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from langenv.kernels import inline, jit
+from langenv.kernels import inline, kernel
 from langenv.kernels.blas import chol_factor, chol_solve, mul_mat_t_vec, mul_mat_vec, sqr_mat_t
 
 __all__ = ["J0", "LIMITS_DUE", "OK", "apply", "solve"]
@@ -32,7 +32,7 @@ LIMITS_DUE = 1
 (``Arm._avoid_limits``) before :func:`apply`."""
 
 
-@jit
+@kernel
 def _joint(aw: np.ndarray, block: int, i: int) -> float:
     n = int(aw[A_N])
     return aw[J0 + block * n + i]
@@ -55,7 +55,7 @@ def _damped_least_squares(
     mul_mat_t_vec(qdot, jarm, y, k, n)
 
 
-@jit
+@kernel
 def solve(
     aw: np.ndarray,
     ai: np.ndarray,
@@ -102,7 +102,8 @@ def solve(
     # damped least squares on the task Jacobian
     jarm = aw[J0 + 6 * n : J0 + 6 * n + k * n]
     if aw[A_FULL] != 0.0:
-        jarm[:] = jac[: k * nv]
+        for i in range(k * nv):
+            jarm[i] = jac[i]
     else:
         for r in range(k):
             for i in range(n):
@@ -138,7 +139,7 @@ def solve(
     return OK
 
 
-@jit
+@kernel
 def apply(
     aw: np.ndarray,
     ai: np.ndarray,
@@ -171,6 +172,11 @@ def apply(
         aw[A_XREF + c] += aw[A_V + c] * scale
     for i in range(n):
         ctrl[ai[2 * n + i]] = qdot[i]
-    f = np.empty(3)
-    f[0], f[1], f[2] = f0, f1, f2
-    mul_mat_t_vec(qfrc, jac[: 3 * nv], f, 3, nv)
+    # qfrc_applied = J_p^T f: mju_mulMatTVec's operations, ``f`` given as three numbers
+    for j in range(nv):
+        qfrc[j] = 0.0
+    for r in range(3):
+        v = f0 if r == 0 else (f1 if r == 1 else f2)
+        if v != 0.0:
+            for j in range(nv):
+                qfrc[j] += jac[r * nv + j] * v

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from langenv.kernels import inline, jit
+from langenv.kernels import inline, kernel
 
 __all__ = [
     "chol_factor",
@@ -55,7 +55,7 @@ def dot(a: np.ndarray, ia: int, b: np.ndarray, ib: int, n: int) -> float:
     return res
 
 
-@jit
+@kernel
 def mul_mat_mat_t(
     res: np.ndarray, m1: np.ndarray, m2: np.ndarray, r1: int, c1: int, r2: int
 ) -> None:

@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from langenv.kernels import jit
+from langenv.kernels import kernel
 
 __all__ = ["ar1"]
 
 
-@jit
+@kernel
 def ar1(x: np.ndarray, a: float, out: np.ndarray) -> None:
     """``out[0] = x[0]``, ``out[n] = x[n] + a out[n-1]`` (``x``, ``out``: float64 (n,))."""
     y = 0.0
