@@ -4,12 +4,14 @@ against the process backend (``python -m bench --only sweep``).
 One small sweep (AC, LC-noAP and LC on :data:`USERS` synthetic users) runs through
 ``python -m eval.sweep``'s own code: the process backend with 1 worker and with 2, then Ray
 (``--address local``) with 2, and the process backend with 2 again. Each figure is the wall time
-of running the sessions as the driver records it in ``runs.jsonl`` (workers started, batches
-run, parts written; the spec check, the kernels' warm-up and Ray's own start-up not counted).
+of running the sessions as the driver records it in ``runs.jsonl`` (batches run, parts written;
+the spec check, the kernels' warm-up, the backend's start and end not counted). The backend's
+one-off start (Ray: started, its actors warmed) and end (Ray shut down) are figures of their
+own, and ``sweep_ray_overhead_total`` counts them too: what they cost this small sweep.
 
 ``session_cpu_s`` and ``overhead`` come from the workers: the CPU time of the batches per
 session (which other programs on the machine do not stretch, unlike wall time), and the workers'
-time outside batches (start-up, hand-off, idle at the end) over their time in batches.
+time outside batches (hand-off, idle at the end) over their time in batches.
 
 On a shared machine two processes do not get two cores: ``cpu_scaling`` is what this machine
 gave a pure-Python loop in 2 processes against 1, measured just before, and
@@ -66,7 +68,10 @@ def measure_sweep(users: int = USERS) -> dict[str, float]:
     """``sweep_sps_1``, ``sweep_sps_2`` (sessions/s), ``sweep_scaling`` (their ratio),
     ``sweep_session_s`` (s per session, 1 worker) and, where Ray is installed, ``sweep_ray_sps_2``
     and ``sweep_ray_overhead`` (Ray's extra wall time per session over the process backend's, as
-    a share of a session's time, both with 2 workers)."""
+    a share of a session's time, both with 2 workers, start and end apart), the same in CPU time
+    (``sweep_ray_overhead_cpu``), Ray's one-off ``sweep_ray_startup_s`` and
+    ``sweep_ray_shutdown_s``, and ``sweep_ray_overhead_total`` (this sweep's whole time on Ray,
+    start and end included, over the process backend's)."""
     import importlib.util
 
     figures: dict[str, float] = {"cpu_scaling": cpu_scaling()}
@@ -95,4 +100,9 @@ def measure_sweep(users: int = USERS) -> dict[str, float]:
             figures["sweep_ray_cpu_per_session"] = ray["session_cpu_s"]
             figures["sweep_ray_overhead_cpu"] = (ray["session_cpu_s"] - cpu) / cpu
             figures["sweep_ray_task_overhead"] = ray["overhead"]
+            figures["sweep_ray_startup_s"] = ray["startup_s"]
+            figures["sweep_ray_shutdown_s"] = ray["shutdown_s"]
+            start = (two["startup_s"] + again["startup_s"]) / 2
+            total = ray["wall_s"] + ray["startup_s"] + ray["shutdown_s"]
+            figures["sweep_ray_overhead_total"] = (total - base - start) / (base + start)
     return figures

@@ -212,16 +212,22 @@ def _run(todo: list[SweepSession], store: Any, ns: argparse.Namespace, spec: Swe
             busy += result.wall_s
             cpu += result.cpu_s
             bar.update(len(result.rows))
+        wall = time.perf_counter() - t0
     finally:
         bar.close()
+        t1 = time.perf_counter()
         backend.close()
-    wall = time.perf_counter() - t0
+        shutdown = time.perf_counter() - t1
     record = {
         "backend": ns.backend,
         "address": ns.address if ns.backend == "ray" else None,
         "workers": backend.workers,
         "batch_size": size,
         "sessions": len(todo),
+        # The backend's one-off start (Ray: started or joined, its actors warmed) and end (Ray
+        # shut down), not in wall_s.
+        "startup_s": round(backend.startup_s, 3),
+        "shutdown_s": round(shutdown, 3),
         "wall_s": round(wall, 3),
         "sessions_per_s": round(len(todo) / wall, 4),
         # Per session, in the workers: wall time and CPU time of the batches that ran it.

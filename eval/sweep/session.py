@@ -16,7 +16,7 @@ from typing import Any
 
 from eval.sweep.grid import SweepSession
 
-__all__ = ["ROW_KEYS", "Batch", "BatchResult", "run_batch", "session_row"]
+__all__ = ["ROW_KEYS", "Batch", "BatchResult", "run_batch", "session_row", "warm_worker"]
 
 Batch = Sequence[SweepSession]
 """Sessions one task runs, one after the other."""
@@ -39,6 +39,20 @@ class BatchResult:
     rows: list[dict[str, Any]]
     wall_s: float
     cpu_s: float
+
+
+def warm_worker() -> float:
+    """Make this process ready to run sessions: import what a session uses and load the
+    compiled kernels (:func:`langenv.kernels.warm.warm_up`), which is what a forked worker of
+    the ``processes`` backend inherits from the driver. Returns the seconds it took (about a
+    second of CPU in a fresh process)."""
+    t0 = time.perf_counter()
+    from eval.compare import _preload
+    from langenv.kernels.warm import warm_up
+
+    _preload()
+    warm_up()
+    return time.perf_counter() - t0
 
 
 def run_batch(sessions: Sequence[SweepSession]) -> BatchResult:
