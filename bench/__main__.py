@@ -28,6 +28,7 @@ Figures (all measured here, on this machine, in this process):
 | ``sweep_cpu_per_session_1``, ``sweep_cpu_per_session_2``, ``sweep_task_overhead_2`` | CPU time per session in the workers (s) with 1 and 2 workers, and with 2 the workers' time outside batches over their time in batches |
 | ``sweep_ray_cpu_per_session``, ``sweep_ray_overhead_cpu``, ``sweep_ray_task_overhead`` | the same on Ray, and Ray's extra CPU time per session as a share of the process backend's |
 | ``sweep_ray_sps_2``, ``sweep_ray_overhead`` | the same sweep on Ray (``--address local``, 2 warmed actors): sessions per second, and Ray's extra time per session as a share of a session's time, the one-off start and end apart (where Ray is installed; target < 5 %) |
+| ``sweep_ray_thread_cpu`` | Ray's own CPU per session: a Ray actor's other threads' CPU during its batches as a share of the sessions' thread, minus the same share in a process worker |
 | ``sweep_ray_startup_s``, ``sweep_ray_shutdown_s``, ``sweep_ray_overhead_total`` | Ray's one-off start (a private Ray started, its actors warmed) and end (s), and this small sweep's whole time on Ray (start and end included) over the process backend's, minus 1 |
 """
 

@@ -205,12 +205,13 @@ def _run(todo: list[SweepSession], store: Any, ns: argparse.Namespace, spec: Swe
     batches = [todo[i : i + size] for i in range(0, len(todo), size)]
     bar = tqdm(total=len(todo), desc="sessions", unit="s", file=sys.stderr)
     t0 = time.perf_counter()
-    busy = cpu = 0.0
+    busy = cpu = thread = 0.0
     try:
         for _, result in backend.run(batches):
             store.write_part(result.rows)
             busy += result.wall_s
             cpu += result.cpu_s
+            thread += result.thread_cpu_s
             bar.update(len(result.rows))
         wall = time.perf_counter() - t0
     finally:
@@ -233,6 +234,7 @@ def _run(todo: list[SweepSession], store: Any, ns: argparse.Namespace, spec: Swe
         # Per session, in the workers: wall time and CPU time of the batches that ran it.
         "session_wall_s": round(busy / len(todo), 5),
         "session_cpu_s": round(cpu / len(todo), 5),
+        "session_thread_cpu_s": round(thread / len(todo), 5),  # the sessions' thread alone
         # The workers' time not spent in batches (start-up, task hand-off, idle at the end) as a
         # share of the time spent in them.
         "overhead": round((backend.workers * wall - busy) / busy, 4),
