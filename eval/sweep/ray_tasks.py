@@ -73,7 +73,7 @@ class SweepWorker:
 
 
 class RayBackend:
-    """Batches as Ray tasks.
+    """Batches run by warmed Ray actors (:class:`SweepWorker`, one per CPU of the cluster).
 
     Args:
         workers: CPUs of the local Ray instance (``address="local"``); on a cluster its CPUs
@@ -112,7 +112,11 @@ class RayBackend:
             SweepWorker
         )
         self._actors = [actor.remote() for _ in range(self.workers)]
-        warm = ray.get([a.ready.remote() for a in self._actors])
+        try:
+            warm = ray.get([a.ready.remote() for a in self._actors])
+        except BaseException:  # an actor could not start: no Ray left behind
+            self.close()
+            raise
         self.warm_s = max(warm)
         """The slowest actor's warm-up (s)."""
         self.startup_s = time.perf_counter() - t0
