@@ -13,9 +13,9 @@ Figures (all measured here, on this machine, in this process):
 | ``plateau_speed`` | highest hand speed in that run (m/s) |
 | ``max_path_dev_m`` | largest distance of the hand from the path along the legs (closest point more than 8 cm from a leg's ends: the turn at a corner takes about that much of the next leg) in that run (m) |
 | ``corner_overshoot_m`` | largest distance of the hand from the path anywhere in that run (m): at the corners the hand, braking at ``max_acceleration`` from the switch 3.5 cm before a leg's end, overshoots |
-| ``env_step_us`` | one ``LangCtrl-v0`` step at 25 Hz (20 ticks: user, pacing, speech, the tick) with a fixed action, default env (µs) |
+| ``env_step_us`` | one ``LangCtrl-v0`` step at 25 Hz (20 ticks: user, pacing, speech, the tick) with a fixed action, default env, over whole episodes with their reset (µs) |
 | ``env_steps_per_s`` | ``1e6 / env_step_us``: env steps per second on one core |
-| ``env_step_ratio`` | ``env_step_us / (20 mj_step_us)``, with ``mj_step_us`` measured again beside it |
+| ``env_step_ratio`` | ``env_step_us / (20 mj_step_us)``, with ``mj_step_us`` measured again in rounds alternating with the episodes (target <= 1.5) |
 | ``train_steps_per_s`` | PPO with the shipped config (``configs/ppo.yaml``: 2 envs, in subprocesses where the machine has more cores than envs (``--vec-env auto``), the residual LC wrappers) for 4096 steps: env steps per second of ``model.learn`` (rollouts and updates; building the envs not counted) |
 | ``audio_rtf`` | seconds of speech rendered by the variable-rate phase vocoder per second of wall time |
 | ``robot_compute_median_ms``, ``robot_compute_p999_ms``, ``robot_compute_max_ms`` | the UR bridge's loop against the fake ur-rtde (virtual clock, no audio): compute time per 2 ms period, wall clock (read, control, speech, LC policy, log, ``speedL``) over 3 whole sessions (targets: median < 0.5 ms, p99.9 < 1.5 ms); preemption by other processes included |
@@ -27,7 +27,9 @@ Figures (all measured here, on this machine, in this process):
 | ``sweep_session_s`` | wall time per session with 1 worker (s) |
 | ``sweep_cpu_per_session_1``, ``sweep_cpu_per_session_2``, ``sweep_task_overhead_2`` | CPU time per session in the workers (s) with 1 and 2 workers, and with 2 the workers' time outside batches over their time in batches |
 | ``sweep_ray_cpu_per_session``, ``sweep_ray_overhead_cpu``, ``sweep_ray_task_overhead`` | the same on Ray, and Ray's extra CPU time per session as a share of the process backend's |
-| ``sweep_ray_sps_2``, ``sweep_ray_overhead`` | the same sweep on Ray (``--address local``, 2 workers): sessions per second, and Ray's extra time per session as a share of a session's time (where Ray is installed) |
+| ``sweep_ray_sps_2``, ``sweep_ray_overhead`` | the same sweep on Ray (``--address local``, 2 warmed actors): sessions per second, and Ray's extra time per session as a share of a session's time, the one-off start and end apart (where Ray is installed; target < 5 %) |
+| ``sweep_ray_thread_cpu`` | Ray's own CPU per session: a Ray actor's other threads' CPU during its batches as a share of the sessions' thread, minus the same share in a process worker |
+| ``sweep_ray_startup_s``, ``sweep_ray_shutdown_s``, ``sweep_ray_overhead_total`` | Ray's one-off start (a private Ray started, its actors warmed) and end (s), and this small sweep's whole time on Ray (start and end included) over the process backend's, minus 1 |
 """
 
 from __future__ import annotations
@@ -136,8 +138,13 @@ def measure_etc() -> dict[str, float]:
     return {"etc_us": float(res["etc_us"]), "etc_rel_err": float(res["max_rel_err"])}
 
 
-def measure_env(n_steps: int = 400) -> dict[str, float]:
-    """``LangCtrl-v0`` steps at 25 Hz with a fixed action, and a bare ``mj_step`` beside them."""
+def measure_env(rounds: int = 9, n_bare: int = 4000) -> dict[str, float]:
+    """``LangCtrl-v0`` at 25 Hz with a fixed action, and a bare ``mj_step`` of its model.
+
+    One round is one whole episode (its reset included: a step's cost as an agent pays it) and
+    then ``n_bare`` bare steps; the rounds alternate, so both figures see the same load from
+    other programs, and each is the best of ``rounds``.
+    """
     from langenv.env import LangCtrlEnv
     from langenv.robot.arm import Arm
 
@@ -146,21 +153,27 @@ def measure_env(n_steps: int = 400) -> dict[str, float]:
     arm = env.motion.arm
     assert isinstance(arm, Arm)
     model, data = arm.model, arm.data
-    n_bare = 2000
 
-    def steps() -> None:
+    def episode() -> float:
+        """Seconds per step of one episode (seed 0), reset included."""
+        t0 = time.perf_counter()
         env.reset(seed=0)
-        for _ in range(n_steps):
-            if env.step(action)[2]:
-                env.reset(seed=0)
+        steps = 1
+        while not env.step(action)[2] and steps < 1500:  # 1500: the registered time limit
+            steps += 1
+        return (time.perf_counter() - t0) / steps
 
-    def bare() -> None:
+    def bare() -> float:
+        t0 = time.perf_counter()
         for _ in range(n_bare):
             mujoco.mj_step(model, data)
+        return (time.perf_counter() - t0) / n_bare
 
-    steps()  # warm up (compiled code loaded, tables built)
-    step = _best_of(steps, n_steps, repeats=3)
-    mj = _best_of(bare, n_bare)
+    episode()  # warm up (compiled code loaded, tables built)
+    step = mj = float("inf")
+    for _ in range(rounds):
+        step = min(step, episode())
+        mj = min(mj, bare())
     env.close()
     return {
         "env_step_us": step * 1e6,

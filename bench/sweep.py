@@ -3,13 +3,20 @@ against the process backend (``python -m bench --only sweep``).
 
 One small sweep (AC, LC-noAP and LC on :data:`USERS` synthetic users) runs through
 ``python -m eval.sweep``'s own code: the process backend with 1 worker and with 2, then Ray
-(``--address local``) with 2, and the process backend with 2 again. Each figure is the wall time
-of running the sessions as the driver records it in ``runs.jsonl`` (workers started, batches
-run, parts written; the spec check, the kernels' warm-up and Ray's own start-up not counted).
+(``--address local``) with 2, the process backend with 2 again and Ray again (the Ray figures
+are means of its two runs against the means of the two process runs around them). Each figure
+is the wall time of running the sessions as the driver records it in ``runs.jsonl`` (batches
+run, parts written; the spec check, the kernels' warm-up, the backend's start and end not
+counted). The backend's
+one-off start (Ray: started, its actors warmed) and end (Ray shut down) are figures of their
+own, and ``sweep_ray_overhead_total`` counts them too: what they cost this small sweep.
 
 ``session_cpu_s`` and ``overhead`` come from the workers: the CPU time of the batches per
-session (which other programs on the machine do not stretch, unlike wall time), and the workers'
-time outside batches (start-up, hand-off, idle at the end) over their time in batches.
+session (which other programs on the machine stretch less than wall time), and the workers'
+time outside batches (hand-off, idle at the end) over their time in batches.
+``sweep_ray_thread_cpu`` is the CPU time a Ray actor's other threads (Ray's own: its RPCs,
+its reports) spend during a batch, as a share of the sessions' thread, minus the same share in a
+process worker: Ray's own CPU per session, which load on the machine hardly moves.
 
 On a shared machine two processes do not get two cores: ``cpu_scaling`` is what this machine
 gave a pure-Python loop in 2 processes against 1, measured just before, and
@@ -66,7 +73,10 @@ def measure_sweep(users: int = USERS) -> dict[str, float]:
     """``sweep_sps_1``, ``sweep_sps_2`` (sessions/s), ``sweep_scaling`` (their ratio),
     ``sweep_session_s`` (s per session, 1 worker) and, where Ray is installed, ``sweep_ray_sps_2``
     and ``sweep_ray_overhead`` (Ray's extra wall time per session over the process backend's, as
-    a share of a session's time, both with 2 workers)."""
+    a share of a session's time, both with 2 workers, start and end apart), the same in CPU time
+    (``sweep_ray_overhead_cpu``), Ray's one-off ``sweep_ray_startup_s`` and
+    ``sweep_ray_shutdown_s``, and ``sweep_ray_overhead_total`` (this sweep's whole time on Ray,
+    start and end included, over the process backend's)."""
     import importlib.util
 
     figures: dict[str, float] = {"cpu_scaling": cpu_scaling()}
@@ -84,15 +94,32 @@ def measure_sweep(users: int = USERS) -> dict[str, float]:
         figures["sweep_cpu_per_session_2"] = two["session_cpu_s"]
         figures["sweep_task_overhead_2"] = two["overhead"]
         if importlib.util.find_spec("ray") is not None:
-            ray = _run(spec, Path(tmp) / "r2", "--backend", "ray", "--workers", "2")
-            # The process backend again after Ray: a machine whose load drifts during the
-            # benchmark moves both sides of the comparison alike.
-            again = _run(spec, Path(tmp) / "p2b", "--backend", "processes", "--workers", "2")
-            base = (two["wall_s"] + again["wall_s"]) / 2
-            figures["sweep_ray_sps_2"] = ray["sessions_per_s"]
-            figures["sweep_ray_overhead"] = (ray["wall_s"] - base) / base
-            cpu = (two["session_cpu_s"] + again["session_cpu_s"]) / 2
-            figures["sweep_ray_cpu_per_session"] = ray["session_cpu_s"]
-            figures["sweep_ray_overhead_cpu"] = (ray["session_cpu_s"] - cpu) / cpu
-            figures["sweep_ray_task_overhead"] = ray["overhead"]
+            # Ray and the process backend in turn, twice (processes, Ray, processes, Ray): a
+            # machine whose load drifts during the benchmark moves both sides alike.
+            runs = [two]
+            for k, backend in enumerate(("ray", "processes", "ray")):
+                out = Path(tmp) / f"ab{k}"
+                runs.append(_run(spec, out, "--backend", backend, "--workers", "2"))
+            procs, rays = runs[0::2], runs[1::2]
+
+            def mean(rs: list[dict[str, float]], key: str) -> float:
+                return sum(r[key] for r in rs) / len(rs)
+
+            base, cpu = mean(procs, "wall_s"), mean(procs, "session_cpu_s")
+            figures["sweep_ray_sps_2"] = mean(rays, "sessions_per_s")
+            figures["sweep_ray_overhead"] = (mean(rays, "wall_s") - base) / base
+            figures["sweep_ray_cpu_per_session"] = mean(rays, "session_cpu_s")
+            figures["sweep_ray_overhead_cpu"] = (mean(rays, "session_cpu_s") - cpu) / cpu
+            figures["sweep_ray_task_overhead"] = mean(rays, "overhead")
+
+            def others(rs: list[dict[str, float]]) -> float:
+                main = mean(rs, "session_thread_cpu_s")
+                return (mean(rs, "session_cpu_s") - main) / main
+
+            figures["sweep_ray_thread_cpu"] = others(rays) - others(procs)
+            figures["sweep_ray_startup_s"] = mean(rays, "startup_s")
+            figures["sweep_ray_shutdown_s"] = mean(rays, "shutdown_s")
+            start = mean(procs, "startup_s")
+            total = mean(rays, "wall_s") + mean(rays, "startup_s") + mean(rays, "shutdown_s")
+            figures["sweep_ray_overhead_total"] = (total - base - start) / (base + start)
     return figures

@@ -524,10 +524,12 @@ class _SessionCanvas:
         self.t_x.set_data(t, log.t_x)
         self.t_a.set_data(t, log.t_a)
         _autoscale_from_zero(etc_ax)
-        for where, color in ((log.em >= 0, "#D55E00"), (log.em < 0, "#0072B2")):
-            area = em_ax.fill_between(
-                t, log.em, 0.0, where=where, color=color, alpha=0.25, linewidth=0, interpolate=True
-            )
+        tt, em = _with_zero_crossings(t, log.em)
+        for part, color in ((np.maximum(em, 0.0), "#D55E00"), (np.minimum(em, 0.0), "#0072B2")):
+            # One polygon per sign: fill_between(where=em >= 0, interpolate=True) covers the
+            # same area, but as a polygon per run of one sign, each built by Matplotlib in
+            # Python: an aligner that keeps em near 0 flips its sign thousands of times.
+            area = em_ax.fill_between(tt, part, 0.0, color=color, alpha=0.25, linewidth=0)
             self.session.append(area)
         self.em.set_data(t, log.em)
         lim = max(0.5, float(np.abs(log.em).max()) * 1.1)
@@ -594,6 +596,20 @@ class _SessionCanvas:
 
 _CANVAS: _SessionCanvas | None = None
 _CANVAS_LOCK = threading.Lock()
+
+
+def _with_zero_crossings(t: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(t, y)`` (n,) with a point ``(t_c, 0)`` inserted wherever ``y >= 0`` changes between
+    two samples, ``t_c`` where the straight line between them crosses 0 (where
+    ``fill_between(..., interpolate=True)`` ends a region)."""
+    t = np.asarray(t, dtype=np.float64)
+    y = np.asarray(y, dtype=np.float64)
+    flip = np.flatnonzero((y[:-1] >= 0.0) != (y[1:] >= 0.0))
+    if flip.size == 0:
+        return t, y
+    y0, y1 = y[flip], y[flip + 1]
+    t_c = t[flip] + (t[flip + 1] - t[flip]) * (y0 / (y0 - y1))
+    return np.insert(t, flip + 1, t_c), np.insert(y, flip + 1, 0.0)
 
 
 def _autoscale_from_zero(ax: Axes) -> None:

@@ -223,10 +223,11 @@ class ObservationEncoder:
             for pid, (t_min, t_max) in durations.items()
         }
         self._empty = (-1.0, 0.0, 0.0)
-        self._tails: dict[tuple[str, ...], tuple[float, ...]] = {}
+        self._tails: dict[tuple[str, ...], np.ndarray] = {}
 
-    def _tail(self, children: Sequence[str]) -> tuple[float, ...]:
-        """The child blocks of ``children`` (then empty ones), flattened; cached per tuple."""
+    def _tail(self, children: Sequence[str]) -> np.ndarray:
+        """The child blocks of ``children`` (then empty ones), flattened, as float32; cached per
+        tuple (read-only)."""
         key = tuple(children)
         tail = self._tails.get(key)
         if tail is None:
@@ -234,7 +235,9 @@ class ObservationEncoder:
             blocks = [
                 self._blocks[key[k]] if k < n else self._empty for k in range(self.max_children)
             ]
-            tail = self._tails[key] = tuple(v for block in blocks for v in block)
+            tail = np.array([v for block in blocks for v in block], np.float32)
+            tail.flags.writeable = False
+            self._tails[key] = tail
         return tail
 
     def encode(
@@ -266,25 +269,26 @@ class ObservationEncoder:
         Args:
             children: Ids of the current phrase's children (at most ``max_children``).
         """
-        out[:] = (
-            _clip(encode_seconds(t_x)),
-            _clip(encode_seconds(t_a)),
-            _clip(encode_seconds(t_a / a - t_x / p)),
-            _clip(encode_pace(p)),
-            _clip(encode_pace(a)),
-            _clip(encode_fraction(cooperation)),
+        # The encoders' arithmetic written out (the same operations: a call each cost more).
+        out[:FIRST_CHILD] = (
+            _clip(t_x / T_SCALE),
+            _clip(t_a / T_SCALE),
+            _clip((t_a / a - t_x / p) / T_SCALE),
+            _clip((p - 1.0) / PACE_SCALE),
+            _clip((a - 1.0) / PACE_SCALE),
+            _clip(2.0 * cooperation - 1.0),
             _clip(cooperation_trend),
-            _clip(encode_fraction(progress)),
-            _clip(encode_speed(hand_speed)),
-            _clip(encode_fraction(phrase_said)),
-            _clip(encode_seconds(phrase_left)),
-            encode_flag(in_pause),
-            encode_flag(speech_done),
-            encode_flag(motion_done),
-            encode_flag(boundary_due),
-            _clip(encode_elapsed(elapsed)),
-            *self._tail(children),
+            _clip(2.0 * progress - 1.0),
+            _clip(hand_speed / SPEED_SCALE),
+            _clip(2.0 * phrase_said - 1.0),
+            _clip(phrase_left / T_SCALE),
+            1.0 if in_pause else -1.0,
+            1.0 if speech_done else -1.0,
+            1.0 if motion_done else -1.0,
+            1.0 if boundary_due else -1.0,
+            _clip(elapsed / ELAPSED_SCALE),
         )
+        out[FIRST_CHILD:] = self._tail(children)
         return out
 
 

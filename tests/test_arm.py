@@ -12,6 +12,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from langenv.errors import ActionError, ConfigError
 from langenv.robot import UR5_JOINTS, Arm
@@ -314,3 +316,21 @@ def test_render_offscreen(tmp_path: Path) -> None:
     assert plain.shape == (240, 320, 3) and plain.dtype == np.uint8
     assert plain.std() > 10  # not a blank frame
     assert np.mean(np.any(plain != drawn, axis=2)) > 0.002  # path and arrow were drawn
+
+
+@given(
+    st.lists(st.sampled_from([0.0, -0.0, 1.0, -0.5, 0.3, 2.5e-3, -7.1]), min_size=9, max_size=9),
+    st.floats(0.01, 100.0),
+)
+def test_rotation_error_matrix_is_numpys_cross_to_the_bit(r: list[float], gain: float) -> None:
+    """The orientation hold's map equals NumPy's ``cross`` built one, signed zeros included."""
+    from langenv.robot.rotation import rotation_error_matrix
+
+    r_held = np.array(r).reshape(3, 3)
+    expected = np.zeros((3, 9))
+    for a in range(3):
+        e_a = np.zeros(3)
+        e_a[a] = 1.0
+        for i in range(3):
+            expected[:, 3 * a + i] = 0.5 * gain * np.cross(e_a, r_held[:, i])
+    assert rotation_error_matrix(r_held, gain).tobytes() == expected.tobytes()

@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from bench.etc_agreement import etc_agreement, random_pace, random_resistance
 from langenv.control.admittance import AdmittanceParams, VariableAdmittance
@@ -161,3 +163,67 @@ def test_fast_etc_validation(guide: Guide, adm: VariableAdmittance) -> None:
         FastETC(guide, adm, u_range=(0.1, 0.3))
     with pytest.raises(ConfigError, match="dt"):
         simulate_virtual(EX, P, dt=-1.0)
+
+
+def _ramp_end_one_halving_at_a_time(prm: np.ndarray, u0: float, w0: float) -> tuple[float, float]:
+    """``langenv.kernels.etc.ramp_end`` as first written: one bisection halving per step."""
+    from langenv.kernels import etc as ek
+
+    ui, tau, acc = float(prm[ek.P_UINF]), float(prm[ek.P_TAU]), float(prm[ek.P_ACC])
+
+    def g(t: float, s: float) -> float:
+        return s * (ui + (u0 - ui) * math.exp(-t / tau) - w0) - acc * t
+
+    gap = u0 - w0
+    slope0 = (ui - u0) / tau
+    if acc == math.inf or (-1e-12 < gap < 1e-12 and -acc <= slope0 <= acc):
+        return 0.0, 0.0
+    if abs(gap) >= 1e-12:
+        s = 1.0 if gap > 0.0 else -1.0
+    else:
+        s = 1.0 if slope0 > 0 else -1.0
+    hi = (abs(ui - w0) + abs(u0 - ui)) / acc + tau
+    lo = 0.0
+    if g(0.0, s) <= 0.0:
+        lo = (tau if tau < hi else hi) * 1e-3
+        while g(lo, s) <= 0.0 and lo < hi:
+            lo *= 2.0
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if g(mid, s) > 0.0:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo < 1e-6:
+            break
+    return hi, s
+
+
+@settings(deadline=None, max_examples=300)
+@given(
+    st.floats(-0.6, 0.6),
+    st.floats(-0.6, 0.6),
+    st.floats(0.01, 0.5),
+    st.floats(0.05, 2.0),
+    st.sampled_from([0.0, 1e-13, -1e-13]),
+)
+def test_ramp_end_two_halvings_a_round_is_the_plain_bisection(
+    u0: float, w0: float, ui: float, tau: float, nudge: float
+) -> None:
+    """The compiled ramp end (two halvings per round, evaluated side by side) returns the plain
+    bisection's bracket end to the bit, the near-equal ``u0 = w0`` branch included."""
+    from langenv.kernels import etc as ek
+
+    prm = np.zeros(ek.LEG0)
+    prm[ek.P_UINF], prm[ek.P_TAU], prm[ek.P_ACC] = ui, tau, 0.14
+    for w in (w0, u0 + nudge):
+        assert ek.ramp_end(prm, u0, w) == _ramp_end_one_halving_at_a_time(prm, u0, w)
+
+
+def test_ramp_end_stops_after_sixty_halvings_like_the_plain_bisection() -> None:
+    """A bracket that never gets under 1 us (a huge one) ends after 60 halvings either way."""
+    from langenv.kernels import etc as ek
+
+    prm = np.zeros(ek.LEG0)
+    prm[ek.P_UINF], prm[ek.P_TAU], prm[ek.P_ACC] = 1e9, 0.5, 1e-12
+    assert ek.ramp_end(prm, 0.0, 1.0) == _ramp_end_one_halving_at_a_time(prm, 0.0, 1.0)

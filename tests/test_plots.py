@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import struct
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -182,3 +183,32 @@ def test_failed_write_leaves_nothing(tmp_path: Path) -> None:
 def test_policy_colours_are_distinct() -> None:
     colours = [policy_color(p, k) for k, p in enumerate(("ac", "lc-noap", "lc", "ppo", "x"))]
     assert len(set(colours)) == len(colours)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_em_area_is_fill_betweens_where_interpolated(seed: int) -> None:
+    """The EM panel's two one-polygon fills (zero crossings inserted) cover what
+    ``fill_between(where=em >= 0 / em < 0, interpolate=True)`` covers, sign by sign."""
+    from matplotlib.figure import Figure
+
+    from eval.plots import _with_zero_crossings
+
+    rng = np.random.default_rng(seed)
+    t = np.cumsum(rng.uniform(0.001, 0.05, 400))
+    em = np.cumsum(rng.normal(0.0, 0.05, 400)) * rng.choice([0.0, 1.0], 400, p=[0.1, 0.9])
+    ax = Figure().add_subplot()
+
+    def area(collection: Any) -> float:
+        total = 0.0
+        for path in collection.get_paths():
+            x, y = path.vertices[:, 0], path.vertices[:, 1]
+            total += 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+        return total
+
+    tt, yy = _with_zero_crossings(t, em)
+    assert np.all(np.diff(tt) >= 0.0) and tt.size - t.size == int(
+        np.count_nonzero((em[:-1] >= 0) != (em[1:] >= 0))
+    )
+    for where, part in ((em >= 0, np.maximum(yy, 0.0)), (em < 0, np.minimum(yy, 0.0))):
+        expected = area(ax.fill_between(t, em, 0.0, where=where, interpolate=True))
+        assert area(ax.fill_between(tt, part, 0.0)) == pytest.approx(expected, rel=1e-9)

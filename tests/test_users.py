@@ -456,3 +456,26 @@ def test_ar1_filter_is_scipys_lfilter_to_the_bit(x: list[float], a: float) -> No
 
     arr = np.array(x)
     np.testing.assert_array_equal(ar1_filter(arr, a), lfilter([1.0], [1.0, -a], arr))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_force_table_is_the_formula_over_the_whole_grid(seed: int) -> None:
+    """``reset`` takes the noise's exp only where the person pushes; the table is the formula's,
+    every sample computed, to the bit (0 wherever the envelope is)."""
+    user = SyntheticUser()
+    user.reset(np.random.default_rng(seed))
+    p = user.params
+    rng = np.random.default_rng(seed)
+    user._draw_episodes(rng)  # the same draws, in the same order, as reset's
+    envelope = np.zeros_like(user.grid)
+    for ep in user.episodes:
+        lo = int(np.searchsorted(user.grid, ep.onset, side="right"))
+        hi = int(np.searchsorted(user.grid, ep.end, side="left"))
+        if hi > lo:
+            envelope[lo:hi] = ep.envelope(user.grid[lo:hi])
+    noise = user._ou_noise(rng, user.grid.shape[0])
+    bias = 0.5 * p.noise_std**2
+    factor = np.array([math.exp(p.noise_std * z - bias) for z in noise.tolist()])
+    expected = np.where(envelope > 0.0, np.minimum(envelope * factor, p.max_excess) + p.deadband, 0)
+    assert user.f_applied.tobytes() == expected.tobytes()
+    assert np.count_nonzero(envelope) > 0

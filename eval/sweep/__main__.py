@@ -205,28 +205,36 @@ def _run(todo: list[SweepSession], store: Any, ns: argparse.Namespace, spec: Swe
     batches = [todo[i : i + size] for i in range(0, len(todo), size)]
     bar = tqdm(total=len(todo), desc="sessions", unit="s", file=sys.stderr)
     t0 = time.perf_counter()
-    busy = cpu = 0.0
+    busy = cpu = thread = 0.0
     try:
         for _, result in backend.run(batches):
             store.write_part(result.rows)
             busy += result.wall_s
             cpu += result.cpu_s
+            thread += result.thread_cpu_s
             bar.update(len(result.rows))
+        wall = time.perf_counter() - t0
     finally:
         bar.close()
+        t1 = time.perf_counter()
         backend.close()
-    wall = time.perf_counter() - t0
+        shutdown = time.perf_counter() - t1
     record = {
         "backend": ns.backend,
         "address": ns.address if ns.backend == "ray" else None,
         "workers": backend.workers,
         "batch_size": size,
         "sessions": len(todo),
+        # The backend's one-off start (Ray: started or joined, its actors warmed) and end (Ray
+        # shut down), not in wall_s.
+        "startup_s": round(backend.startup_s, 3),
+        "shutdown_s": round(shutdown, 3),
         "wall_s": round(wall, 3),
         "sessions_per_s": round(len(todo) / wall, 4),
         # Per session, in the workers: wall time and CPU time of the batches that ran it.
         "session_wall_s": round(busy / len(todo), 5),
         "session_cpu_s": round(cpu / len(todo), 5),
+        "session_thread_cpu_s": round(thread / len(todo), 5),  # the sessions' thread alone
         # The workers' time not spent in batches (start-up, task hand-off, idle at the end) as a
         # share of the time spent in them.
         "overhead": round((backend.workers * wall - busy) / busy, 4),

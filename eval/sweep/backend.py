@@ -23,9 +23,12 @@ class Backend(Protocol):
 
     Attributes:
         workers: Sessions it runs at once (local processes, or the cluster's CPUs).
+        startup_s: Seconds its construction took: the workers started and ready (Ray: Ray
+            started or joined, every actor warmed), a one-off cost apart from the sessions'.
     """
 
     workers: int
+    startup_s: float
 
     def run(self, batches: Sequence[Batch]) -> Iterator[tuple[int, BatchResult]]:
         """Run every batch; yield ``(index into batches, its result)`` as each finishes."""

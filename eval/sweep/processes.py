@@ -42,8 +42,10 @@ class ProcessBackend:
     """Batches in ``workers`` local processes (``workers == 1``: in this process)."""
 
     def __init__(self, workers: int) -> None:
+        t0 = time.perf_counter()
         self.workers = workers
-        self._pool: ProcessPoolExecutor | None = None
+        self._pool: ProcessPoolExecutor | None = self._new_pool() if workers > 1 else None
+        self.startup_s = time.perf_counter() - t0
 
     def _new_pool(self) -> ProcessPoolExecutor:
         from eval.compare import _preload

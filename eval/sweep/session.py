@@ -16,7 +16,7 @@ from typing import Any
 
 from eval.sweep.grid import SweepSession
 
-__all__ = ["ROW_KEYS", "Batch", "BatchResult", "run_batch", "session_row"]
+__all__ = ["ROW_KEYS", "Batch", "BatchResult", "run_batch", "session_row", "warm_worker"]
 
 Batch = Sequence[SweepSession]
 """Sessions one task runs, one after the other."""
@@ -34,18 +34,40 @@ class BatchResult:
         wall_s: Wall time of the batch in the worker (s).
         cpu_s: CPU time of the worker process during the batch (s): unlike wall time, not
             stretched when other programs share the cores.
+        thread_cpu_s: CPU time of the thread that ran the sessions (s); ``cpu_s`` less it is
+            what the process's other threads took meanwhile (a Ray worker's own threads).
     """
 
     rows: list[dict[str, Any]]
     wall_s: float
     cpu_s: float
+    thread_cpu_s: float
+
+
+def warm_worker() -> float:
+    """Make this process ready to run sessions: import what a session uses and load the
+    compiled kernels (:func:`langenv.kernels.warm.warm_up`), which is what a forked worker of
+    the ``processes`` backend inherits from the driver. Returns the seconds it took (about a
+    second of CPU in a fresh process)."""
+    t0 = time.perf_counter()
+    from eval.compare import _preload
+    from langenv.kernels.warm import warm_up
+
+    _preload()
+    warm_up()
+    return time.perf_counter() - t0
 
 
 def run_batch(sessions: Sequence[SweepSession]) -> BatchResult:
     """Run ``sessions`` one after the other in this process."""
-    wall, cpu = time.perf_counter(), time.process_time()
+    wall, cpu, thread = time.perf_counter(), time.process_time(), time.thread_time()
     rows = [session_row(s) for s in sessions]
-    return BatchResult(rows, time.perf_counter() - wall, time.process_time() - cpu)
+    return BatchResult(
+        rows,
+        time.perf_counter() - wall,
+        time.process_time() - cpu,
+        time.thread_time() - thread,
+    )
 
 
 def session_row(session: SweepSession) -> dict[str, Any]:

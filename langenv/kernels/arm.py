@@ -13,8 +13,8 @@ import math
 
 import numpy as np
 
-from langenv.kernels import jit
-from langenv.kernels.blas import chol_factor, chol_solve, mul_mat_mat_t, mul_mat_t_vec, mul_mat_vec
+from langenv.kernels import inline, kernel
+from langenv.kernels.blas import chol_factor, chol_solve, mul_mat_t_vec, mul_mat_vec, sqr_mat_t
 
 __all__ = ["J0", "LIMITS_DUE", "OK", "apply", "solve"]
 
@@ -32,13 +32,30 @@ LIMITS_DUE = 1
 (``Arm._avoid_limits``) before :func:`apply`."""
 
 
-@jit
+@kernel
 def _joint(aw: np.ndarray, block: int, i: int) -> float:
     n = int(aw[A_N])
     return aw[J0 + block * n + i]
 
 
-@jit
+@inline
+def _damped_least_squares(
+    aw: np.ndarray, jarm: np.ndarray, xdot: np.ndarray, qdot: np.ndarray, k: int, n: int
+) -> None:
+    """``qdot = J^T (J J^T + lambda^2 I)^-1 xdot`` (``Arm.step``'s 3: MuJoCo's routines, in
+    their order), ``J = jarm`` (k, n). Inlined, so a call with constant sizes is compiled for
+    them (loops unrolled, the same operations)."""
+    a = aw[A_A : A_A + k * k]
+    sqr_mat_t(a, jarm, k, n)
+    for i in range(k):
+        a[i * (k + 1)] += aw[A_LAMBDA2]
+    chol_factor(a, k, 0.0)
+    y = aw[A_Y : A_Y + k]
+    chol_solve(y, a, xdot[:k], k)
+    mul_mat_t_vec(qdot, jarm, y, k, n)
+
+
+@kernel
 def solve(
     aw: np.ndarray,
     ai: np.ndarray,
@@ -85,20 +102,17 @@ def solve(
     # damped least squares on the task Jacobian
     jarm = aw[J0 + 6 * n : J0 + 6 * n + k * n]
     if aw[A_FULL] != 0.0:
-        jarm[:] = jac[: k * nv]
+        for i in range(k * nv):
+            jarm[i] = jac[i]
     else:
         for r in range(k):
             for i in range(n):
                 jarm[r * n + i] = jac[r * nv + ai[i]]
-    a = aw[A_A : A_A + k * k]
-    mul_mat_mat_t(a, jarm, jarm, k, n, k)
-    for i in range(k):
-        a[i * (k + 1)] += aw[A_LAMBDA2]
-    chol_factor(a, k, 0.0)
-    y = aw[A_Y : A_Y + k]
-    chol_solve(y, a, xdot[:k], k)
     qdot = aw[J0 + 5 * n : J0 + 6 * n]
-    mul_mat_t_vec(qdot, jarm, y, k, n)
+    if k == 6 and n == 6:  # the UR5 holding its orientation: sizes the compiler unrolls
+        _damped_least_squares(aw, jarm, xdot, qdot, 6, 6)
+    else:
+        _damped_least_squares(aw, jarm, xdot, qdot, k, n)
     # joint-limit margins: checked only when a joint could have reached one
     aw[A_COUNTDOWN] -= 1.0
     if aw[A_COUNTDOWN] <= 0.0:
@@ -125,7 +139,7 @@ def solve(
     return OK
 
 
-@jit
+@kernel
 def apply(
     aw: np.ndarray,
     ai: np.ndarray,
@@ -158,6 +172,11 @@ def apply(
         aw[A_XREF + c] += aw[A_V + c] * scale
     for i in range(n):
         ctrl[ai[2 * n + i]] = qdot[i]
-    f = np.empty(3)
-    f[0], f[1], f[2] = f0, f1, f2
-    mul_mat_t_vec(qfrc, jac[: 3 * nv], f, 3, nv)
+    # qfrc_applied = J_p^T f: mju_mulMatTVec's operations, ``f`` given as three numbers
+    for j in range(nv):
+        qfrc[j] = 0.0
+    for r in range(3):
+        v = f0 if r == 0 else (f1 if r == 1 else f2)
+        if v != 0.0:
+            for j in range(nv):
+                qfrc[j] += jac[r * nv + j] * v

@@ -4,18 +4,30 @@
 path), ``(s0 + s2) + (s1 + s3)``, then adds the rest as one group; ``mju_cholFactor``,
 ``mju_cholSolve``, ``mju_mulMatMatT`` and ``mju_mulMatTVec`` are built on it. Repeating that order
 makes the compiled controller's results bit-identical to calling MuJoCo.
+
+The routines the tick calls are inlined into their callers (:func:`langenv.kernels.inline`): a
+call of a few dozen flops costs as much as its arithmetic, and a caller that passes constant
+sizes (the UR5's 6 x 6 least squares) gets them unrolled. Inlining moves no operation.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from langenv.kernels import jit
+from langenv.kernels import inline, kernel
 
-__all__ = ["chol_factor", "chol_solve", "dot", "mul_mat_mat_t", "mul_mat_t_vec", "mul_mat_vec"]
+__all__ = [
+    "chol_factor",
+    "chol_solve",
+    "dot",
+    "mul_mat_mat_t",
+    "mul_mat_t_vec",
+    "mul_mat_vec",
+    "sqr_mat_t",
+]
 
 
-@jit
+@inline
 def dot(a: np.ndarray, ia: int, b: np.ndarray, ib: int, n: int) -> float:
     """``mju_dot(a + ia, b + ib, n)`` on flat arrays."""
     res = 0.0
@@ -43,7 +55,7 @@ def dot(a: np.ndarray, ia: int, b: np.ndarray, ib: int, n: int) -> float:
     return res
 
 
-@jit
+@kernel
 def mul_mat_mat_t(
     res: np.ndarray, m1: np.ndarray, m2: np.ndarray, r1: int, c1: int, r2: int
 ) -> None:
@@ -53,14 +65,27 @@ def mul_mat_mat_t(
             res[i * r2 + j] = dot(m1, i * c1, m2, j * c1, c1)
 
 
-@jit
+@inline
+def sqr_mat_t(res: np.ndarray, mat: np.ndarray, r: int, c: int) -> None:
+    """``mju_mulMatMatT(res, mat, mat, r, c, r)``: ``res (r, r) = mat (r, c) @ mat.T``, one
+    :func:`dot` per entry of the lower triangle, mirrored: entry ``(j, i)``'s dot multiplies the
+    same pairs in the same order as ``(i, j)``'s (each product's factors swapped, which IEEE
+    multiplication does not see), so ``res`` is bit for bit :func:`mul_mat_mat_t`'s."""
+    for i in range(r):
+        for j in range(i + 1):
+            v = dot(mat, i * c, mat, j * c, c)
+            res[i * r + j] = v
+            res[j * r + i] = v
+
+
+@inline
 def mul_mat_vec(res: np.ndarray, mat: np.ndarray, vec: np.ndarray, nr: int, nc: int) -> None:
     """``mju_mulMatVec``: ``res (nr,) = mat (nr, nc) @ vec (nc,)``, one :func:`dot` per row."""
     for r in range(nr):
         res[r] = dot(mat, r * nc, vec, 0, nc)
 
 
-@jit
+@inline
 def mul_mat_t_vec(res: np.ndarray, mat: np.ndarray, vec: np.ndarray, nr: int, nc: int) -> None:
     """``mju_mulMatTVec``: ``res (nc,) = mat (nr, nc).T @ vec (nr,)``, zero entries skipped."""
     for j in range(nc):
@@ -72,7 +97,7 @@ def mul_mat_t_vec(res: np.ndarray, mat: np.ndarray, vec: np.ndarray, nr: int, nc
                 res[j] += mat[r * nc + j] * v
 
 
-@jit
+@inline
 def chol_factor(mat: np.ndarray, n: int, mindiag: float) -> int:
     """``mju_cholFactor``: in-place ``mat = L L'`` (flat, row-major); returns the rank."""
     rank = n
@@ -95,7 +120,7 @@ def chol_factor(mat: np.ndarray, n: int, mindiag: float) -> int:
     return rank
 
 
-@jit
+@inline
 def chol_solve(res: np.ndarray, mat: np.ndarray, vec: np.ndarray, n: int) -> None:
     """``mju_cholSolve`` (MuJoCo 4): ``res = (L L')^-1 vec``, ``mat`` from :func:`chol_factor`."""
     for i in range(n):

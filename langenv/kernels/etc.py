@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from langenv.kernels import jit
+from langenv.kernels import kernel
 from langenv.kernels.path import frame, locate
 
 __all__ = ["LEG0", "estimate", "finish", "ramp_end", "table2", "to_switch"]
@@ -23,7 +23,7 @@ LEG0 = 20
 """Index of the first leg's entries in ``prm``: per leg its end, length and switch distance."""
 
 
-@jit
+@kernel
 def table2(tab: np.ndarray, off: int, x0: float, dx: float, n: int, x: float, y: float) -> float:
     """Bilinear lookup in the ``n`` x ``n`` table at ``tab[off:]`` (grid ``x0 + dx i`` on both
     axes), clamped at its edges."""
@@ -41,13 +41,13 @@ def table2(tab: np.ndarray, off: int, x0: float, dx: float, n: int, x: float, y:
     )
 
 
-@jit
+@kernel
 def _clamp(v: float, hi: float) -> float:
     v = 0.0 if 0.0 > v else v  # Python's max(v, 0.0)
     return hi if hi < v else v  # min(v, hi)
 
 
-@jit
+@kernel
 def _table3(tab: np.ndarray, off: int, prm: np.ndarray, x: float, y: float, z: float) -> float:
     """Trilinear lookup in a behind-the-start table, clamped at its edges."""
     nx, ny, nz = int(prm[P_BN]), int(prm[P_BN + 1]), int(prm[P_BN + 2])
@@ -67,12 +67,12 @@ def _table3(tab: np.ndarray, off: int, prm: np.ndarray, x: float, y: float, z: f
     return out
 
 
-@jit
+@kernel
 def _g(t: float, s: float, ui: float, u0: float, w0: float, tau: float, acc: float) -> float:
     return s * (ui + (u0 - ui) * math.exp(-t / tau) - w0) - acc * t
 
 
-@jit
+@kernel
 def ramp_end(prm: np.ndarray, u0: float, w0: float) -> tuple[float, float]:
     """When the command catches up with ``v_ref`` on a leg: ``(time, direction)``."""
     ui, tau, acc = prm[P_UINF], prm[P_TAU], prm[P_ACC]
@@ -90,18 +90,34 @@ def ramp_end(prm: np.ndarray, u0: float, w0: float) -> tuple[float, float]:
         lo = (tau if tau < hi else hi) * 1e-3
         while _g(lo, s, ui, u0, w0, tau, acc) <= 0.0 and lo < hi:
             lo *= 2.0
-    for _ in range(60):
+    # Bisection: up to 60 halvings, until the bracket is under 1 us. Two halvings per round,
+    # the second's two possible midpoints evaluated beside the first's (independent, so the
+    # CPU overlaps their exp): the same midpoints and decisions as one halving at a time.
+    k = 0
+    while k < 60:
         mid = 0.5 * (lo + hi)
-        if _g(mid, s, ui, u0, w0, tau, acc) > 0.0:
-            lo = mid
+        left, right = 0.5 * (lo + mid), 0.5 * (mid + hi)
+        g_mid = _g(mid, s, ui, u0, w0, tau, acc)
+        g_left = _g(left, s, ui, u0, w0, tau, acc)
+        g_right = _g(right, s, ui, u0, w0, tau, acc)
+        if g_mid > 0.0:
+            lo, nxt, g_nxt = mid, right, g_right
         else:
-            hi = mid
+            hi, nxt, g_nxt = mid, left, g_left
+        k += 1
+        if hi - lo < 1e-6 or k == 60:
+            break
+        if g_nxt > 0.0:
+            lo = nxt
+        else:
+            hi = nxt
+        k += 1
         if hi - lo < 1e-6:
             break
     return hi, s
 
 
-@jit
+@kernel
 def _time_to_cover(prm: np.ndarray, dist: float, u0: float) -> float:
     if dist <= 0.0:
         return 0.0
@@ -125,7 +141,7 @@ def _time_to_cover(prm: np.ndarray, dist: float, u0: float) -> float:
     return t
 
 
-@jit
+@kernel
 def to_switch(prm: np.ndarray, dist: float, u0: float, w0: float) -> tuple[float, float, float]:
     """Time for a leg's motion from ``(u0, w0)`` to cover ``dist`` and ``(u, w)`` then."""
     ui, tau, acc = prm[P_UINF], prm[P_TAU], prm[P_ACC]
@@ -144,7 +160,7 @@ def to_switch(prm: np.ndarray, dist: float, u0: float, w0: float) -> tuple[float
     return t_c + t, u, u
 
 
-@jit
+@kernel
 def finish(prm: np.ndarray, tab: np.ndarray, k: int, q: float, u: float, w: float) -> float:
     """Time to finish the exercise from the 1-D state ``(q, u, w)`` on leg ``k`` (s)."""
     t = 0.0
@@ -169,7 +185,7 @@ def finish(prm: np.ndarray, tab: np.ndarray, k: int, q: float, u: float, w: floa
     return t + table2(tab, rest, prm[P_U0], prm[P_DU], nu, u, w)
 
 
-@jit
+@kernel
 def estimate(
     prm: np.ndarray,
     tab: np.ndarray,

@@ -11,12 +11,12 @@ import math
 
 import numpy as np
 
-from langenv.kernels import jit
+from langenv.kernels import kernel
 
 __all__ = ["simulate"]
 
 
-@jit
+@kernel
 def simulate(
     q: np.ndarray,
     u: np.ndarray,

@@ -29,7 +29,7 @@ from numba import types
 from numba.extending import intrinsic
 
 from langenv.errors import ConfigError
-from langenv.kernels import jit
+from langenv.kernels import kernel
 
 __all__ = ["available", "call_jac", "call_md", "call_pow", "pointers", "pow_address", "py_square"]
 
@@ -153,7 +153,7 @@ def _call_pow(typingctx: Any, fn: Any, x: Any, y: Any) -> Any:
 call_pow: Any = intrinsic(_call_pow)
 
 
-@jit
+@kernel
 def py_square(fn: int, x: float) -> float:
     """CPython's ``x ** 2`` for a finite float ``x`` (``float_pow``: ``pow(|x|, 2.0)``)."""
     if x == 0.0:

@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from langenv.kernels import jit
+from langenv.kernels import kernel
 from langenv.kernels import steps as sk
 from langenv.kernels import tick as tk
 
@@ -36,7 +36,7 @@ ROW_FIELDS = (
 joint positions and the person's force)."""
 
 
-@jit
+@kernel
 def _stored(v: float) -> float:
     """``v`` as the observation stores it: clipped to [-1, 1] as
     :class:`~langenv.observation.ObservationEncoder` clips (NaN stays NaN), rounded to float32."""
@@ -44,7 +44,7 @@ def _stored(v: float) -> float:
     return float(np.float32(v))
 
 
-@jit
+@kernel
 def _seconds_seen(t: float, t_scale: float) -> float:
     """A time as a policy reads it back from the observation: ``t / T`` stored, times ``T``;
     negative readings as 0 (the policy's ``max(0, .)``)."""
@@ -52,7 +52,7 @@ def _seconds_seen(t: float, t_scale: float) -> float:
     return x if x > 0.0 else 0.0
 
 
-@jit
+@kernel
 def _action(cmd: float, upper: float, c_min: float) -> float:
     """:func:`~langenv.pacing.action_from_command`, rounded to float32 as the action stores it."""
     u = (cmd - 1.0) / (upper - 1.0) if cmd >= 1.0 else (cmd - 1.0) / (1.0 - c_min)
@@ -61,7 +61,7 @@ def _action(cmd: float, upper: float, c_min: float) -> float:
     return float(np.float32(u))
 
 
-@jit
+@kernel
 def _command(u: float, upper: float, c_min: float) -> float:
     """:func:`~langenv.pacing.command_from_action`."""
     if u >= 0.0:
@@ -69,7 +69,7 @@ def _command(u: float, upper: float, c_min: float) -> float:
     return 1.0 + (1.0 - c_min) * u
 
 
-@jit
+@kernel
 def commands(
     law: np.ndarray, es: np.ndarray, t_x: float, t_a: float, c: float, motion_on: bool
 ) -> tuple[float, float]:
@@ -97,7 +97,7 @@ def commands(
     return _command(u_p, es[sk.E_PMAX], cmin), _command(u_a, es[sk.E_AMAX], cmin)
 
 
-@jit
+@kernel
 def run_law(
     ws: np.ndarray,
     path: np.ndarray,

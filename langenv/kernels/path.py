@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from langenv.control.trajectory import ArcSegment, Trajectory
-from langenv.kernels import jit
+from langenv.kernels import inline, kernel
 
 __all__ = ["COLS", "closest", "frame", "locate", "pack", "point", "tool_angle", "unit_tangent"]
 
@@ -57,7 +57,7 @@ def pack(trajectory: Trajectory) -> np.ndarray:
     return rows
 
 
-@jit
+@inline
 def _after(path: np.ndarray, col: int, s: float, strict: bool) -> int:
     """Binary search of the sorted column ``col``: how many rows hold a value ``< s``
     (``strict``: bisect_left) or ``<= s`` (bisect_right). Its cost grows with the log of the
@@ -73,7 +73,7 @@ def _after(path: np.ndarray, col: int, s: float, strict: bool) -> int:
     return lo
 
 
-@jit
+@inline
 def locate(path: np.ndarray, s: float, arriving: bool) -> tuple[int, float]:
     """``Trajectory.locate``: (segment index, local arc length)."""
     n = path.shape[0]
@@ -87,7 +87,7 @@ def locate(path: np.ndarray, s: float, arriving: bool) -> tuple[int, float]:
     return i, (0.0 if t < 0.0 else (length if t > length else t))
 
 
-@jit
+@inline
 def tool_angle(path: np.ndarray, s: float) -> float:
     """``Trajectory.tool_angle``: the tool's running turn at ``s`` (rad)."""
     n = path.shape[0]
@@ -99,7 +99,7 @@ def tool_angle(path: np.ndarray, s: float) -> float:
     return path[i, TURN0] + path[i, TURN_RATE] * t
 
 
-@jit
+@inline
 def point(path: np.ndarray, i: int, t: float) -> tuple[float, float, float]:
     """Segment ``i``'s ``point(t)``."""
     r = path[i]
@@ -114,7 +114,7 @@ def point(path: np.ndarray, i: int, t: float) -> tuple[float, float, float]:
     )
 
 
-@jit
+@inline
 def unit_tangent(path: np.ndarray, i: int, t: float) -> tuple[float, float, float]:
     """Segment ``i``'s ``unit_tangent(t)``."""
     r = path[i]
@@ -129,7 +129,7 @@ def unit_tangent(path: np.ndarray, i: int, t: float) -> tuple[float, float, floa
     )
 
 
-@jit
+@inline
 def frame(
     path: np.ndarray, i: int, t: float
 ) -> tuple[float, float, float, float, float, float, float, float, float, bool]:
@@ -160,7 +160,7 @@ def frame(
     )
 
 
-@jit
+@inline
 def project(path: np.ndarray, i: int, x0: float, x1: float, x2: float) -> float:
     """Segment ``i``'s ``project``: local arc length of its point closest to ``x`` (m)."""
     r = path[i]
@@ -181,7 +181,7 @@ def project(path: np.ndarray, i: int, x0: float, x1: float, x2: float) -> float:
     return phi * r[RADIUS]
 
 
-@jit
+@inline
 def _dist2_on(
     path: np.ndarray, i: int, x0: float, x1: float, x2: float, lo: float, hi: float
 ) -> tuple[float, float]:
@@ -193,7 +193,7 @@ def _dist2_on(
     return s, d0 * d0 + d1 * d1 + d2 * d2
 
 
-@jit
+@kernel
 def closest(
     path: np.ndarray, x0: float, x1: float, x2: float, s_prev: float, lo: float, hi: float
 ) -> float:

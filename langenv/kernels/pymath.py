@@ -9,21 +9,21 @@ from __future__ import annotations
 
 import math
 
-from langenv.kernels import jit
+from langenv.kernels import kernel
 
 __all__ = ["dist3", "hypot3"]
 
 _DBL_MIN = 2.2250738585072014e-308
 
 
-@jit
+@kernel
 def _split(x: float) -> tuple[float, float]:
     t = x * 134217729.0  # 2**27 + 1
     hi = t - (t - x)
     return hi, x - hi
 
 
-@jit
+@kernel
 def _mul(x: float, y: float) -> tuple[float, float]:
     xh, xl = _split(x)
     yh, yl = _split(y)
@@ -33,7 +33,7 @@ def _mul(x: float, y: float) -> tuple[float, float]:
     return z, p - z + q + xl * yl
 
 
-@jit
+@kernel
 def _norm(v0: float, v1: float, v2: float) -> float:
     a0, a1, a2 = abs(v0), abs(v1), abs(v2)
     if math.isnan(a0) or math.isnan(a1) or math.isnan(a2):
@@ -72,13 +72,13 @@ def _norm(v0: float, v1: float, v2: float) -> float:
     return h / scale
 
 
-@jit
+@kernel
 def hypot3(x: float, y: float, z: float) -> float:
     """``math.hypot(x, y, z)``."""
     return _norm(x, y, z)
 
 
-@jit
+@kernel
 def dist3(p0: float, p1: float, p2: float, q0: float, q1: float, q2: float) -> float:
     """``math.dist((p0, p1, p2), (q0, q1, q2))``."""
     return _norm(p0 - q0, p1 - q1, p2 - q2)

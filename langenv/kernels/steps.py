@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from langenv.kernels import jit
+from langenv.kernels import kernel
 from langenv.kernels import tick as tk
 from langenv.kernels.mjc import P_POW, py_square
 from langenv.users import PerturbedUser, ReplayUser, SyntheticUser
@@ -53,7 +53,7 @@ def pack_graph(graph: Any, order: tuple[str, ...]) -> tuple[np.ndarray, ...]:
     return mid, slot, kid_ptr, np.array(kids, dtype=np.int64)
 
 
-@jit
+@kernel
 def _fill(
     v: int, left: float, mid: np.ndarray, slot: np.ndarray, kid_ptr: np.ndarray, kids: np.ndarray
 ) -> float:
@@ -78,7 +78,7 @@ def _fill(
     return s_lo if length < s_lo else (s_hi if length > s_hi else length)
 
 
-@jit
+@kernel
 def eta(
     u: int,
     remaining: float,
@@ -109,14 +109,14 @@ def eta(
     return total
 
 
-@jit
+@kernel
 def _bounded(x: float, lo: float, hi: float) -> float:
     """Python's ``min(hi, max(lo, x))``."""
     x = x if x > lo else lo
     return x if x < hi else hi
 
 
-@jit
+@kernel
 def _magnitude(table: np.ndarray, step: float, t: float) -> float:
     """:func:`~langenv.users.base.sample_table` (``t >= 0``)."""
     x = t / step
@@ -132,7 +132,7 @@ def _magnitude(table: np.ndarray, step: float, t: float) -> float:
     return f0 + w * (f1 - f0)
 
 
-@jit
+@kernel
 def run(
     ws: np.ndarray,
     path: np.ndarray,

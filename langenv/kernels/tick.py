@@ -22,7 +22,7 @@ import numpy as np
 
 from langenv.control.guide import _TURNED_COS2, GOVERNOR_SHARE
 from langenv.kernels import arm as arm_kernel
-from langenv.kernels import jit, mjc
+from langenv.kernels import inline, kernel, mjc
 from langenv.kernels.blas import mul_mat_vec
 from langenv.kernels.etc import estimate
 from langenv.kernels.path import RADIUS, closest, frame, locate, point, tool_angle, unit_tangent
@@ -93,12 +93,12 @@ BAD_FORCE, BAD_PACE, BAD_PACE_RATE, BAD_PACE_END, BAD_TOTAL_FORCE, BAD_VELOCITY 
 STOP_NONE, STOP_FORCE, STOP_DEVIATION, STOP_SPEED, STOP_JOINT = 0, 1, 2, 3, 4
 
 
-@jit
+@inline
 def _leg(ws: np.ndarray, k: int, col: int) -> float:
     return ws[LEGS + LEG_COLS * k + col]
 
 
-@jit
+@kernel
 def _limit_velocity(
     ws: np.ndarray, v0: float, v1: float, v2: float, o0: float, o1: float, o2: float
 ) -> tuple[float, float, float]:
@@ -122,7 +122,7 @@ def _limit_velocity(
     return v0, v1, v2
 
 
-@jit
+@kernel
 def _guide_update(ws: np.ndarray, path: np.ndarray, x0: float, x1: float, x2: float) -> None:
     """``Guide.update``: closest point in the leg, next leg (or done) near its end pose."""
     k = int(ws[S_LEG])
@@ -138,7 +138,7 @@ def _guide_update(ws: np.ndarray, path: np.ndarray, x0: float, x1: float, x2: fl
             ws[S_S] = s_end
 
 
-@jit
+@kernel
 def _virtual_force(
     ws: np.ndarray, path: np.ndarray, x0: float, x1: float, x2: float, p: float
 ) -> tuple[float, float, float]:
@@ -164,7 +164,7 @@ def _virtual_force(
     return f0, f1, f2
 
 
-@jit
+@kernel
 def _tangent(
     ws: np.ndarray, path: np.ndarray, x0: float, x1: float, x2: float
 ) -> tuple[float, float, float]:
@@ -183,7 +183,7 @@ def _tangent(
     return b0, b1, b2
 
 
-@jit
+@kernel
 def _speed_limit(ws: np.ndarray, path: np.ndarray, c0: float, c1: float, c2: float) -> float:
     """``Guide.speed_limit`` (not done)."""
     acc = ws[C_ACC]
@@ -206,7 +206,7 @@ def _speed_limit(ws: np.ndarray, path: np.ndarray, c0: float, c1: float, c2: flo
     return cap
 
 
-@jit
+@kernel
 def _admittance(ws: np.ndarray, f0: float, f1: float, f2: float, p: float, p_dot: float) -> int:
     """``VariableAdmittance.step`` of ``v_ref`` in place; an error code for bad input."""
     dt = ws[C_DT]
@@ -231,7 +231,7 @@ def _admittance(ws: np.ndarray, f0: float, f1: float, f2: float, p: float, p_dot
     return OK
 
 
-@jit
+@kernel
 def _command(ws: np.ndarray, path: np.ndarray, x0: float, x1: float, x2: float) -> None:
     """The velocity command: ``v_ref`` (capped by the governor while pushed along) followed at
     the acceleration limit, within the safety limits."""
@@ -257,7 +257,7 @@ def _command(ws: np.ndarray, path: np.ndarray, x0: float, x1: float, x2: float) 
     ws[S_VCMD], ws[S_VCMD + 1], ws[S_VCMD + 2] = c0, c1, c2
 
 
-@jit
+@kernel
 def control(
     ws: np.ndarray,
     path: np.ndarray,
@@ -332,7 +332,7 @@ def control(
     return OK
 
 
-@jit
+@kernel
 def observe(
     ws: np.ndarray,
     path: np.ndarray,
@@ -408,7 +408,7 @@ def observe(
     return STOP_NONE
 
 
-@jit
+@kernel
 def physics(ptr: np.ndarray) -> None:
     """MuJoCo's ``mj_step2``, ``mj_step1`` and the handle's ``mj_jacSite`` (``ptr``:
     :func:`langenv.kernels.mjc.pointers`), as ``GuidedArm`` calls them through the bindings."""
@@ -418,7 +418,7 @@ def physics(ptr: np.ndarray) -> None:
     mjc.call_jac(ptr[mjc.P_JACSITE], m, d, ptr[mjc.P_JACP], ptr[mjc.P_JACR], ptr[mjc.P_SITE])
 
 
-@jit
+@kernel
 def tick(
     ws: np.ndarray,
     path: np.ndarray,

@@ -24,12 +24,23 @@ def rotation_error_matrix(r_held: NDArray[np.float64], gain: float) -> NDArray[n
         (3, 9) float64; ``R.ravel()`` is row-major, so entry ``3 a + i`` is ``R[a, i]``.
     """
     b = np.zeros((3, 9))
+    k = 0.5 * gain
     for a in range(3):
-        e_a = np.zeros(3)
+        e_a = [0.0, 0.0, 0.0]
         e_a[a] = 1.0
         for i in range(3):
-            b[:, 3 * a + i] = 0.5 * gain * np.cross(e_a, r_held[:, i])
+            b[:, 3 * a + i] = [k * c for c in _cross(e_a, r_held[:, i].tolist())]
     return b
+
+
+def _cross(u: list[float], v: list[float]) -> tuple[float, float, float]:
+    """``np.cross(u, v)`` of two 3-vectors, its operations in its order (signed zeros
+    included), on Python floats: a few microseconds instead of NumPy's ~40 per call."""
+    return (
+        u[1] * v[2] - u[2] * v[1],
+        u[2] * v[0] - u[0] * v[2],
+        u[0] * v[1] - u[1] * v[0],
+    )
 
 
 def rotation_vector(r_from: NDArray[np.float64], r_to: NDArray[np.float64]) -> NDArray[np.float64]:
