@@ -199,3 +199,109 @@ def test_scripts_choose_their_voice_with_a_directive(tmp_path: Path, clips: Clip
             author(script, tmp_path / "bad.yaml", clips)
         assert message in str(info.value)
         assert not (tmp_path / "bad.yaml").exists()
+
+
+def test_a_live_stream_of_a_natural_voice_with_short_pauses_never_starves(
+    clips: ClipLibrary,
+) -> None:
+    """With little silence after a clip the content after it is not chosen yet when the voice,
+    ahead of a slow speech, reaches the clip's end: the voice must wait before the vocoder
+    needs it, so the live stream never starves and still equals the offline rendering."""
+    from langenv.live.stream import BLOCK, SpeechStream
+    from langenv.speech.timeline import SpeechTimeline
+
+    phrases = [
+        Phrase("a", "I want you to move your hand away from your body.", None, ("b",)),
+        Phrase("b", "Keep going, slowly now.", None, ("c",)),
+        Phrase("c", "And you're done.", None, ()),
+    ]
+    dur = {p.id: clips.duration(p) for p in phrases}
+    for pause in (0.0, 0.05, 0.1):
+        graph = PhraseGraph(phrases, "a", dur, pause=pause, voice="natural")
+        timeline, stream = SpeechTimeline(graph), SpeechStream(graph, clips)
+        t, dt, trace, live = 0.0, 0.002, [], []
+        while not timeline.done or t < timeline.t + 0.5:
+            pace = 0.7 + 0.1 * np.sin(t)
+            stream.record(t, pace, timeline.path, timeline.done, timeline.pause_lengths)
+            trace.append((t, pace))
+            live.append(stream.render(t, 4 * BLOCK))
+            if not timeline.done:
+                timeline.step(dt, pace)
+            t += dt
+        assert stream.starved == 0, pause
+        tt, aa = np.asarray(trace).T
+        offline = render_history(graph, clips, timeline.path, tt, aa)
+        heard = np.concatenate(live)
+        np.testing.assert_array_equal(heard, offline[: heard.size])
+
+
+class _Content:
+    """A stand-in vocoder for :class:`NaturalVoice`: content is counted, not sounded (output 1.0
+    where content is read); records each pull with where the speech was."""
+
+    n_fft, hop = 64, 16
+
+    def __init__(self, sr: int, seconds: float, voice: NaturalVoice) -> None:
+        self.sr, self.tau, self.end, self.voice = sr, 0.0, seconds * sr, voice
+        self.pulls: list[tuple[float, float, float, float]] = []  # (from, to, pace, speech)
+
+    @property
+    def content_time(self) -> float:
+        return self.tau / self.sr
+
+    @property
+    def done(self) -> bool:
+        return self.tau >= self.end - 1e-9
+
+    def pull(self, n: int, pace: float) -> np.ndarray:
+        k = min(n, int(np.ceil((self.end - self.tau) / pace - 1e-9)))
+        lo, hi = self.tau / self.sr, (self.tau + pace * k) / self.sr
+        self.pulls.append((lo, hi, pace, self.voice.speech_pos))
+        self.tau += pace * k
+        return np.ones(k, np.float32)
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    words=st.lists(st.floats(0.01, 1.0), min_size=1, max_size=5),
+    gaps=st.lists(st.floats(0.0, 0.4), min_size=5, max_size=5),
+    paces=st.lists(st.floats(0.3, 2.0), min_size=4, max_size=40),
+)
+def test_the_natural_voice_says_each_clip_at_its_rate_or_faster_and_keeps_with_the_speech(
+    words: list[float], gaps: list[float], paces: list[float]
+) -> None:
+    sr, n = 1000, 25
+    voice = NaturalVoice(sr)
+    spans, pos = [], 0.0  # (start, end of the words, end of the silence after them)
+    for w, g in zip(words, gaps, strict=False):
+        voice.clip(pos, pos + w, g)
+        spans.append((pos, pos + w, pos + w + g))
+        pos += w + g
+    voc = _Content(sr, pos + 0.5, voice)  # a last clip of 0.5 s follows the pace
+    # pieces end on whole output samples: voice and speech may part by a sample's worth a wait
+    slack = (len(spans) + 1) * max(*paces, 1.0) / sr
+    blocks = 0
+    while not voc.done and blocks < 10_000:
+        a = paces[blocks % len(paces)]
+        before = (voc.content_time, voice.speech_pos)
+        y, starved = voice.block(voc, n, a)
+        blocks += 1
+        assert not starved
+        assert y.size == n or voc.done  # a block is whole until the content ends
+        # the voice is never behind the speech, and ahead of it only inside a clip's slot
+        assert voc.content_time >= voice.speech_pos - slack
+        if voc.content_time > voice.speech_pos + slack:
+            assert any(s - 1e-9 <= voice.speech_pos <= k + 1e-9 for s, _, k in spans)
+        # silence is heard only while the voice waits for the speech
+        if np.any(y == 0.0):
+            assert before[0] >= before[1] - slack
+    assert voc.done
+    for lo, hi, pace, speech in voc.pulls:
+        for s, e, k in spans:
+            reach = (pace + 1.0) * (_Content.n_fft / 2 + _Content.hop) / sr
+            if s - 1e-9 <= lo and hi <= min(e, k - 3.0 * 0.096) - 1e-9:
+                assert pace >= 1.0  # the words of a clip with a successor: never slowed
+            if s - 1e-9 <= speech < k and lo > speech + slack:
+                # ahead of the speech, the voice never reads past the silence after the clip:
+                # the content after it is chosen only when the speech gets there
+                assert hi + reach <= k + pace / sr + 1e-6

@@ -233,16 +233,18 @@ def natural_voice(
     graph: PhraseGraph, clips: ClipLibrary, ids: Sequence[str], pauses: Sequence[float]
 ) -> NaturalVoice:
     """The :class:`~langenv.speech.voice.NaturalVoice` of a path: every clip that has a
-    successor in the graph, at its place in the content of :func:`_content`."""
+    successor in the graph, at its place in the content of :func:`_content`, declared as the
+    live stream declares it (with the graph's pause after it, even where a history cut short
+    ends with it)."""
     voice = NaturalVoice(clips.sr)
     lengths = iter(pauses)
+    gap = silence(graph.pause, clips.sr).size
     pos = 0
-    for k, u in enumerate(ids):
+    for u in ids:
         if u in graph.pauses:
             pos += silence(next(lengths), clips.sr).size
             continue
         n = clips.clip(graph.phrases[u]).size
-        gap = silence(graph.pause, clips.sr).size if k + 1 < len(ids) else 0
         if graph.children(u):
             voice.clip(pos / clips.sr, (pos + n) / clips.sr, gap / clips.sr)
         pos += n + gap
