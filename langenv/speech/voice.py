@@ -173,7 +173,10 @@ def voice_rate(
     Each sample stands for the interval until the next one (zero-order hold, as in the
     evaluation's metrics). Inside each span ``[t_start, t_end)`` of a clip with a successor the
     voice says the clip at ``max(a, 1)`` until it has said as much as the speech covers in the
-    span, then waits (rate 1: silence, nothing stretched); elsewhere it follows ``a``.
+    span, then waits (rate 1: silence, nothing stretched); elsewhere it follows ``a``. It leaves
+    out what :class:`NaturalVoice` adds at a sample's scale: its wait starts up to
+    :data:`WAIT_AFTER` into the silence after the clip, or before the clip's last words where
+    that silence is too short for the vocoder's read-ahead (a graph ``pause`` under about 0.2 s).
 
     Args:
         t: Sample times (s), shape ``(n,)``, strictly increasing.
