@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -305,3 +306,28 @@ def test_the_natural_voice_says_each_clip_at_its_rate_or_faster_and_keeps_with_t
                 # ahead of the speech, the voice never reads past the silence after the clip:
                 # the content after it is chosen only when the speech gets there
                 assert hi + reach <= k + pace / sr + 1e-6
+
+
+def test_a_replay_is_voiced_as_its_session_was(clips: ClipLibrary) -> None:
+    """A log says how its speech was voiced: a video re-renders it so, whatever the graph's YAML
+    says today (logs of langctrl 0.5 and before were stretched; ``default`` is natural now)."""
+    from eval.video import session_audio
+    from langenv.speech.graph import graph_path
+    from langenv.speech.render import plan_speech
+
+    graph = PhraseGraph.load(graph_path("default"), clips=clips)
+    assert graph.voice == "natural" and graph.with_voice("natural") is graph
+    stretched = graph.with_voice("stretch")
+    assert stretched.voice == "stretch" and stretched.t_min(graph.start) == graph.t_min(graph.start)
+    with pytest.raises(PhraseGraphError, match="voice must be one of"):
+        graph.with_voice("robotic")
+    t = np.arange(0.0, 16.0, 0.02)
+    a = np.full(t.size, 0.7)
+    said = plan_speech(graph, t, a)
+    utterances = tuple(Utterance(u.phrase, "", u.t_start, u.t_end, u.length) for u in said)
+    log = dataclasses.replace(log_of("stretch", 0.7), utterances=utterances, phrase_graph="default")
+    audio, _sr = session_audio(log, clips=clips)
+    np.testing.assert_array_equal(audio, render_history(stretched, clips, said, log.t, log.a))
+    natural, _sr = session_audio(dataclasses.replace(log, voice="natural"), clips=clips)
+    np.testing.assert_array_equal(natural, render_history(graph, clips, said, log.t, log.a))
+    assert not np.array_equal(audio, natural)
