@@ -202,37 +202,61 @@ def test_scripts_choose_their_voice_with_a_directive(tmp_path: Path, clips: Clip
         assert not (tmp_path / "bad.yaml").exists()
 
 
-def test_a_live_stream_of_a_natural_voice_with_short_pauses_never_starves(
-    clips: ClipLibrary,
-) -> None:
-    """With little silence after a clip the content after it is not chosen yet when the voice,
-    ahead of a slow speech, reaches the clip's end: the voice must wait before the vocoder
-    needs it, so the live stream never starves and still equals the offline rendering."""
-    from langenv.live.stream import BLOCK, SpeechStream
-    from langenv.speech.timeline import SpeechTimeline
-
+def three_clips(clips: ClipLibrary, pause: float, voice: str = "natural") -> PhraseGraph:
     phrases = [
         Phrase("a", "I want you to move your hand away from your body.", None, ("b",)),
         Phrase("b", "Keep going, slowly now.", None, ("c",)),
         Phrase("c", "And you're done.", None, ()),
     ]
     dur = {p.id: clips.duration(p) for p in phrases}
+    return PhraseGraph(phrases, "a", dur, pause=pause, voice=voice)
+
+
+def live_and_offline(
+    graph: PhraseGraph, clips: ClipLibrary, until: float = 60.0
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """A session at a slow, varying pace streamed live (ended at ``until`` s or 0.5 s after its
+    speech), the offline rendering of its trace, and the blocks the stream starved."""
+    from langenv.live.stream import BLOCK, SpeechStream
+    from langenv.speech.timeline import SpeechTimeline
+
+    timeline, stream = SpeechTimeline(graph), SpeechStream(graph, clips)
+    t, dt, trace, live = 0.0, 0.002, [], []
+    while t < until and (not timeline.done or t < timeline.t + 0.5):
+        pace = 0.7 + 0.1 * np.sin(t)
+        stream.record(t, pace, timeline.path, timeline.done, timeline.pause_lengths)
+        trace.append((t, pace))
+        live.append(stream.render(t, 4 * BLOCK))
+        if not timeline.done:
+            timeline.step(dt, pace)
+        t += dt
+    tt, aa = np.asarray(trace).T
+    path, lengths = timeline.path, timeline.pause_lengths
+    offline = render_history(graph, clips, path, tt, aa, pause_lengths=lengths)
+    return np.concatenate(live), offline, stream.starved
+
+
+def test_a_live_stream_of_a_natural_voice_with_short_pauses_never_starves(
+    clips: ClipLibrary,
+) -> None:
+    """With little silence after a clip the content after it is not chosen yet when the voice,
+    ahead of a slow speech, reaches the clip's end: the voice must wait before the vocoder
+    needs it, so the live stream never starves and still equals the offline rendering."""
     for pause in (0.0, 0.05, 0.1):
-        graph = PhraseGraph(phrases, "a", dur, pause=pause, voice="natural")
-        timeline, stream = SpeechTimeline(graph), SpeechStream(graph, clips)
-        t, dt, trace, live = 0.0, 0.002, [], []
-        while not timeline.done or t < timeline.t + 0.5:
-            pace = 0.7 + 0.1 * np.sin(t)
-            stream.record(t, pace, timeline.path, timeline.done, timeline.pause_lengths)
-            trace.append((t, pace))
-            live.append(stream.render(t, 4 * BLOCK))
-            if not timeline.done:
-                timeline.step(dt, pace)
-            t += dt
-        assert stream.starved == 0, pause
-        tt, aa = np.asarray(trace).T
-        offline = render_history(graph, clips, timeline.path, tt, aa)
-        heard = np.concatenate(live)
+        heard, offline, starved = live_and_offline(three_clips(clips, pause), clips)
+        assert starved == 0, pause
+        np.testing.assert_array_equal(heard, offline[: heard.size])
+
+
+def test_a_session_cut_short_while_the_voice_waits_renders_as_it_streamed(
+    clips: ClipLibrary,
+) -> None:
+    """Cut during the first clip's slot after its words were said: the offline rendering of the
+    cut history ends the clip as the live stream did (with the silence after it, where the
+    vocoder's last frames of the clip sound), not with the vocoder cut at the content's end."""
+    for voice in ("natural", "stretch"):
+        heard, offline, starved = live_and_offline(three_clips(clips, 0.4, voice), clips, 3.2)
+        assert starved == 0
         np.testing.assert_array_equal(heard, offline[: heard.size])
 
 

@@ -155,16 +155,17 @@ def silence(seconds: float, sr: int) -> np.ndarray:
 def _content(
     graph: PhraseGraph, clips: ClipLibrary, ids: Sequence[str], pauses: Sequence[float]
 ) -> Iterator[np.ndarray]:
-    """Base-pace content: each clip, with the graph's pause between a clip and the vertex after
-    it; each pause vertex as its silence (``pauses``: their lengths, in order)."""
+    """Base-pace content: each clip, with the graph's pause after a clip that has a successor
+    in the graph (also where a history cut short ends with it, as the live stream pushes it);
+    each pause vertex as its silence (``pauses``: their lengths, in order)."""
     gap = silence(graph.pause, clips.sr)
     lengths = iter(pauses)
-    for k, u in enumerate(ids):
+    for u in ids:
         if u in graph.pauses:
             yield silence(next(lengths), clips.sr)
             continue
         yield clips.clip(graph.phrases[u])
-        if k + 1 < len(ids) and gap.size:
+        if graph.children(u) and gap.size:
             yield gap
 
 
@@ -217,7 +218,7 @@ def render_history(
     voc = VariableRateVocoder(sr, **(vocoder_kw or {}))
     clip_ids = [u for u in ids if u not in graph.pauses]
     total = float(sum(clips.clip(graph.phrases[u]).size for u in clip_ids)) / sr
-    total += graph.pause * max(0, len(clip_ids) - 1) + sum(pauses)
+    total += graph.pause * sum(1 for u in clip_ids if graph.children(u)) + sum(pauses)
     # content kept pushed ahead of the vocoder's read position: its window plus two blocks
     lookahead = 4.0 * (vocoder_kw or {}).get("n_fft", 1024) / sr + 3.0 * _BLOCK / sr
     feeder = _Feeder(voc, _content(graph, clips, ids, pauses), sr, lookahead)
