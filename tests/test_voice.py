@@ -355,3 +355,20 @@ def test_a_replay_is_voiced_as_its_session_was(clips: ClipLibrary) -> None:
     natural, _sr = session_audio(dataclasses.replace(log, voice="natural"), clips=clips)
     np.testing.assert_array_equal(natural, render_history(graph, clips, said, log.t, log.a))
     assert not np.array_equal(audio, natural)
+
+
+def test_a_fillers_wait_counts_as_silence_not_as_the_filler_said() -> None:
+    """Clip 'a', filler 'f' and the last clip 'b' at a = 0.6: the natural voice says the filler's
+    0.7 s slot in 0.42 s and waits 0.28 s; that wait is silence, so the shares (silence, fillers,
+    the rest said) still add up to the speech time."""
+    utt = (
+        Utterance("a", "A", 0.0, 2.5),
+        Utterance("f", "okay", 2.9, 3.6, filler=True),
+        Utterance("b", "B", 4.0, 5.0),
+    )
+    stretched = episode_metrics(dataclasses.replace(log_of("stretch"), utterances=utt))
+    natural = episode_metrics(dataclasses.replace(log_of("natural"), utterances=utt))
+    assert stretched["filler_share"] == pytest.approx(0.7 / 5.0, abs=0.01)
+    assert natural["filler_share"] == pytest.approx(0.42 / 5.0, abs=0.01)
+    # waits: 1.0 s in 'a' and 0.28 s in 'f'; gaps 0.8 s
+    assert natural["pause_share"] == pytest.approx((1.0 + 0.28 + 0.8) / 5.0, abs=0.01)
