@@ -248,10 +248,13 @@ def speech_shares(log: EpisodeLog, waiting: np.ndarray | None = None) -> dict[st
     if span <= 0.0 or not clips:
         return {"pause_share": float("nan"), "filler_share": float("nan")}
     said = sum(min(u.t_end, log.t_speech) - u.t_start for u in clips)
-    if waiting is not None and waiting.any():
-        before_end = (log.t < log.t_speech) & waiting
-        said -= float(np.sum(time_weights(log.t)[before_end]))
     filler = sum(min(u.t_end, log.t_speech) - u.t_start for u in clips if u.filler)
+    if waiting is not None and waiting.any():
+        weights = np.where((log.t < log.t_speech) & waiting, time_weights(log.t), 0.0)
+        said -= float(np.sum(weights))
+        for u in clips:  # a filler's wait is silence, not the filler said
+            if u.filler:
+                filler -= float(np.sum(weights[(log.t >= u.t_start) & (log.t < u.t_end)]))
     return {
         "pause_share": min(1.0, max(0.0, 1.0 - said / span)),
         "filler_share": min(1.0, max(0.0, filler / span)),

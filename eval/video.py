@@ -389,7 +389,7 @@ def session_audio(
     """The robot's speech in ``log``, rendered as ``eval.compare`` renders the session's WAV.
 
     Args:
-        log: The episode (its utterances and audio pace).
+        log: The episode (its utterances and audio pace; voiced as its ``voice`` says).
         phrase_graph: The graph spoken (a shipped key or a YAML); default: the log's own.
         clips: A :class:`~langenv.speech.audio.ClipLibrary` (default: a new one).
 
@@ -411,7 +411,9 @@ def session_audio(
             "--phrase-graph"
         )
     lib = clips if clips is not None else ClipLibrary()
-    graph = PhraseGraph.load(graph_path(ref), clips=lib)
+    # voiced as the session was (a log of langctrl 0.5 or before: stretched, whatever the YAML
+    # says today)
+    graph = PhraseGraph.load(graph_path(ref), clips=lib).with_voice(log.voice)
     audio = render_history(graph, lib, log.utterances, log.t, log.a)
     return audio, lib.sr
 

@@ -264,3 +264,31 @@ def test_render_never_replaces_a_file_without_overwrite(
     assert main(["render", "ac", str(trace), str(out)]) == 1
     assert "--overwrite" in capsys.readouterr().err
     assert out.read_bytes() == b"a user's recording"
+
+
+def test_render_voices_the_pace_as_asked(tmp_path: Path) -> None:
+    """--voicing overrides the graph's voice: the study's (stretched) graph voiced naturally is
+    what render_history makes of it with that voice; without it, the graph's own voice."""
+    pytest.importorskip("langenv.speech.vocoder")
+    from langenv.speech.audio import ClipLibrary
+    from langenv.speech.render import render_history
+
+    t = np.arange(0.0, 16.0 + 1e-9, 0.02)
+    a = np.full(t.size, 0.7)
+    trace = write_trace(tmp_path / "trace.csv", t, a)
+    heard = {}
+    for voicing in (None, "natural", "stretch"):
+        out = tmp_path / f"{voicing}.wav"
+        extra = [] if voicing is None else ["--voicing", voicing]
+        assert main(["render", "study", str(trace), str(out), *extra]) == 0
+        heard[voicing] = sf.read(out, dtype="int16")[0]
+    graph = PhraseGraph.load(default_graph_path("study"))
+    clips = ClipLibrary()
+    plan = plan_speech(graph, t, a)
+    natural = render_history(graph.with_voice("natural"), clips, plan, t, a)
+    expected = np.round(np.clip(natural, -1.0, 1.0) * 32767).astype(np.int64)
+    assert np.abs(heard["natural"].astype(np.int64) - expected).max() <= 4  # 16-bit PCM
+    np.testing.assert_array_equal(heard[None], heard["stretch"])
+    assert not np.array_equal(heard["natural"], heard["stretch"])
+    with pytest.raises(SystemExit):
+        main(["render", "study", str(trace), str(tmp_path / "x.wav"), "--voicing", "robotic"])

@@ -73,6 +73,7 @@ def short_session(tmp_path: Path) -> EpisodeLog:
         utterances=base.speech.utterances(),
         phrase_graph=_graph_ref(graph),
         path=exercise.sample(50),
+        voice=base.graph.voice,
     )
     env.close()
     return log

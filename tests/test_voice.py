@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -199,3 +200,175 @@ def test_scripts_choose_their_voice_with_a_directive(tmp_path: Path, clips: Clip
             author(script, tmp_path / "bad.yaml", clips)
         assert message in str(info.value)
         assert not (tmp_path / "bad.yaml").exists()
+
+
+def three_clips(clips: ClipLibrary, pause: float, voice: str = "natural") -> PhraseGraph:
+    phrases = [
+        Phrase("a", "I want you to move your hand away from your body.", None, ("b",)),
+        Phrase("b", "Keep going, slowly now.", None, ("c",)),
+        Phrase("c", "And you're done.", None, ()),
+    ]
+    dur = {p.id: clips.duration(p) for p in phrases}
+    return PhraseGraph(phrases, "a", dur, pause=pause, voice=voice)
+
+
+def live_and_offline(
+    graph: PhraseGraph, clips: ClipLibrary, until: float = 60.0
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """A session at a slow, varying pace streamed live (ended at ``until`` s or 0.5 s after its
+    speech), the offline rendering of its trace, and the blocks the stream starved."""
+    from langenv.live.stream import BLOCK, SpeechStream
+    from langenv.speech.timeline import SpeechTimeline
+
+    timeline, stream = SpeechTimeline(graph), SpeechStream(graph, clips)
+    t, dt, trace, live = 0.0, 0.002, [], []
+    while t < until and (not timeline.done or t < timeline.t + 0.5):
+        pace = 0.7 + 0.1 * np.sin(t)
+        stream.record(t, pace, timeline.path, timeline.done, timeline.pause_lengths)
+        trace.append((t, pace))
+        live.append(stream.render(t, 4 * BLOCK))
+        if not timeline.done:
+            timeline.step(dt, pace)
+        t += dt
+    tt, aa = np.asarray(trace).T
+    path, lengths = timeline.path, timeline.pause_lengths
+    offline = render_history(graph, clips, path, tt, aa, pause_lengths=lengths)
+    return np.concatenate(live), offline, stream.starved
+
+
+def test_a_live_stream_of_a_natural_voice_with_short_pauses_never_starves(
+    clips: ClipLibrary,
+) -> None:
+    """With little silence after a clip the content after it is not chosen yet when the voice,
+    ahead of a slow speech, reaches the clip's end: the voice must wait before the vocoder
+    needs it, so the live stream never starves and still equals the offline rendering."""
+    for pause in (0.0, 0.05, 0.1):
+        heard, offline, starved = live_and_offline(three_clips(clips, pause), clips)
+        assert starved == 0, pause
+        np.testing.assert_array_equal(heard, offline[: heard.size])
+
+
+def test_a_session_cut_short_while_the_voice_waits_renders_as_it_streamed(
+    clips: ClipLibrary,
+) -> None:
+    """Cut during the first clip's slot after its words were said: the offline rendering of the
+    cut history ends the clip as the live stream did (with the silence after it, where the
+    vocoder's last frames of the clip sound), not with the vocoder cut at the content's end."""
+    for voice in ("natural", "stretch"):
+        heard, offline, starved = live_and_offline(three_clips(clips, 0.4, voice), clips, 3.2)
+        assert starved == 0
+        np.testing.assert_array_equal(heard, offline[: heard.size])
+
+
+class _Content:
+    """A stand-in vocoder for :class:`NaturalVoice`: content is counted, not sounded (output 1.0
+    where content is read); records each pull with where the speech was."""
+
+    n_fft, hop = 64, 16
+
+    def __init__(self, sr: int, seconds: float, voice: NaturalVoice) -> None:
+        self.sr, self.tau, self.end, self.voice = sr, 0.0, seconds * sr, voice
+        self.pulls: list[tuple[float, float, float, float]] = []  # (from, to, pace, speech)
+
+    @property
+    def content_time(self) -> float:
+        return self.tau / self.sr
+
+    @property
+    def done(self) -> bool:
+        return self.tau >= self.end - 1e-9
+
+    def pull(self, n: int, pace: float) -> np.ndarray:
+        k = min(n, int(np.ceil((self.end - self.tau) / pace - 1e-9)))
+        lo, hi = self.tau / self.sr, (self.tau + pace * k) / self.sr
+        self.pulls.append((lo, hi, pace, self.voice.speech_pos))
+        self.tau += pace * k
+        return np.ones(k, np.float32)
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    words=st.lists(st.floats(0.01, 1.0), min_size=1, max_size=5),
+    gaps=st.lists(st.floats(0.0, 0.4), min_size=5, max_size=5),
+    paces=st.lists(st.floats(0.3, 2.0), min_size=4, max_size=40),
+)
+def test_the_natural_voice_says_each_clip_at_its_rate_or_faster_and_keeps_with_the_speech(
+    words: list[float], gaps: list[float], paces: list[float]
+) -> None:
+    sr, n = 1000, 25
+    voice = NaturalVoice(sr)
+    spans, pos = [], 0.0  # (start, end of the words, end of the silence after them)
+    for w, g in zip(words, gaps, strict=False):
+        voice.clip(pos, pos + w, g)
+        spans.append((pos, pos + w, pos + w + g))
+        pos += w + g
+    voc = _Content(sr, pos + 0.5, voice)  # a last clip of 0.5 s follows the pace
+    # pieces end on whole output samples: voice and speech may part by a sample's worth a wait
+    slack = (len(spans) + 1) * max(*paces, 1.0) / sr
+    blocks = 0
+    while not voc.done and blocks < 10_000:
+        a = paces[blocks % len(paces)]
+        before = (voc.content_time, voice.speech_pos)
+        y, starved = voice.block(voc, n, a)
+        blocks += 1
+        assert not starved
+        assert y.size == n or voc.done  # a block is whole until the content ends
+        # the voice is never behind the speech, and ahead of it only inside a clip's slot
+        assert voc.content_time >= voice.speech_pos - slack
+        if voc.content_time > voice.speech_pos + slack:
+            assert any(s - 1e-9 <= voice.speech_pos <= k + 1e-9 for s, _, k in spans)
+        # silence is heard only while the voice waits for the speech
+        if np.any(y == 0.0):
+            assert before[0] >= before[1] - slack
+    assert voc.done
+    for lo, hi, pace, speech in voc.pulls:
+        for s, e, k in spans:
+            reach = (pace + 1.0) * (_Content.n_fft / 2 + _Content.hop) / sr
+            if s - 1e-9 <= lo and hi <= min(e, k - 3.0 * 0.096) - 1e-9:
+                assert pace >= 1.0  # the words of a clip with a successor: never slowed
+            if s - 1e-9 <= speech < k and lo > speech + slack:
+                # ahead of the speech, the voice never reads past the silence after the clip:
+                # the content after it is chosen only when the speech gets there
+                assert hi + reach <= k + pace / sr + 1e-6
+
+
+def test_a_replay_is_voiced_as_its_session_was(clips: ClipLibrary) -> None:
+    """A log says how its speech was voiced: a video re-renders it so, whatever the graph's YAML
+    says today (logs of langctrl 0.5 and before were stretched; ``default`` is natural now)."""
+    from eval.video import session_audio
+    from langenv.speech.graph import graph_path
+    from langenv.speech.render import plan_speech
+
+    graph = PhraseGraph.load(graph_path("default"), clips=clips)
+    assert graph.voice == "natural" and graph.with_voice("natural") is graph
+    stretched = graph.with_voice("stretch")
+    assert stretched.voice == "stretch" and stretched.t_min(graph.start) == graph.t_min(graph.start)
+    with pytest.raises(PhraseGraphError, match="voice must be one of"):
+        graph.with_voice("robotic")
+    t = np.arange(0.0, 16.0, 0.02)
+    a = np.full(t.size, 0.7)
+    said = plan_speech(graph, t, a)
+    utterances = tuple(Utterance(u.phrase, "", u.t_start, u.t_end, u.length) for u in said)
+    log = dataclasses.replace(log_of("stretch", 0.7), utterances=utterances, phrase_graph="default")
+    audio, _sr = session_audio(log, clips=clips)
+    np.testing.assert_array_equal(audio, render_history(stretched, clips, said, log.t, log.a))
+    natural, _sr = session_audio(dataclasses.replace(log, voice="natural"), clips=clips)
+    np.testing.assert_array_equal(natural, render_history(graph, clips, said, log.t, log.a))
+    assert not np.array_equal(audio, natural)
+
+
+def test_a_fillers_wait_counts_as_silence_not_as_the_filler_said() -> None:
+    """Clip 'a', filler 'f' and the last clip 'b' at a = 0.6: the natural voice says the filler's
+    0.7 s slot in 0.42 s and waits 0.28 s; that wait is silence, so the shares (silence, fillers,
+    the rest said) still add up to the speech time."""
+    utt = (
+        Utterance("a", "A", 0.0, 2.5),
+        Utterance("f", "okay", 2.9, 3.6, filler=True),
+        Utterance("b", "B", 4.0, 5.0),
+    )
+    stretched = episode_metrics(dataclasses.replace(log_of("stretch"), utterances=utt))
+    natural = episode_metrics(dataclasses.replace(log_of("natural"), utterances=utt))
+    assert stretched["filler_share"] == pytest.approx(0.7 / 5.0, abs=0.01)
+    assert natural["filler_share"] == pytest.approx(0.42 / 5.0, abs=0.01)
+    # waits: 1.0 s in 'a' and 0.28 s in 'f'; gaps 0.8 s
+    assert natural["pause_share"] == pytest.approx((1.0 + 0.28 + 0.8) / 5.0, abs=0.01)

@@ -27,6 +27,7 @@ from langenv.speech.author import author
 from langenv.speech.coverage import coverage, format_coverage
 from langenv.speech.graph import SHIPPED_GRAPHS, PhraseGraph, graph_path
 from langenv.speech.render import MAX_AUDIO_PACE, MIN_AUDIO_PACE
+from langenv.speech.voice import VOICES
 from langenv.validation import check_time_axis
 
 _PROGRESS_AFTER = 5.0  # s of trace: longer renders show a progress bar (on a terminal)
@@ -107,6 +108,13 @@ def _parser() -> argparse.ArgumentParser:
     )
     r.add_argument("out", metavar="OUT", type=Path, help="sound file to write (.wav or .flac)")
     r.add_argument("--no-t-x", action="store_true", help="ignore a t_x column: shortest path")
+    r.add_argument(
+        "--voicing",
+        choices=VOICES,
+        default=None,
+        help="how the speech pace is voiced: time-stretched (the paper) or a natural voice that "
+        "waits (default: the graph's 'voice')",
+    )
     r.add_argument("--overwrite", action="store_true", help="replace an existing OUT")
     return p
 
@@ -241,6 +249,8 @@ def _render(args: argparse.Namespace) -> int:
         return 1
     clips = _clips(args)
     graph = PhraseGraph.load(_graph_path(args.graph), clips)
+    if args.voicing is not None:
+        graph = graph.with_voice(args.voicing)
     t, a, t_x = read_trace(args.trace)
     if args.no_t_x:
         t_x = None

@@ -379,6 +379,25 @@ class PhraseGraph:
             raise PhraseGraphError("\n".join(problems))
         return cls(phrases, start, durations, pause=pause, voice=voice, path=path)
 
+    def with_voice(self, voice: str) -> PhraseGraph:
+        """The same graph voiced as ``voice`` (:data:`langenv.speech.voice.VOICES`): a replay
+        voiced as its session was (:attr:`eval.episode.EpisodeLog.voice`), whatever the YAML
+        says today.
+
+        Raises:
+            PhraseGraphError: naming the graph, for an unknown voice.
+        """
+        if voice == self.voice:
+            return self
+        return PhraseGraph(
+            list(self.phrases.values()),
+            self.start,
+            self.duration,
+            pause=self.pause,
+            voice=voice,
+            path=self.path,
+        )
+
     # ------------------------------------------------------------------ structure
     def children(self, u: str) -> tuple[str, ...]:
         """Ids of the phrases that may follow ``u`` (empty for a terminal phrase)."""

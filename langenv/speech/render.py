@@ -155,16 +155,17 @@ def silence(seconds: float, sr: int) -> np.ndarray:
 def _content(
     graph: PhraseGraph, clips: ClipLibrary, ids: Sequence[str], pauses: Sequence[float]
 ) -> Iterator[np.ndarray]:
-    """Base-pace content: each clip, with the graph's pause between a clip and the vertex after
-    it; each pause vertex as its silence (``pauses``: their lengths, in order)."""
+    """Base-pace content: each clip, with the graph's pause after a clip that has a successor
+    in the graph (also where a history cut short ends with it, as the live stream pushes it);
+    each pause vertex as its silence (``pauses``: their lengths, in order)."""
     gap = silence(graph.pause, clips.sr)
     lengths = iter(pauses)
-    for k, u in enumerate(ids):
+    for u in ids:
         if u in graph.pauses:
             yield silence(next(lengths), clips.sr)
             continue
         yield clips.clip(graph.phrases[u])
-        if k + 1 < len(ids) and gap.size:
+        if graph.children(u) and gap.size:
             yield gap
 
 
@@ -217,7 +218,7 @@ def render_history(
     voc = VariableRateVocoder(sr, **(vocoder_kw or {}))
     clip_ids = [u for u in ids if u not in graph.pauses]
     total = float(sum(clips.clip(graph.phrases[u]).size for u in clip_ids)) / sr
-    total += graph.pause * max(0, len(clip_ids) - 1) + sum(pauses)
+    total += graph.pause * sum(1 for u in clip_ids if graph.children(u)) + sum(pauses)
     # content kept pushed ahead of the vocoder's read position: its window plus two blocks
     lookahead = 4.0 * (vocoder_kw or {}).get("n_fft", 1024) / sr + 3.0 * _BLOCK / sr
     feeder = _Feeder(voc, _content(graph, clips, ids, pauses), sr, lookahead)
@@ -233,16 +234,18 @@ def natural_voice(
     graph: PhraseGraph, clips: ClipLibrary, ids: Sequence[str], pauses: Sequence[float]
 ) -> NaturalVoice:
     """The :class:`~langenv.speech.voice.NaturalVoice` of a path: every clip that has a
-    successor in the graph, at its place in the content of :func:`_content`."""
+    successor in the graph, at its place in the content of :func:`_content`, declared as the
+    live stream declares it (with the graph's pause after it, even where a history cut short
+    ends with it)."""
     voice = NaturalVoice(clips.sr)
     lengths = iter(pauses)
+    gap = silence(graph.pause, clips.sr).size
     pos = 0
-    for k, u in enumerate(ids):
+    for u in ids:
         if u in graph.pauses:
             pos += silence(next(lengths), clips.sr).size
             continue
         n = clips.clip(graph.phrases[u]).size
-        gap = silence(graph.pause, clips.sr).size if k + 1 < len(ids) else 0
         if graph.children(u):
             voice.clip(pos / clips.sr, (pos + n) / clips.sr, gap / clips.sr)
         pos += n + gap

@@ -75,13 +75,17 @@ class NaturalVoice:
         self.sr = sr
         self.speech_pos = 0.0
         """Content seconds the speech timeline has covered (the integral of ``a``)."""
-        self._spans: list[tuple[float, float]] = []
+        self._spans: list[tuple[float, float, float]] = []  # (start, wait point, known end)
         self._k = 0  # first clip whose end the speech has not reached
+        self._stop: float | None = None  # where the voice stopped in clip k, once it has
 
     def clip(self, start: float, end: float, silence_after: float = 0.0) -> None:
         """Declare a clip with a successor: its words span content ``[start, end)`` (s), and
         ``silence_after`` seconds of silence follow them (the voice waits up to
-        :data:`WAIT_AFTER` into it).
+        :data:`WAIT_AFTER` into it). The content after that silence is not yet known when the
+        clip starts (a live session chooses it at the clip's end): the voice stops early enough
+        that the vocoder never reads past it, so a short silence (``pause`` under about 0.2 s)
+        moves the wait before the clip's last samples rather than starving a live stream.
 
         Raises:
             ConfigError: if the span is empty or clips are not declared in order.
@@ -92,7 +96,8 @@ class NaturalVoice:
                 f"NaturalVoice.clip: clips must be non-empty and in order, got "
                 f"[{start}, {end}) after {last}"
             )
-        self._spans.append((float(start), float(end) + min(max(silence_after, 0.0), WAIT_AFTER)))
+        after = max(float(silence_after), 0.0)
+        self._spans.append((float(start), float(end) + min(after, WAIT_AFTER), float(end) + after))
 
     def block(self, voc: Any, n: int, a: float) -> tuple[np.ndarray, bool]:
         """Up to ``n`` output samples while the speech moves at pace ``a``.
@@ -109,7 +114,7 @@ class NaturalVoice:
         parts: list[np.ndarray] = []
         left = n
         while left > 0:
-            m, pace, silent = self._plan(left, a, voc.content_time)
+            m, pace, silent = self._plan(left, a, voc)
             y = np.zeros(m, np.float32) if silent else np.asarray(voc.pull(m, pace), np.float32)
             if y.size:
                 parts.append(y)
@@ -120,22 +125,40 @@ class NaturalVoice:
                 return out, not voc.done
         return np.concatenate(parts), False
 
-    def _plan(self, n: int, a: float, voice_pos: float) -> tuple[int, float, bool]:
+    def _plan(self, n: int, a: float, voc: Any) -> tuple[int, float, bool]:
         """``(samples, pace, silent)`` for the next piece of a block of ``n`` samples."""
-        spans, p = self._spans, self.speech_pos
-        while self._k < len(spans) and p >= spans[self._k][1] - _EPS:
+        spans, p, voice_pos = self._spans, self.speech_pos, voc.content_time
+        while self._k < len(spans) and p >= self._wait_end() - _EPS:
             self._k += 1
+            self._stop = None
         if self._k == len(spans):
             return n, a, False
-        start, end = spans[self._k]
+        start, wait, known = spans[self._k]
         if p < start - _EPS:  # the speech is in the silence before the clip: follow a
             if voice_pos < start - _EPS:
                 return self._upto(n, start - voice_pos, a), a, False
             return self._upto(n, start - p, a), a, True
-        if voice_pos < end - 0.5 / self.sr:  # the clip's words: never slower than natural
+        if self._stop is None:  # the clip's words: never slower than natural
             pace = max(a, 1.0)
-            return self._upto(n, end - voice_pos, pace), pace, False
-        return self._upto(n, end - p, a), a, True  # said: wait for the speech
+            stop = min(wait, known - self._reach(voc, pace))
+            if voice_pos < stop - 0.5 / self.sr:
+                return self._upto(n, stop - voice_pos, pace), pace, False
+            # the wait lasts until the speech reaches the voice (or its wait point, as it ends
+            # within half a sample of it)
+            self._stop = max(p, wait if stop == wait else max(stop, voice_pos))
+            if p >= self._stop - _EPS:  # nothing to wait for: on to the rest of the content
+                return self._plan(n, a, voc)
+        return self._upto(n, self._stop - p, a), a, True  # said: wait for the speech
+
+    def _wait_end(self) -> float:
+        """Where the wait of clip ``k`` ends: where its voice stopped, else its wait point."""
+        return self._stop if self._stop is not None else self._spans[self._k][1]
+
+    def _reach(self, voc: Any, pace: float) -> float:
+        """Content (s) past its read position the vocoder needs to emit output at ``pace``: its
+        half window at the output and at the content side, plus a hop's slack for each."""
+        half = 0.5 * getattr(voc, "n_fft", 0)
+        return (pace + 1.0) * (half + getattr(voc, "hop", 0)) / self.sr
 
     def _upto(self, n: int, content: float, pace: float) -> int:
         """Samples (1..n) that cover ``content`` seconds of content at ``pace``."""
@@ -150,7 +173,10 @@ def voice_rate(
     Each sample stands for the interval until the next one (zero-order hold, as in the
     evaluation's metrics). Inside each span ``[t_start, t_end)`` of a clip with a successor the
     voice says the clip at ``max(a, 1)`` until it has said as much as the speech covers in the
-    span, then waits (rate 1: silence, nothing stretched); elsewhere it follows ``a``.
+    span, then waits (rate 1: silence, nothing stretched); elsewhere it follows ``a``. It leaves
+    out what :class:`NaturalVoice` adds at a sample's scale: its wait starts up to
+    :data:`WAIT_AFTER` into the silence after the clip, or before the clip's last words where
+    that silence is too short for the vocoder's read-ahead (a graph ``pause`` under about 0.2 s).
 
     Args:
         t: Sample times (s), shape ``(n,)``, strictly increasing.
