@@ -96,12 +96,12 @@ def test_voice_rate_says_exactly_what_the_speech_covers(
     t0 = start * t[-1]
     t1 = t0 + width * t[-1]
     v, waiting = voice_rate(t, a, [(t0, t1)])
-    inside = (t >= t0 - 0.05) & (t < t1)
+    ends = np.append(t[1:], t[-1] + 0.05)
+    inside = (ends > t0) & (t < t1)  # the samples whose interval [t_i, t_i+1) meets the clip's
     np.testing.assert_array_equal(v[~inside], a[~inside])  # outside the clip: the pace itself
     speaking = inside & ~waiting
     assert np.all(v[speaking] >= np.maximum(a[speaking], 1.0) - 1e-12)  # never slower than 1
     assert np.all(v[waiting] == 1.0) and not waiting[~inside].any()
-    ends = np.append(t[1:], t[-1] + 0.05)
     w = np.clip(np.minimum(ends, t1) - np.maximum(t, t0), 0.0, None)
     covered, said = float(np.sum(a * w)), float(np.sum((v * w)[speaking]))
     # the voice says what the timeline covers, to within the sample it finishes in
