@@ -11,6 +11,7 @@ import pytest
 from hypothesis import settings
 
 import langenv.robot  # noqa: F401  (picks MuJoCo's off-screen GL backend before mujoco loads)
+from langenv.speech.audio import ClipLibrary
 
 # CI runs the property tests with a fixed example sequence, so a run is reproducible and a red
 # build always means a change broke something; locally each run explores new examples.
@@ -73,6 +74,13 @@ def fresh_etc_cache(tmp_path_factory: pytest.TempPathFactory) -> None:
     tests start): the tests build the tables themselves instead of reading tables a user's runs
     left in ``~/.cache``."""
     os.environ["LANGCTRL_ETC_CACHE"] = str(tmp_path_factory.mktemp("etc-cache"))
+
+
+@pytest.fixture(scope="session")
+def clips(tmp_path_factory: pytest.TempPathFactory) -> ClipLibrary:
+    """A :class:`ClipLibrary` whose TTS cache is this test session's (clips synthesised by the
+    tests, not read from a user's ``~/.cache``)."""
+    return ClipLibrary(cache_dir=tmp_path_factory.mktemp("tts"))
 
 
 @pytest.fixture(scope="session")

@@ -17,11 +17,6 @@ from langenv.speech.audio import ClipLibrary
 from langenv.speech.graph import GRAPHS_DIR, Phrase, PhraseGraph, default_graph_path
 
 
-@pytest.fixture(scope="module")
-def clips(tmp_path_factory: pytest.TempPathFactory) -> ClipLibrary:
-    return ClipLibrary(cache_dir=tmp_path_factory.mktemp("tts"))
-
-
 def write(tmp_path: Path, text: str, name: str = "g.yaml") -> Path:
     path = tmp_path / name
     path.write_text(text, encoding="utf-8")

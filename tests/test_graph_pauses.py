@@ -18,11 +18,6 @@ from langenv.speech.coverage import coverage, speech_lengths
 from langenv.speech.graph import MAX_FILLER, Phrase, PhraseGraph, default_graph_path
 
 
-@pytest.fixture(scope="module")
-def clips(tmp_path_factory: pytest.TempPathFactory) -> ClipLibrary:
-    return ClipLibrary(cache_dir=tmp_path_factory.mktemp("tts"))
-
-
 def write(tmp_path: Path, text: str, name: str = "g.yaml") -> Path:
     path = tmp_path / name
     path.write_text(text, encoding="utf-8")

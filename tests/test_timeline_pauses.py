@@ -99,11 +99,6 @@ def test_a_pause_elapses_at_the_audio_pace_like_the_gap_between_phrases() -> Non
     assert fast.t_end == pytest.approx(4.5 / 1.25, abs=0.01)
 
 
-@pytest.fixture(scope="module")
-def clips(tmp_path_factory: pytest.TempPathFactory) -> ClipLibrary:
-    return ClipLibrary(cache_dir=tmp_path_factory.mktemp("tts"))
-
-
 def test_render_plays_a_pause_as_its_chosen_silence(clips: ClipLibrary) -> None:
     phrases = [
         Phrase("a", "Go.", None, ("wait",)),

@@ -21,11 +21,6 @@ from langenv.speech.variant import GraphVariation, vary_graph
 from langenv.speech.voice import NaturalVoice, check_voice, voice_rate
 
 
-@pytest.fixture(scope="module")
-def clips(tmp_path_factory: pytest.TempPathFactory) -> ClipLibrary:
-    return ClipLibrary(cache_dir=tmp_path_factory.mktemp("tts"))
-
-
 def two_clips(clips: ClipLibrary, voice: str) -> PhraseGraph:
     phrases = [
         Phrase("a", "I want you to move your hand away from your body.", None, ("b",)),
