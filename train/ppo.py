@@ -541,14 +541,21 @@ class _WorldFn:
     rank: int
 
     def __call__(self) -> Any:
-        from stable_baselines3.common.monitor import Monitor
-
         from langenv.worlds import WorldEnv
 
-        env: Any = Monitor(WorldEnv(self.split, self.role, self.env_kwargs))
-        if self.seed is not None:
-            env.action_space.seed(self.seed + self.rank)
-        return self.wrapper(env) if self.wrapper is not None else env
+        env = WorldEnv(self.split, self.role, self.env_kwargs)
+        return _seeded_monitored(env, self.wrapper, self.seed, self.rank)
+
+
+def _seeded_monitored(env: Any, wrapper: Any, seed: int | None, rank: int) -> Any:
+    """``env`` as ``make_vec_env`` finishes each of its envs: the action space seeded
+    ``seed + rank``, a Monitor, then ``wrapper``."""
+    from stable_baselines3.common.monitor import Monitor
+
+    if seed is not None:
+        env.action_space.seed(seed + rank)
+    env = Monitor(env)
+    return wrapper(env) if wrapper is not None else env
 
 
 def _exercise_kwargs(env_kwargs: dict[str, Any]) -> list[dict[str, Any]]:
@@ -593,13 +600,9 @@ class _EnvFn:
 
     def __call__(self) -> Any:
         import gymnasium as gym
-        from stable_baselines3.common.monitor import Monitor
 
         env = gym.make(self.env_id, **{"render_mode": "rgb_array", **self.kwargs})
-        if self.seed is not None:
-            env.action_space.seed(self.seed + self.rank)
-        env = Monitor(env)
-        return self.wrapper(env) if self.wrapper is not None else env
+        return _seeded_monitored(env, self.wrapper, self.seed, self.rank)
 
 
 def _residual_section(env: Any) -> dict[str, Any]:
