@@ -466,14 +466,7 @@ class PhraseGraph:
         kids = self.children(u)
         if not kids:
             raise PhraseGraphError(f"{self._label}: phrase {u!r} is terminal: nothing to choose")
-        mid = self._mid
-        best = kids[0]
-        best_err = abs(t_x - mid[best])
-        for v in kids[1:]:
-            err = abs(t_x - mid[v])
-            if err < best_err:
-                best, best_err = v, err
-        return best
+        return _nearest(kids, self._mid, t_x)
 
     def eta(self, u: str, remaining_in_u: float, t_x: float) -> float:
         """Speech time to completion ``t_a`` at a = 1 (SPEC §1).
@@ -496,12 +489,7 @@ class PhraseGraph:
         left = t_x - remaining_in_u
         slot, mid, children, lo, hi = self._slot, self._mid, self._children, self._lo, self._hi
         while kids:
-            v = kids[0]
-            err = abs(left - mid[v])
-            for w in kids[1:]:
-                e = abs(left - mid[w])
-                if e < err:
-                    v, err = w, e
+            v = _nearest(kids, mid, left)
             length = slot[v] if lo[v] == hi[v] else self._fill(v, left)
             total += length
             left -= length
@@ -537,12 +525,7 @@ class PhraseGraph:
         rest = 0.0
         kids = children[v]
         while kids:
-            w = kids[0]
-            err = abs(y - mid[w])
-            for x in kids[1:]:
-                e = abs(y - mid[x])
-                if e < err:
-                    w, err = x, e
+            w = _nearest(kids, mid, y)
             rest += slot[w]
             y -= slot[w]
             kids = children[w]
@@ -654,6 +637,18 @@ class PhraseGraph:
             best = pick(table[v] for v in kids)
             path.append(next(v for v in kids if table[v] == best))
         return tuple(path)
+
+
+def _nearest(kids: tuple[str, ...], mid: Mapping[str, float], x: float) -> str:
+    """The paper's choice: the first of ``kids`` (non-empty) whose ``mid`` is nearest ``x``
+    (mirrored, comparison for comparison, by the kernels of ``langenv.kernels.steps``)."""
+    best = kids[0]
+    best_err = abs(x - mid[best])
+    for v in kids[1:]:
+        err = abs(x - mid[v])
+        if err < best_err:
+            best, best_err = v, err
+    return best
 
 
 def _is_number(x: object) -> bool:
