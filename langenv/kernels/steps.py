@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from langenv.kernels import kernel
+from langenv.kernels import inline, kernel
 from langenv.kernels import tick as tk
 from langenv.kernels.mjc import P_POW, py_square
 from langenv.users import PerturbedUser, ReplayUser, SyntheticUser
@@ -53,6 +53,20 @@ def pack_graph(graph: Any, order: tuple[str, ...]) -> tuple[np.ndarray, ...]:
     return mid, slot, kid_ptr, np.array(kids, dtype=np.int64)
 
 
+@inline
+def _nearest(lo: int, hi: int, kids: np.ndarray, mid: np.ndarray, x: float) -> int:
+    """The paper's choice among ``kids[lo:hi]`` (non-empty): the first whose ``mid`` is nearest
+    ``x`` (``langenv.speech.graph._nearest``, comparison for comparison)."""
+    best = kids[lo]
+    best_err = abs(x - mid[best])
+    for j in range(lo + 1, hi):
+        v = kids[j]
+        err = abs(x - mid[v])
+        if err < best_err:
+            best, best_err = v, err
+    return int(best)
+
+
 @kernel
 def _fill(
     v: int, left: float, mid: np.ndarray, slot: np.ndarray, kid_ptr: np.ndarray, kids: np.ndarray
@@ -63,13 +77,7 @@ def _fill(
     rest = 0.0
     lo, hi = kid_ptr[v], kid_ptr[v + 1]
     while hi > lo:
-        w = kids[lo]
-        err = abs(y - mid[w])
-        for j in range(lo + 1, hi):
-            x = kids[j]
-            e = abs(y - mid[x])
-            if e < err:
-                w, err = x, e
+        w = _nearest(lo, hi, kids, mid, y)
         rest += slot[w, 0]
         y -= slot[w, 0]
         lo, hi = kid_ptr[w], kid_ptr[w + 1]
@@ -93,13 +101,7 @@ def eta(
     left = t_x - remaining
     lo, hi = kid_ptr[u], kid_ptr[u + 1]
     while hi > lo:
-        v = kids[lo]
-        err = abs(left - mid[v])
-        for j in range(lo + 1, hi):
-            w = kids[j]
-            e = abs(left - mid[w])
-            if e < err:
-                v, err = w, e
+        v = _nearest(lo, hi, kids, mid, left)
         length = (
             slot[v, 0] if slot[v, 1] == slot[v, 2] else _fill(v, left, mid, slot, kid_ptr, kids)
         )
