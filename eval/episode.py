@@ -23,7 +23,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from langenv.errors import ConfigError, SessionDataError
-from langenv.speech.voice import VOICES
+from langenv.speech.voice import check_voice
 
 __all__ = [
     "FLAG_TRACES",
@@ -186,8 +186,7 @@ class EpisodeLog:
             raise ConfigError(
                 f"EpisodeLog.phrase_graph must be a str, got {type(self.phrase_graph).__name__}"
             )
-        if self.voice not in VOICES:
-            raise ConfigError(f"EpisodeLog.voice must be one of {list(VOICES)}, got {self.voice!r}")
+        check_voice(self.voice, "EpisodeLog")
         for name in self._scalars:
             value = getattr(self, name)
             try:
