@@ -36,7 +36,6 @@ from langenv.validation import check_time_axis
 __all__ = [
     "MAX_AUDIO_PACE",
     "MIN_AUDIO_PACE",
-    "natural_voice",
     "plan_speech",
     "render_history",
     "render_speech",
@@ -154,19 +153,25 @@ def silence(seconds: float, sr: int) -> np.ndarray:
 
 def _content(
     graph: PhraseGraph, clips: ClipLibrary, ids: Sequence[str], pauses: Sequence[float]
-) -> Iterator[np.ndarray]:
-    """Base-pace content: each clip, with the graph's pause after a clip that has a successor
-    in the graph (also where a history cut short ends with it, as the live stream pushes it);
-    each pause vertex as its silence (``pauses``: their lengths, in order)."""
+) -> Iterator[tuple[np.ndarray, float | None]]:
+    """Base-pace content, piece by piece: each clip, with the graph's pause after a clip that has
+    a successor in the graph (also where a history cut short ends with it, as the live stream
+    pushes it); each pause vertex as its silence (``pauses``: their lengths, in order). A clip
+    with a successor comes with the seconds of silence after it (where a natural voice may wait,
+    :meth:`NaturalVoice.clip <langenv.speech.voice.NaturalVoice.clip>`), every other piece with
+    None."""
     gap = silence(graph.pause, clips.sr)
     lengths = iter(pauses)
     for u in ids:
         if u in graph.pauses:
-            yield silence(next(lengths), clips.sr)
+            yield silence(next(lengths), clips.sr), None
             continue
-        yield clips.clip(graph.phrases[u])
-        if graph.children(u) and gap.size:
-            yield gap
+        if not graph.children(u):
+            yield clips.clip(graph.phrases[u]), None
+            continue
+        yield clips.clip(graph.phrases[u]), gap.size / clips.sr
+        if gap.size:
+            yield gap, None
 
 
 def render_history(
@@ -221,35 +226,12 @@ def render_history(
     total += graph.pause * sum(1 for u in clip_ids if graph.children(u)) + sum(pauses)
     # content kept pushed ahead of the vocoder's read position: its window plus two blocks
     lookahead = 4.0 * (vocoder_kw or {}).get("n_fft", 1024) / sr + 3.0 * _BLOCK / sr
-    feeder = _Feeder(voc, _content(graph, clips, ids, pauses), sr, lookahead)
-    if graph.voice == "natural":
-        feeder.voice = natural_voice(graph, clips, ids, pauses)
+    voice = NaturalVoice(sr) if graph.voice == "natural" else None
+    feeder = _Feeder(voc, _content(graph, clips, ids, pauses), sr, lookahead, voice)
     n_trace = round((tt[-1] - tt[0]) * sr)
     # the speech may outlast the trace: at most its content at the last pace, plus slack
     n_cap = n_trace + int((total / float(aa[-1]) + 1.0) * sr)
     return _render_blocks(voc, feeder, tt, aa, n_trace, n_cap, progress)
-
-
-def natural_voice(
-    graph: PhraseGraph, clips: ClipLibrary, ids: Sequence[str], pauses: Sequence[float]
-) -> NaturalVoice:
-    """The :class:`~langenv.speech.voice.NaturalVoice` of a path: every clip that has a
-    successor in the graph, at its place in the content of :func:`_content`, declared as the
-    live stream declares it (with the graph's pause after it, even where a history cut short
-    ends with it)."""
-    voice = NaturalVoice(clips.sr)
-    lengths = iter(pauses)
-    gap = silence(graph.pause, clips.sr).size
-    pos = 0
-    for u in ids:
-        if u in graph.pauses:
-            pos += silence(next(lengths), clips.sr).size
-            continue
-        n = clips.clip(graph.phrases[u]).size
-        if graph.children(u):
-            voice.clip(pos / clips.sr, (pos + n) / clips.sr, gap / clips.sr)
-        pos += n + gap
-    return voice
 
 
 def _pause_lengths(
@@ -300,26 +282,41 @@ def _check_path(graph: PhraseGraph, ids: Sequence[str]) -> None:
 
 class _Feeder:
     """Pushes base-pace content into a vocoder, ``lookahead`` seconds ahead of its read position,
-    and finishes it when the content runs out."""
+    and finishes it when the content runs out. With a natural ``voice`` (None: the voice is
+    stretched by the pace) each clip that may wait is declared to it as it is pushed, as the
+    live stream declares it."""
 
-    def __init__(self, voc: Any, pieces: Iterator[np.ndarray], sr: int, lookahead: float) -> None:
+    def __init__(
+        self,
+        voc: Any,
+        pieces: Iterator[tuple[np.ndarray, float | None]],
+        sr: int,
+        lookahead: float,
+        voice: NaturalVoice | None = None,
+    ) -> None:
         self.voc, self.pieces, self.sr, self.lookahead = voc, pieces, sr, lookahead
-        self.pushed = 0.0
+        self.voice = voice
+        self.pushed = 0  # content samples pushed so far
         self.finished = False
-        self.voice: NaturalVoice | None = None  # None: the voice is stretched by the pace
 
     def feed(self, force: bool = False) -> None:
         """Push pieces until the lookahead is covered (at least one with ``force``)."""
         voc = self.voc
-        while not self.finished and (force or self.pushed - voc.content_time < self.lookahead):
+        while not self.finished and (
+            force or self.pushed / self.sr - voc.content_time < self.lookahead
+        ):
             force = False
-            y = next(self.pieces, None)
-            if y is None:
+            piece = next(self.pieces, None)
+            if piece is None:
                 voc.finish()
                 self.finished = True
-            else:
-                voc.push(y)
-                self.pushed += y.size / self.sr
+                continue
+            y, silence_after = piece
+            if self.voice is not None and silence_after is not None:
+                start = self.pushed / self.sr
+                self.voice.clip(start, start + y.size / self.sr, silence_after)
+            voc.push(y)
+            self.pushed += y.size
 
     def pull(self, n: int, pace: float) -> np.ndarray:
         """Up to ``n`` samples at ``pace`` (the speech pace; voiced by :attr:`voice` when set),
