@@ -322,30 +322,19 @@ class _Feeder:
         """Up to ``n`` samples at ``pace`` (the speech pace; voiced by :attr:`voice` when set),
         topping the content up if the vocoder starves while content remains."""
         self.feed()
-        if self.voice is not None:
-            return self._pull_natural(n, pace, self.voice)
-        y = self.voc.pull(n, pace)
-        if y.size < n and not self.finished:
-            parts = [y]
-            got = y.size
-            while got < n and not self.finished:
-                self.feed(force=True)
-                z = self.voc.pull(n - got, pace)
-                parts.append(z)
-                got += z.size
-            y = np.concatenate(parts)
-        return np.asarray(y)
-
-    def _pull_natural(self, n: int, pace: float, voice: NaturalVoice) -> np.ndarray:
-        y, starved = voice.block(self.voc, n, pace)
-        parts = [y]
-        got = y.size
-        while starved and got < n and not self.finished:
+        parts: list[np.ndarray] = []
+        got = 0
+        while True:
+            if self.voice is not None:
+                y, _ = self.voice.block(self.voc, n - got, pace)
+            else:
+                y = np.asarray(self.voc.pull(n - got, pace))
+            parts.append(y)
+            got += y.size
+            if got >= n or self.finished:
+                break
             self.feed(force=True)
-            z, starved = voice.block(self.voc, n - got, pace)
-            parts.append(z)
-            got += z.size
-        return np.concatenate(parts) if len(parts) > 1 else y
+        return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
 
 def _render_blocks(
