@@ -16,6 +16,7 @@ __all__ = [
     "MAX_SESSION_S",
     "MIN_SAMPLE_SPACING",
     "as_vec3",
+    "as_vector",
     "check_time_axis",
     "dataclass_from_dict",
     "finite_positive",
@@ -53,29 +54,39 @@ def dataclass_from_dict(cls: type[T], data: object, where: str) -> T:
     return built
 
 
-def as_vec3(value: ArrayLike, name: str, error: type[Exception]) -> NDArray[np.float64]:
-    """``value`` as a finite, contiguous float64 array of shape (3,).
+def as_vector(
+    value: ArrayLike, name: str, error: type[Exception], n: int | None = None
+) -> NDArray[np.float64]:
+    """``value`` as a finite, contiguous float64 vector of shape ``(n,)`` (any length if None).
 
     Args:
-        value: Anything numpy can turn into three numbers.
+        value: Anything numpy can turn into a vector of numbers.
         name: The argument or field, named in the error message.
         error: Exception type to raise (the package's own, e.g. ``ConfigError``).
+        n: The length required, or None.
 
     Returns:
-        A new or the given float64 array, shape (3,).
+        A new or the given float64 array.
 
     Raises:
-        error: if ``value`` is not three finite numbers.
+        error: if ``value`` is not a vector of ``n`` finite numbers.
     """
+    what = f"a {n}-vector" if n is not None else "a vector"
     try:
         arr = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise error(f"{name} must be a 3-vector of numbers, got {value!r}") from exc
-    if arr.shape != (3,):
-        raise error(f"{name} must have shape (3,), got shape {arr.shape}")
+        raise error(f"{name} must be {what} of numbers, got {value!r}") from exc
+    if arr.ndim != 1 or (n is not None and arr.shape[0] != n):
+        want = f"({n},)" if n is not None else "(n,)"
+        raise error(f"{name} must have shape {want}, got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
         raise error(f"{name} must be finite, got {arr.tolist()}")
     return np.ascontiguousarray(arr)
+
+
+def as_vec3(value: ArrayLike, name: str, error: type[Exception]) -> NDArray[np.float64]:
+    """:func:`as_vector` of length 3."""
+    return as_vector(value, name, error, 3)
 
 
 def finite_positive(

@@ -61,17 +61,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from langenv.errors import DeviceError
+from langenv.validation import as_vector
 
 __all__ = ["RobotContext", "RobotIO", "RobotState", "limit_speed"]
 
 
 def _vector(value: ArrayLike, name: str, n: int | None) -> NDArray[np.float64]:
-    arr = np.array(value, dtype=np.float64)
-    if arr.ndim != 1 or (n is not None and arr.shape[0] != n):
-        want = f"({n},)" if n is not None else "(n,)"
-        raise DeviceError(f"RobotState.{name} must have shape {want}, got {arr.shape}")
-    if not np.isfinite(arr).all():
-        raise DeviceError(f"RobotState.{name} must be finite, got {arr.tolist()}")
+    arr = np.array(as_vector(value, f"RobotState.{name}", DeviceError, n))  # a copy we own
     arr.setflags(write=False)
     return arr
 

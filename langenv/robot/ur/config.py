@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from langenv.errors import ConfigError
+from langenv.validation import as_vector
 
 __all__ = ["URConfig", "load_ur_config"]
 
@@ -44,12 +45,7 @@ _DEG = math.pi / 180.0
 
 
 def _array(values: Any, n: int, name: str) -> NDArray[np.float64]:
-    try:
-        arr = np.array(values, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ConfigError(f"URConfig.{name} must be {n} numbers, got {values!r}") from None
-    if arr.shape != (n,) or not np.isfinite(arr).all():
-        raise ConfigError(f"URConfig.{name} must be {n} finite numbers, got {values!r}")
+    arr = np.array(as_vector(values, f"URConfig.{name}", ConfigError, n))  # a copy we own
     arr.setflags(write=False)
     return arr
 
