@@ -32,7 +32,10 @@ def _numba_caches() -> list[Path]:
     spec = importlib.util.find_spec("librosa")
     if spec is not None and spec.origin is not None:
         roots.append(Path(spec.origin).parent)
-    return [p for root in roots for p in root.rglob("__pycache__/*.nb[ic]")]
+    found = [p for root in roots for p in root.rglob("__pycache__/*.nb[ic]")]
+    if os.environ.get("NUMBA_CACHE_DIR"):  # numba writes every cache there instead
+        found += Path(os.environ["NUMBA_CACHE_DIR"]).rglob("*.nb[ic]")
+    return found
 
 
 def _warm() -> subprocess.CompletedProcess[str]:

@@ -53,13 +53,11 @@ def test_disk_cache_is_keyed_by_text_and_voice_settings(tmp_path: Path) -> None:
     ClipLibrary(cache_dir=tmp_path, rate=170).synthesize(DONE)
     ClipLibrary(cache_dir=tmp_path).synthesize("Slide, slide, slide.")
     assert len(list(tmp_path.glob("*.npy"))) == 3
-    # a corrupt cache entry is ignored and rewritten (eSpeak NG's output varies by a few
-    # samples from call to call: the cache is what keeps a phrase's clip fixed)
+    # a corrupt cache entry is ignored and rewritten with the same clip (a clip is a pure
+    # function of its text and settings, not of what the cache held)
     for f in tmp_path.glob("*.npy"):
         f.write_bytes(b"garbage")
-    y2 = ClipLibrary(cache_dir=tmp_path).synthesize(DONE)
-    assert abs(y2.size - y1.size) < 0.005 * a.sr
-    np.testing.assert_array_equal(ClipLibrary(cache_dir=tmp_path).synthesize(DONE), y2)
+    np.testing.assert_array_equal(ClipLibrary(cache_dir=tmp_path).synthesize(DONE), y1)
 
 
 def test_default_cache_dir_follows_environment(

@@ -3,22 +3,28 @@
 A phrase of a :class:`~langenv.speech.graph.PhraseGraph` sounds like its ``audio`` file when it
 has one (a lab's recorded voice: any sample rate libsndfile reads, mono or stereo) and otherwise
 like its ``text`` spoken by eSpeak NG. eSpeak NG (GPL-3.0-or-later) ships as a shared library in
-the ``espeakng-loader`` wheel (MIT); it is driven here through :mod:`ctypes` in synchronous
-retrieval mode, so nothing is played and no other program is needed. Synthesised clips are cached
-on disk (``$LANGCTRL_CACHE`` or ``~/.cache/langctrl/tts``) keyed by a hash of the text, the voice
-settings and the engine version, and in memory.
+the ``espeakng-loader`` wheel (MIT); it is driven through :mod:`ctypes` in synchronous retrieval
+mode by a worker process (:mod:`langenv.speech.espeak_worker`) that says every text from the
+library's freshly initialised state, so nothing is played, no other program is needed, and a clip
+is a pure function of its text, the voice settings and the engine's version (eSpeak NG carries
+state from one utterance to the next; the worker's docstring says which). Synthesised clips are
+cached on disk (``$LANGCTRL_CACHE`` or ``~/.cache/langctrl/tts``) keyed by a hash of the text, the
+voice settings and the engine version, and in memory; the cache saves time, it does not decide
+the samples. ``langenv/assets/tts_manifest.json`` pins the length and digest of every shipped
+phrase (a test compares them).
 
 All clips are mono ``float32`` arrays at the library's sample rate, with leading and trailing
-silence trimmed, so a phrase's duration is the length of its sound. eSpeak NG's output varies by
-a few samples from call to call; the cache is what keeps a phrase's clip (and duration) fixed.
+silence trimmed, so a phrase's duration is the length of its sound.
 """
 
 from __future__ import annotations
 
-import ctypes
+import atexit
 import hashlib
 import json
 import os
+import subprocess
+import sys
 import tempfile
 import threading
 import warnings
@@ -34,6 +40,7 @@ __all__ = [
     "DEFAULT_SR",
     "DEFAULT_VOICE",
     "ClipLibrary",
+    "ESpeakEngine",
     "SpokenPhrase",
     "default_cache_dir",
 ]
@@ -67,19 +74,8 @@ DEFAULT_RATE = 150
 DEFAULT_PITCH = 50
 """eSpeak NG base pitch (0-100; 50 is the voice's default)."""
 
-_CACHE_FORMAT = 1  # bump when the stored clip's meaning changes (trim, normalisation, ...)
-
-# eSpeak NG API constants (speak_lib.h)
-_AUDIO_OUTPUT_SYNCHRONOUS = 2
-_POS_CHARACTER = 1
-_ESPEAK_CHARS_UTF8 = 1
-_ESPEAK_RATE = 1
-_ESPEAK_VOLUME = 2
-_ESPEAK_PITCH = 3
-_EE_OK = 0
-_SYNTH_CALLBACK = ctypes.CFUNCTYPE(
-    ctypes.c_int, ctypes.POINTER(ctypes.c_short), ctypes.c_int, ctypes.c_void_p
-)
+_CACHE_FORMAT = 2  # bump when the stored clip's meaning changes (trim, normalisation, ...)
+# 2: every clip said from the engine's clean state (espeak_worker), no longer order-dependent
 
 
 def default_cache_dir() -> Path:
@@ -90,94 +86,115 @@ def default_cache_dir() -> Path:
     return Path.home() / ".cache" / "langctrl" / "tts"
 
 
-class _ESpeak:
-    """The process-wide eSpeak NG library (it keeps global state), used under a lock."""
+class ESpeakEngine:
+    """eSpeak NG behind a worker process that says every text from the same clean state.
 
-    _instance: _ESpeak | None = None
+    The worker (:mod:`langenv.speech.espeak_worker`) is started on first use and serves this
+    process (one per process: a process forked from this one starts its own); each text is said
+    by a child forked from the worker's freshly initialised library, so a clip is a pure
+    function of its text, the voice settings and :attr:`version`, whatever was synthesised
+    before. Thread-safe (one request at a time).
+
+    Raises:
+        AudioError: when the library cannot be loaded or the worker fails.
+    """
+
+    _instance: ESpeakEngine | None = None
     _create_lock = threading.Lock()
 
     def __init__(self) -> None:
+        self.lock = threading.Lock()
+        self._proc: subprocess.Popen[bytes] | None = None
+        self._pid = -1
+        self.sr, self.version, self._one_shot = self._start()
+
+    @classmethod
+    def get(cls) -> ESpeakEngine:
+        """The process's engine (started on first use)."""
+        with cls._create_lock:
+            if cls._instance is None or cls._instance._pid != os.getpid():
+                cls._instance = cls()
+            return cls._instance
+
+    def _start(self) -> tuple[int, str, bool]:
         try:
-            import espeakng_loader
+            import espeakng_loader  # noqa: F401  (the worker needs it: say so here, by name)
         except ImportError as exc:  # pragma: no cover - a declared dependency
             raise AudioError(
                 "text-to-speech needs eSpeak NG from the 'espeakng-loader' package "
                 "(pip install espeakng-loader), or give every phrase an 'audio' file"
             ) from exc
-        lib_path = espeakng_loader.get_library_path()
-        try:
-            data_path = espeakng_loader.get_data_path()
-            lib = ctypes.CDLL(lib_path)
-        except (OSError, RuntimeError) as exc:
-            raise AudioError(f"cannot load eSpeak NG from {lib_path}: {exc}") from exc
-        lib.espeak_Initialize.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_char_p, ctypes.c_int]
-        lib.espeak_Initialize.restype = ctypes.c_int
-        lib.espeak_SetSynthCallback.argtypes = [_SYNTH_CALLBACK]
-        lib.espeak_SetSynthCallback.restype = None
-        lib.espeak_SetParameter.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_int]
-        lib.espeak_SetParameter.restype = ctypes.c_int
-        lib.espeak_SetVoiceByName.argtypes = [ctypes.c_char_p]
-        lib.espeak_SetVoiceByName.restype = ctypes.c_int
-        lib.espeak_Synth.argtypes = [
-            ctypes.c_void_p,
-            ctypes.c_size_t,
-            ctypes.c_uint,
-            ctypes.c_int,
-            ctypes.c_uint,
-            ctypes.c_uint,
-            ctypes.c_void_p,
-            ctypes.c_void_p,
-        ]
-        lib.espeak_Synth.restype = ctypes.c_int
-        lib.espeak_Info.argtypes = [ctypes.c_void_p]
-        lib.espeak_Info.restype = ctypes.c_char_p
-        sr = lib.espeak_Initialize(_AUDIO_OUTPUT_SYNCHRONOUS, 0, data_path.encode(), 0)
-        if sr <= 0:
-            raise AudioError(f"eSpeak NG failed to initialise with data at {data_path}")
-        self.lib = lib
-        self.sr = int(sr)
-        self.version = (lib.espeak_Info(None) or b"unknown").decode()
-        self._chunks: list[np.ndarray] = []
-        self._callback = _SYNTH_CALLBACK(self._collect)  # keep a reference: C holds a pointer
-        lib.espeak_SetSynthCallback(self._callback)
-        self.lock = threading.Lock()
+        from langenv.speech import espeak_worker
 
-    @classmethod
-    def get(cls) -> _ESpeak:
-        with cls._create_lock:
-            if cls._instance is None:
-                cls._instance = cls()
-            return cls._instance
+        self._proc = subprocess.Popen(
+            [sys.executable, espeak_worker.__file__],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+        )
+        self._pid = os.getpid()
+        atexit.register(self._stop, self._proc)
+        hello = self._hello()
+        return int(hello["sr"]), str(hello["version"]), bool(hello["one_shot"])
 
-    def _collect(self, wav: Any, n: int, _events: Any) -> int:
-        if n > 0 and wav:
-            self._chunks.append(np.ctypeslib.as_array(wav, shape=(n,)).copy())
-        return 0  # 0: go on synthesising
+    @staticmethod
+    def _stop(proc: subprocess.Popen[bytes]) -> None:
+        """End a worker: close its input (it exits at end of input) and reap it."""
+        if proc.poll() is None and proc.stdin is not None:
+            try:
+                proc.stdin.close()
+                proc.wait(timeout=5)
+            except (OSError, subprocess.TimeoutExpired):
+                proc.kill()
+
+    def _read_header(self) -> dict[str, Any]:
+        """The worker's next header line (``{"error": ...}`` included).
+
+        Raises:
+            AudioError: when the worker has ended.
+        """
+        assert self._proc is not None and self._proc.stdout is not None
+        raw = self._proc.stdout.readline()
+        if not raw:
+            code = self._proc.wait()
+            self._proc = None
+            raise AudioError(f"the eSpeak NG worker ended unexpectedly (exit status {code})")
+        header: dict[str, Any] = json.loads(raw)
+        return header
+
+    def _hello(self) -> dict[str, Any]:
+        hello = self._read_header()
+        if "error" in hello:
+            self._proc = None
+            raise AudioError(str(hello["error"]))
+        return hello
 
     def synthesize(self, text: str, voice: str, rate: int, pitch: int) -> np.ndarray:
-        """``text`` spoken at ``rate`` wpm: int16 samples at :attr:`sr`."""
+        """``text`` spoken at ``rate`` wpm: int16 samples at :attr:`sr`.
+
+        Raises:
+            AudioError: naming the text, when the worker reports an error or ends.
+        """
+        request = json.dumps({"text": text, "voice": voice, "rate": rate, "pitch": pitch})
         with self.lock:
-            lib = self.lib
-            for name in (voice, "en") if voice == DEFAULT_VOICE else (voice,):
-                if lib.espeak_SetVoiceByName(name.encode()) == _EE_OK:
-                    break
-            else:
-                raise AudioError(f"eSpeak NG has no voice {voice!r}")
-            lib.espeak_SetParameter(_ESPEAK_RATE, int(rate), 0)
-            lib.espeak_SetParameter(_ESPEAK_PITCH, int(pitch), 0)
-            lib.espeak_SetParameter(_ESPEAK_VOLUME, 100, 0)
-            data = text.encode("utf-8")
-            buf = ctypes.create_string_buffer(data)
-            self._chunks = []
-            err = lib.espeak_Synth(
-                buf, len(data) + 1, 0, _POS_CHARACTER, 0, _ESPEAK_CHARS_UTF8, None, None
-            )
-            chunks, self._chunks = self._chunks, []
-        if err != _EE_OK:
-            raise AudioError(f"eSpeak NG failed (error {err}) to synthesise {text!r}")
-        if not chunks:
-            return np.zeros(0, np.int16)
-        return np.concatenate(chunks)
+            if self._proc is None or self._proc.poll() is not None:
+                self._start()
+            proc = self._proc
+            assert proc is not None and proc.stdin is not None and proc.stdout is not None
+            try:
+                proc.stdin.write(request.encode() + b"\n")
+                proc.stdin.flush()
+                header = self._read_header()
+                data = proc.stdout.read(2 * int(header.get("n", 0)))
+            except (OSError, ValueError) as exc:  # a broken pipe or a garbled answer
+                self._proc = None
+                proc.kill()
+                raise AudioError(f"eSpeak NG failed to synthesise {text!r}: {exc}") from exc
+            if self._one_shot:
+                proc.wait()
+                self._proc = None
+        if "error" in header:
+            raise AudioError(str(header["error"]))
+        return np.frombuffer(data, dtype=np.int16).copy()
 
 
 def trim_silence(y: np.ndarray, sr: int, top_db: float = 40.0) -> np.ndarray:
@@ -352,7 +369,7 @@ class ClipLibrary:
         """
         if not isinstance(text, str) or not text.strip():
             raise AudioError(f"phrase {phrase!r}: nothing to synthesise (empty text)")
-        engine = _ESpeak.get()
+        engine = ESpeakEngine.get()
         key = ("tts", self._tts_key(text, engine.version))
         cached = self._memory.get(key)
         if cached is not None:
