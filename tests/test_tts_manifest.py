@@ -107,3 +107,28 @@ def test_compare_names_each_changed_setting_and_text() -> None:
 
 def test_manifest_cli_passes_on_the_shipped_clips() -> None:
     assert manifest.main([]) == 0
+
+
+def test_the_worker_ignores_ctrl_c_and_ends_with_its_input() -> None:
+    """Ctrl-C at a terminal reaches the whole process group: the worker must not print a
+    traceback then (the client says what an interrupt means), and it ends when its input ends."""
+    import signal
+
+    from langenv.speech import espeak_worker
+
+    proc = subprocess.Popen(
+        [sys.executable, espeak_worker.__file__],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    assert proc.stdout is not None and proc.stdin is not None
+    assert json.loads(proc.stdout.readline())["sr"] > 0
+    proc.send_signal(signal.SIGINT)
+    proc.stdin.write(b'{"text": "Hello.", "voice": "en-us", "rate": 150, "pitch": 50}\n')
+    proc.stdin.flush()
+    n = json.loads(proc.stdout.readline())["n"]
+    assert len(proc.stdout.read(2 * n)) == 2 * n
+    proc.stdin.close()
+    assert proc.wait(timeout=30) == 0
+    assert proc.stderr is not None and proc.stderr.read() == b""

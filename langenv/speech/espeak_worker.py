@@ -27,6 +27,7 @@ from __future__ import annotations
 import ctypes
 import json
 import os
+import signal
 import sys
 from typing import Any, BinaryIO
 
@@ -179,4 +180,7 @@ def serve(inp: BinaryIO, out: BinaryIO) -> int:
 
 
 if __name__ == "__main__":
+    # Ctrl-C at a terminal reaches the whole process group: the client decides what it means; the
+    # worker ends when its input does (the client closed it or ended).
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     sys.exit(serve(sys.stdin.buffer, sys.stdout.buffer))
