@@ -24,7 +24,7 @@ import numpy as np
 from langenv.errors import LangEnvError, SessionDataError
 from langenv.speech.audio import DEFAULT_RATE, DEFAULT_SR, DEFAULT_VOICE, ClipLibrary
 from langenv.speech.author import author
-from langenv.speech.coverage import coverage, format_coverage
+from langenv.speech.coverage import coverage, format_coverage, speech_lengths
 from langenv.speech.graph import SHIPPED_GRAPHS, PhraseGraph, graph_path
 from langenv.speech.render import MAX_AUDIO_PACE, MIN_AUDIO_PACE
 from langenv.speech.voice import VOICES
@@ -209,15 +209,24 @@ def _check(args: argparse.Namespace) -> int:
 
 def _summary(graph: PhraseGraph) -> str:
     start = graph.start
-    kinds = [_n(len(graph) - len(graph.pauses) - len(graph.fillers), "phrase")]
-    if graph.fillers:
-        kinds.append(_n(len(graph.fillers), "filler"))
-    if graph.pauses:
-        kinds.append(_n(len(graph.pauses), "pause"))
+    own = graph.source_phrases.values()
+    pauses = sum(ph.is_pause for ph in own)
+    fillers = sum(ph.kind == "filler" for ph in own)
+    kinds = [_n(len(own) - pauses - fillers, "phrase")]
+    if fillers:
+        kinds.append(_n(fillers, "filler"))
+    if pauses:
+        kinds.append(_n(pauses, "pause"))
+    if graph.repeats:
+        most = max(r.times for r in graph.repeats.values())
+        kinds.append(f"{_n(len(graph.repeats), 'repeat')} (up to {most} times)")
+    longest = speech_lengths(graph)[-1][1]
+    repeats = f"; up to {longest:.2f} s with every repeat" if graph.repeats else ""
+    ending = ", the last phrase waits for the motion" if graph.final_wait else ""
     return (
         f"{graph.path}: OK, {', '.join(kinds)}, {_n(graph.count_paths(), 'path')}, speech "
         f"{graph.t_min(start):.2f}-{graph.t_max(start):.2f} s at a = 1 "
-        f"(shortest-longest, pause {graph.pause:g} s), voice {graph.voice}"
+        f"(shortest-longest, pause {graph.pause:g} s{repeats}), voice {graph.voice}{ending}"
     )
 
 

@@ -19,6 +19,15 @@ A *script* says what the robot may say, one line per step of the exercise, in or
   pause vertex: silence whose length the controller chooses within the bounds. It may stand on
   its own line (between two steps) or inside an alternative (between two phrases).
 * ``{okay|so}`` is a choice of fillers the speech may say or skip before what follows.
+* ``(repeat N)`` or ``(repeat N, gap MIN-MAX)`` at the end of a line lets the speech say the line
+  again while the motion lasts: after any of its wordings and a silence of ``MIN``-``MAX`` s (on
+  top of ``@pause``; default 1-3 s), any of them again, at most ``N`` times in a row (2-20), e.g.
+  ``Keep going. | Nice and slow. | You're doing well. (repeat 4, gap 1-3)``. The line must end
+  with its words (no pause or filler last). See :mod:`langenv.speech.repeat`.
+* The last phrase waits for the motion: when the words before it are over early the speech is
+  silent, then says it so that it ends with the motion (``final_wait: true`` in the YAML; no line
+  needed). ``@final-wait off`` (before the first step) makes the graph end as the paper's did,
+  the last phrase said straight after the one before it.
 * ``@pause S`` (once, before the first step) sets the silence after every clip (default 1 s).
 * ``@voice natural`` (before the first step) voices the script as a person speaks: each clip at
   its natural rate or faster, waiting in silence at its end when the person is slow, instead of
@@ -45,11 +54,16 @@ from pathlib import Path
 from langenv.errors import PhraseGraphError, ScriptError
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.graph import _MAX_PAUSE, DEFAULT_PAUSE, PhraseGraph
+from langenv.speech.repeat import DEFAULT_GAP, MAX_REPEAT
 from langenv.speech.voice import VOICES
 
-__all__ = ["Script", "Vertex", "author", "graph_yaml", "parse_script"]
+__all__ = ["Script", "ScriptRepeat", "Vertex", "author", "graph_yaml", "parse_script"]
 
 _PAUSE_RE = re.compile(r"pause\s+([0-9]*\.?[0-9]+)(?:\s*-\s*([0-9]*\.?[0-9]+))?\s*$")
+_REPEAT_AT_END = re.compile(r"\(\s*repeat\b([^()]*)\)\s*$")
+_REPEAT_RE = re.compile(
+    r"\s*(\d+)\s*(?:,?\s*gap\s+([0-9]*\.?[0-9]+)(?:\s*-\s*([0-9]*\.?[0-9]+))?)?\s*$"
+)
 _OPEN = {"[": "]", "{": "}", "(": ")"}
 _CLOSE = {v: k for k, v in _OPEN.items()}
 
@@ -76,14 +90,37 @@ class Vertex:
     next: list[str] = field(default_factory=list)
 
 
+@dataclass(frozen=True)
+class ScriptRepeat:
+    """A line that may be said again: ``(repeat N, gap MIN-MAX)``.
+
+    Attributes:
+        name: The repeat's name in the YAML (``again_LINE``).
+        phrases: Ids of the line's wordings.
+        times: Most sayings in a row.
+        gap: Silence between two sayings (s).
+        line, column: Where the script wrote it (1-based).
+    """
+
+    name: str
+    phrases: tuple[str, ...]
+    times: int
+    gap: tuple[float, float]
+    line: int
+    column: int
+
+
 @dataclass
 class Script:
-    """A parsed script: its vertices in order (the first is the start) and the clip pause."""
+    """A parsed script: its vertices in order (the first is the start), the clip pause, the
+    voice, its repeats and whether the last phrase waits for the motion."""
 
     path: Path
     pause: float
     vertices: dict[str, Vertex]
     voice: str = "stretch"
+    repeats: list[ScriptRepeat] = field(default_factory=list)
+    final_wait: bool = True
 
     @property
     def start(self) -> str:
@@ -316,8 +353,13 @@ def parse_script(source: str, path: str | Path = "<script>") -> Script:
     """
     path = Path(path)
     b = _Builder(path)
-    settings: dict[str, object] = {"@pause": DEFAULT_PAUSE, "@voice": "stretch"}
+    settings: dict[str, object] = {
+        "@pause": DEFAULT_PAUSE,
+        "@voice": "stretch",
+        "@final-wait": True,
+    }
     frontier: list[str] = []
+    repeats: list[ScriptRepeat] = []
     for number, raw in enumerate(source.splitlines(), start=1):
         text = raw.rstrip()
         if not text.strip() or text.lstrip().startswith("#"):
@@ -326,6 +368,9 @@ def parse_script(source: str, path: str | Path = "<script>") -> Script:
         if text.lstrip().startswith("@"):
             _directive(line, text, bool(frontier), settings)
             continue
+        rep = _REPEAT_AT_END.search(text)
+        if rep is not None:
+            line = _Line(path, number, text[: rep.start()].rstrip())
         outs: list[list[str]] = []
         alternatives = line.alternatives()
         if not b.vertices and len(alternatives) > 1:
@@ -340,7 +385,10 @@ def parse_script(source: str, path: str | Path = "<script>") -> Script:
             for unit in line.units(col, alt):
                 cur = b.unit(line, unit, cur)
             outs.append(cur)
-        frontier = _union(*outs)
+        new = _union(*outs)
+        if rep is not None:
+            repeats.append(_repeat(line, rep, text, [v for v in new if v not in frontier], b))
+        frontier = new
     if not b.vertices:
         raise ScriptError(f"{path}: the script has no steps (one line per step of the exercise)")
     ends = [v for v in frontier if b.vertices[v].kind == "pause"]
@@ -352,7 +400,37 @@ def parse_script(source: str, path: str | Path = "<script>") -> Script:
         )
     pause = settings["@pause"]
     assert isinstance(pause, float)
-    return Script(path, pause, b.vertices, str(settings["@voice"]))
+    wait = settings["@final-wait"]
+    assert isinstance(wait, bool)
+    return Script(path, pause, b.vertices, str(settings["@voice"]), repeats, wait)
+
+
+def _repeat(line: _Line, m: re.Match[str], text: str, made: list[str], b: _Builder) -> ScriptRepeat:
+    """The ``(repeat N, gap MIN-MAX)`` that ends ``text``, over the line's new vertices."""
+    col = m.start() + 1
+    found = _REPEAT_RE.match(m.group(1))
+    if found is None:
+        raise line.error(
+            col,
+            f"'{m.group(0).strip()}' is not a repeat; write (repeat N) or (repeat N, gap MIN-MAX),"
+            " e.g. (repeat 4, gap 1-3)",
+        )
+    times = int(found.group(1))
+    if not 2 <= times <= MAX_REPEAT:
+        raise line.error(col, f"a line repeats 2 to {MAX_REPEAT} times in a row, got {times}")
+    gap = DEFAULT_GAP
+    if found.group(2) is not None:
+        lo = float(found.group(2))
+        hi = float(found.group(3)) if found.group(3) is not None else lo
+        if lo > hi or hi > _MAX_PAUSE:
+            raise line.error(col, f"bad gap {lo:g}-{hi:g}: it needs MIN <= MAX <= {_MAX_PAUSE:g} s")
+        gap = (lo, hi)
+    last = [v for v in made if b.vertices[v].kind != "phrase"]
+    if last or not made:
+        raise line.error(
+            col, "a repeated line must end with its words (no pause or filler after them)"
+        )
+    return ScriptRepeat(f"again_{line.number}", tuple(made), times, gap, line.number, col)
 
 
 def _directive(line: _Line, text: str, started: bool, settings: dict[str, object]) -> None:
@@ -361,10 +439,17 @@ def _directive(line: _Line, text: str, started: bool, settings: dict[str, object
     parts = text.split()
     if parts[0] not in settings:
         raise line.error(
-            col, f"unknown directive {parts[0]!r}; known: @pause SECONDS, @voice stretch|natural"
+            col,
+            f"unknown directive {parts[0]!r}; known: @pause SECONDS, @voice stretch|natural, "
+            "@final-wait on|off",
         )
     if started:
         raise line.error(col, f"{parts[0]} must come before the first step")
+    if parts[0] == "@final-wait":
+        if len(parts) != 2 or parts[1] not in ("on", "off"):
+            raise line.error(col, f"@final-wait takes on or off, got {text.strip()!r}")
+        settings["@final-wait"] = parts[1] == "on"
+        return
     if parts[0] == "@voice":
         if len(parts) != 2 or parts[1] not in VOICES:
             raise line.error(col, f"@voice takes one of {', '.join(VOICES)}, got {text.strip()!r}")
@@ -398,6 +483,17 @@ def graph_yaml(script: Script, source_name: str) -> str:
     ]
     if script.voice != "stretch":
         out.append(f"voice: {script.voice}   # how the speech pace is voiced")
+    out.append(
+        f"final_wait: {'true' if script.final_wait else 'false'}"
+        "   # the last phrase waits for the motion"
+    )
+    if script.repeats:
+        out.append("repeats:   # lines the speech may say again while the motion lasts")
+        for r in script.repeats:
+            out.append(
+                f"  {r.name}: {{phrases: [{', '.join(r.phrases)}], times: {r.times}, "
+                f"gap: [{_num(r.gap[0])}, {_num(r.gap[1])}]}}   # line {r.line}"
+            )
     out += [
         "phrases:",
     ]
@@ -457,7 +553,10 @@ def _located(message: str, script: Script, tmp: str) -> str:
     lines = []
     for msg in message.splitlines():
         msg = msg.replace(f"{tmp}: ", "")
-        ids = [i for i in re.findall(r"'([^']+)'", msg) if i in script.vertices]
-        where = script.where(ids[0]) if ids else str(script.path)
+        reps = {r.name: f"{script.path}:{r.line}:{r.column}" for r in script.repeats}
+        ids = [i for i in re.findall(r"'([^']+)'", msg) if i in script.vertices or i in reps]
+        where = (
+            (reps[ids[0]] if ids[0] in reps else script.where(ids[0])) if ids else str(script.path)
+        )
         lines.append(f"{where}: {msg}")
     return "\n".join(lines)

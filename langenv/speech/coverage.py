@@ -9,7 +9,11 @@ union of intervals: that union is the graph's *coverage* at those paces. Two ran
 * ``a_min .. a_max`` (the env's pace limits, 0.6-1.4): what the aligner can reach at all.
 
 The union is computed exactly by dynamic programming over the DAG (reverse topological order,
-one merged interval set per vertex), not by listing paths, so it is cheap for any graph.
+one merged interval set per vertex), not by listing paths, so it is cheap for any graph. It is the
+coverage of the *words*: each pause at its planned bounds (:meth:`PhraseGraph.plan_range
+<langenv.speech.graph.PhraseGraph.plan_range>`), repeats at most their ``times``. A graph whose
+last phrase waits for the motion (``final_wait``) also ends together with any longer motion, with
+silence before its last phrase for the difference.
 """
 
 from __future__ import annotations
@@ -44,7 +48,7 @@ def speech_lengths(graph: PhraseGraph, u: str | None = None) -> Intervals:
     (s): the union over paths of ``[lo, hi]``, the path's pauses at their bounds."""
     sets: dict[str, Intervals] = {}
     for v in reversed(graph.order):
-        lo, hi = graph.slot_range(v)
+        lo, hi = graph.plan_range(v)
         kids = graph.children(v)
         if not kids:
             d = graph.duration[v]
@@ -64,6 +68,8 @@ class Coverage:
         natural: Motion durations reachable at ``|a - 1| <= NATURAL`` (s), merged intervals.
         full: Motion durations reachable at ``a_min <= a <= a_max`` (s), merged intervals.
         a_min, a_max: The pace limits used for ``full``.
+        final_wait: Whether the last phrase waits for the motion (longer motions are met too,
+            with silence before it).
     """
 
     speech: Intervals
@@ -71,6 +77,7 @@ class Coverage:
     full: Intervals
     a_min: float
     a_max: float
+    final_wait: bool = False
 
     def covers(self, lo: float, hi: float, *, natural: bool = True) -> bool:
         """Whether every motion duration in ``[lo, hi]`` s is reachable (at a natural pace, or at
@@ -107,7 +114,7 @@ def coverage(graph: PhraseGraph, limits: PaceLimits | None = None) -> Coverage:
     speech = speech_lengths(graph)
     natural = _merge([(a / hi_n, b / lo_n) for a, b in speech])
     full = _merge([(a / lim.a_max, b / lim.a_min) for a, b in speech])
-    return Coverage(speech, natural, full, lim.a_min, lim.a_max)
+    return Coverage(speech, natural, full, lim.a_min, lim.a_max, graph.final_wait)
 
 
 def _spans(intervals: Intervals) -> str:
@@ -125,4 +132,9 @@ def format_coverage(cov: Coverage) -> str:
     if len(cov.natural) > 1:
         lo, hi = cov.natural_range
         lines.append(f"  widest natural range without gaps: {lo:.1f}-{hi:.1f} s")
+    if cov.final_wait:
+        lines.append(
+            f"  longer motions: the last phrase waits for the motion (silence before it beyond "
+            f"{cov.natural[-1][1]:.1f} s)"
+        )
     return "\n".join(lines)

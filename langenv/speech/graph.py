@@ -43,6 +43,15 @@ from typing import Any
 
 from langenv.errors import AudioError, ConfigError, PhraseGraphError
 from langenv.speech.audio import ClipLibrary
+from langenv.speech.repeat import (
+    SEP,
+    WAIT_MAX,
+    Repeat,
+    expand,
+    is_gap,
+    parse_repeats,
+    repeat_problems,
+)
 from langenv.speech.voice import VOICES, Voice
 
 __all__ = [
@@ -87,7 +96,7 @@ SHIPPED_GRAPHS: Mapping[str, Path] = MappingProxyType(
 """The shipped phrase graphs of the default exercise, by name (the one place names resolve):
 ``default`` (also ``lc``, LC's graph), ``study`` (the study's LC graph), ``lc-noap`` and ``ac``."""
 
-_TOP_KEYS = frozenset({"start", "pause", "phrases", "voice"})
+_TOP_KEYS = frozenset({"start", "pause", "phrases", "voice", "repeats", "final_wait"})
 _PHRASE_KEYS = frozenset({"text", "audio", "next", "filler", "pause"})
 _MAX_PAUSE = 10.0
 
@@ -212,13 +221,22 @@ class PhraseGraph:
             until the timeline reaches their end); see :mod:`langenv.speech.voice`. It changes
             the sound only, never the timeline.
         path: File the graph came from, named in error messages (None: built in memory).
+        repeats: Groups of phrases that may be said again (:mod:`langenv.speech.repeat`).
+        final_wait: Whether the last phrase waits for the motion (:mod:`langenv.speech.repeat`);
+            off by default, as in the paper and in a graph file without the key; a script turns
+            it on unless it says ``@final-wait off``.
+
+    The vertices given are the graph's *own*; :attr:`phrases` holds them unrolled (repeats and
+    the wait before the last phrase, :mod:`langenv.speech.repeat`), which is what the timeline
+    says; :attr:`source_phrases` the ones given.
 
     Raises:
         PhraseGraphError: listing every problem, one per line, each naming the file and the
             vertex: unknown ``start`` or ``next`` id, duplicate ``next`` entries, a cycle (with the
             vertices on it), a vertex that cannot reach a terminal, a pause that starts or ends
             the speech or follows a pause, a missing or bad duration,
-            a filler longer than ``MAX_FILLER``, a bad pause.
+            a filler longer than ``MAX_FILLER``, a bad pause, an id with ``#``, a repeat that is
+            not possible (``repeat_problems``).
     """
 
     def __init__(
@@ -230,6 +248,8 @@ class PhraseGraph:
         pause: float = DEFAULT_PAUSE,
         voice: str = "stretch",
         path: str | Path | None = None,
+        repeats: Mapping[str, Repeat] | Iterable[Repeat] = (),
+        final_wait: bool = False,
     ) -> None:
         self.path: Path | None = None if path is None else Path(path)
         label = str(self.path) if self.path is not None else "<phrase graph>"
@@ -271,6 +291,19 @@ class PhraseGraph:
                         f"{label}: filler {pid!r}: its clip lasts {float(d):.2f} s; a filler is "
                         f"at most {MAX_FILLER} s (make it a phrase)"
                     )
+        reps = dict(repeats) if isinstance(repeats, Mapping) else {r.name: r for r in repeats}
+        if not all(isinstance(r, Repeat) for r in reps.values()):
+            problems.append(f"{label}: repeats must be Repeat objects, got {reps!r}")
+        elif not problems:
+            problems += [
+                f"{label}: {ph.kind} {pid!r}: ids may not contain {SEP!r} (LangCtrl names the "
+                "vertices it adds with it)"
+                for pid, ph in table.items()
+                if SEP in pid
+            ]
+            problems += repeat_problems(label, table, reps)
+        if not isinstance(final_wait, bool):
+            problems.append(f"{label}: final_wait must be true or false, got {final_wait!r}")
         if problems:
             raise PhraseGraphError("\n".join(problems))
 
@@ -278,34 +311,56 @@ class PhraseGraph:
         self.pause: float = float(pause)
         self.voice: Voice = voice  # type: ignore[assignment]
         """How the speech pace is voiced (:data:`langenv.speech.voice.VOICES`)."""
+        self.source_phrases: Mapping[str, Phrase] = MappingProxyType(dict(table))
+        """The graph's own vertices, as given (before unrolling)."""
+        self.repeats: Mapping[str, Repeat] = MappingProxyType(reps)
+        """The graph's repeats by name."""
+        self.final_wait: bool = final_wait
+        """Whether the last phrase waits for the motion."""
+        own = {pid: float(duration[pid]) for pid, ph in table.items() if not ph.is_pause}
+        table, clip_len, waits = expand(table, own, reps, final_wait, Phrase)
         self.phrases: Mapping[str, Phrase] = MappingProxyType(table)
+        """Every vertex the speech may say, repeats and waits unrolled, by id."""
         self.duration: Mapping[str, float] = MappingProxyType(
-            {pid: 0.0 if ph.is_pause else float(duration[pid]) for pid, ph in table.items()}
+            {pid: 0.0 if ph.is_pause else clip_len[pid] for pid, ph in table.items()}
         )
+        self.opened: frozenset[str] = frozenset(waits)
+        """The pauses open above their bounds: the silences before the last phrase."""
+        self._lead: dict[str, float] = {u: waits.get(u, 0.0) for u in table}
+        self._build_tables(table)
+
+    def _build_tables(self, table: Mapping[str, Phrase]) -> None:
+        """The order, slots, ``t_min``/``t_max`` and the choice rule's mids of the vertices."""
         self.order: tuple[str, ...] = _topological_order(table)
         """Vertex ids in topological order (every vertex before the vertices that follow it)."""
         self._children = {pid: ph.next for pid, ph in table.items()}
-        self._lo: dict[str, float] = {}
-        self._hi: dict[str, float] = {}
+        self._plan: dict[str, tuple[float, float]] = {}
         for pid, ph in table.items():
             if ph.bounds is not None:
-                self._lo[pid], self._hi[pid] = ph.bounds
+                self._plan[pid] = ph.bounds
             else:
-                self._lo[pid] = self._hi[pid] = self.duration[pid] + (
-                    self.pause if ph.next else 0.0
-                )
-        # a pause's nominal slot (its middle length) is what plans beyond the next pause assume
-        self._slot = {pid: 0.5 * (self._lo[pid] + self._hi[pid]) for pid in table}
+                d = self.duration[pid] + (self.pause if ph.next else 0.0)
+                self._plan[pid] = (d, d)
+        # what a pause may last (an opened one: up to WAIT_MAX), and what plans count with
+        self._lo = {pid: lo for pid, (lo, _) in self._plan.items()}
+        self._hi = {
+            pid: WAIT_MAX if pid in self.opened else hi for pid, (_, hi) in self._plan.items()
+        }
+        # a pause's nominal slot (its planned middle length) is what plans beyond the next pause
+        # assume
+        self._slot = {pid: 0.5 * (lo + hi) for pid, (lo, hi) in self._plan.items()}
         t_min: dict[str, float] = {}
         t_max: dict[str, float] = {}
         for pid in reversed(self.order):
-            kids = self._children[pid]
+            # a plan says a repeat once: a gap (another saying) is a choice, not part of the range
+            kids = tuple(v for v in self._children[pid] if not is_gap(v)) or self._children[pid]
+            lo, hi = self._plan[pid]
             if kids:
-                t_min[pid] = self._lo[pid] + min(t_min[v] for v in kids)
-                t_max[pid] = self._hi[pid] + max(t_max[v] for v in kids)
+                t_min[pid] = lo + min(t_min[v] for v in kids)
+                t_max[pid] = hi + max(t_max[v] for v in kids)
             else:
-                t_min[pid] = self._lo[pid]
-                t_max[pid] = self._hi[pid]
+                t_min[pid] = lo
+                t_max[pid] = hi
         self._t_min = t_min
         self._t_max = t_max
         self._mid = {pid: 0.5 * (t_min[pid] + t_max[pid]) for pid in table}
@@ -356,6 +411,13 @@ class PhraseGraph:
         except yaml.YAMLError as exc:
             raise PhraseGraphError(f"{path}: invalid YAML: {exc}") from None
         start, pause, voice, phrases = _parse(path, data)
+        assert isinstance(data, dict)
+        repeats, problems = parse_repeats(path, data.get("repeats"))
+        final_wait = data.get("final_wait", False)
+        if not isinstance(final_wait, bool):
+            problems.append(f"{path}: 'final_wait' must be true or false, got {final_wait!r}")
+        if problems:
+            raise PhraseGraphError("\n".join(problems))
         problems = _structure_problems(str(path), phrases, start)
         if not problems:
             problems = _unreachable_problems(str(path), phrases, start)
@@ -377,7 +439,16 @@ class PhraseGraph:
                 problems.append(f"{path}: {exc}")
         if problems:
             raise PhraseGraphError("\n".join(problems))
-        return cls(phrases, start, durations, pause=pause, voice=voice, path=path)
+        return cls(
+            phrases,
+            start,
+            durations,
+            pause=pause,
+            voice=voice,
+            path=path,
+            repeats=repeats,
+            final_wait=final_wait,
+        )
 
     def with_voice(self, voice: str) -> PhraseGraph:
         """The same graph voiced as ``voice`` (:data:`langenv.speech.voice.VOICES`): a replay
@@ -390,12 +461,14 @@ class PhraseGraph:
         if voice == self.voice:
             return self
         return PhraseGraph(
-            list(self.phrases.values()),
+            self.source_phrases,
             self.start,
             self.duration,
             pause=self.pause,
             voice=voice,
             path=self.path,
+            repeats=self.repeats,
+            final_wait=self.final_wait,
         )
 
     # ------------------------------------------------------------------ structure
@@ -422,12 +495,28 @@ class PhraseGraph:
             raise PhraseGraphError(f"{self._label}: no phrase {u!r}") from None
 
     def slot_range(self, u: str) -> tuple[float, float]:
-        """Shortest and longest slot of ``u`` at a = 1 (s): a pause's bounds, else ``slot(u)``
-        twice."""
+        """Shortest and longest slot of ``u`` at a = 1 (s): a pause's bounds (an opened pause,
+        :attr:`opened`: up to :data:`~langenv.speech.repeat.WAIT_MAX`), else ``slot(u)`` twice."""
         try:
             return self._lo[u], self._hi[u]
         except KeyError:
             raise PhraseGraphError(f"{self._label}: no phrase {u!r}") from None
+
+    def plan_range(self, u: str) -> tuple[float, float]:
+        """The slot range ``t_min``/``t_max`` and the choice rule count with (s at a = 1): the
+        pause's bounds as written (0 for a wait before the last phrase), else ``slot(u)``
+        twice."""
+        try:
+            return self._plan[u]
+        except KeyError:
+            raise PhraseGraphError(f"{self._label}: no phrase {u!r}") from None
+
+    def origin(self, u: str) -> str:
+        """The graph's own vertex an unrolled vertex says (``keep_going#3`` -> ``keep_going``);
+        a gap or a wait gives its own id."""
+        self.children(u)  # validates u
+        base = u.split(SEP, 1)[0]
+        return base if base in self.source_phrases and u not in self.pauses else u
 
     def kind(self, u: str) -> str:
         """``"phrase"``, ``"filler"`` or ``"pause"``."""
@@ -529,7 +618,7 @@ class PhraseGraph:
             rest += slot[w]
             y -= slot[w]
             kids = children[w]
-        length = left - rest
+        length = left - rest - self._lead[v]
         lo, hi = self._lo[v], self._hi[v]
         return lo if length < lo else (hi if length > hi else length)
 
@@ -552,7 +641,8 @@ class PhraseGraph:
         return 0.5 * (lo + hi)
 
     def path_range(self, path: Iterable[str]) -> tuple[float, float]:
-        """Shortest and longest speech along a path at a = 1 (s): its pauses at their bounds.
+        """Shortest and longest speech along a path at a = 1 (s): its pauses at their planned
+        bounds (:meth:`plan_range`: a wait before the last phrase as 0).
 
         Raises:
             PhraseGraphError: if ``path`` is empty, names an unknown vertex or skips an edge.
@@ -567,12 +657,10 @@ class PhraseGraph:
                 raise PhraseGraphError(f"{self._label}: phrase {v!r} does not follow {u!r}")
         last = ids[-1]
         end_lo, end_hi = (
-            (self._lo[last], self._hi[last])
-            if last in self.pauses
-            else (self.duration[last], self.duration[last])
+            self._plan[last] if last in self.pauses else (self.duration[last], self.duration[last])
         )
-        lo = sum(self._lo[u] for u in ids[:-1]) + end_lo
-        hi = sum(self._hi[u] for u in ids[:-1]) + end_hi
+        lo = sum(self._plan[u][0] for u in ids[:-1]) + end_lo
+        hi = sum(self._plan[u][1] for u in ids[:-1]) + end_hi
         return lo, hi
 
     def count_paths(self, u: str | None = None) -> int:

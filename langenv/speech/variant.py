@@ -29,6 +29,7 @@ import numpy as np
 
 from langenv.errors import ConfigError, PhraseGraphError
 from langenv.speech.graph import _MAX_PAUSE, MAX_FILLER, Phrase, PhraseGraph
+from langenv.speech.repeat import Repeat
 from langenv.validation import dataclass_from_dict
 
 __all__ = ["GraphVariation", "vary_graph"]
@@ -97,18 +98,22 @@ def vary_graph(
     """
     rate = float(rng.uniform(*variation.tts_rate))
     scale = float(rng.uniform(*variation.pause_scale))
+    own = PhraseGraph(  # the graph's own vertices: what a variant drops and adds to
+        graph.source_phrases, graph.start, graph.duration, pause=graph.pause, voice=graph.voice
+    )
     for _ in range(variation.tries):
         try:
-            out = _variant(graph, rng, variation, rate, scale, structural=True)
+            out = _variant(graph, own, rng, variation, rate, scale, structural=True)
         except PhraseGraphError:
             continue
         if out.max_children == graph.max_children:
             return out
-    return _variant(graph, rng, variation, rate, scale, structural=False)
+    return _variant(graph, own, rng, variation, rate, scale, structural=False)
 
 
 def _variant(
     graph: PhraseGraph,
+    own: PhraseGraph,
     rng: np.random.Generator,
     var: GraphVariation,
     rate: float,
@@ -116,10 +121,10 @@ def _variant(
     *,
     structural: bool,
 ) -> PhraseGraph:
-    nxt = {u: list(ph.next) for u, ph in graph.phrases.items()}
+    nxt = {u: list(ph.next) for u, ph in own.phrases.items()}
     durations: dict[str, float] = {}
     phrases: dict[str, Phrase] = {}
-    for u, ph in graph.phrases.items():
+    for u, ph in own.phrases.items():
         if ph.is_pause:
             lo, hi = ph.bounds  # type: ignore[misc]
             phrases[u] = Phrase(
@@ -130,8 +135,8 @@ def _variant(
             d = graph.duration[u] / rate
             durations[u] = min(d, MAX_FILLER) if ph.kind == "filler" else d
     if structural:
-        _add_wordings(graph, rng, var, nxt, phrases, durations)
-        for u in graph.order:
+        _add_wordings(own, rng, var, nxt, phrases, durations)
+        for u in own.order:
             kids = nxt[u]
             if len(kids) >= 2:
                 keep = [v for v in kids if rng.random() >= var.p_drop]
@@ -142,12 +147,19 @@ def _variant(
         for u, ph in phrases.items()
         if u in live
     }
+    repeats = [
+        Repeat(r.name, kept, r.times, (r.gap[0] * scale, min(r.gap[1] * scale, _MAX_PAUSE)))
+        for r in graph.repeats.values()
+        if (kept := tuple(m for m in r.phrases if m in live))
+    ]
     return PhraseGraph(
         final,
         graph.start,
         {u: d for u, d in durations.items() if u in live},
         pause=min(graph.pause * scale, _MAX_PAUSE),
         voice=graph.voice,
+        repeats=repeats,
+        final_wait=graph.final_wait,
     )
 
 

@@ -1,0 +1,285 @@
+"""Speech that never runs out: repeatable phrases and the last phrase that waits for the motion.
+
+A phrase graph (:mod:`langenv.speech.graph`) stays a DAG for the paper's choice rule. Two things a
+therapist does with a slow patient are written on top of it and *unrolled* into plain vertices
+when the graph is built, so that ``t_min``/``t_max``, the choice rule, the ETCs, the compiled
+path, the live stream and the robot loop all work on an ordinary finite DAG:
+
+**Repeats.** A *repeat* names a group of phrases (the alternatives of one step, e.g. "Keep going."
+| "Nice and slow.") that may be said again while the motion lasts: after any of them, and a
+silence (the *gap*, a pause of ``gap = [min, max]`` s at a = 1, on top of the graph's ``pause``
+after every clip), any of them may be said again, at most ``times`` sayings of the group in a
+row. Unrolled, saying ``k`` of phrase ``P`` is the vertex ``P#k`` (``P`` itself for ``k = 1``)
+whose children are ``P``'s own followers, then (for ``k < times``) the gap pause ``NAME#gapk``,
+whose children are every member's ``#k+1``. So ``t_max`` grows with ``times`` and the choice
+rule takes another round exactly when the motion's time to go is nearer the longer speech.
+
+**The last phrase waits for the motion** (the graph's ``final_wait``, on for the product's graphs,
+off for the study's). Every final phrase ``T`` is preceded by an open silence: the pause vertex
+``T#wait`` between each non-pause parent and ``T``, and a pause parent's own maximum opened up.
+Its length is planned like any pause's (:meth:`PhraseGraph.pause_length
+<langenv.speech.graph.PhraseGraph.pause_length>`: what makes the speech end at the motion's
+end) less a *lead* of :data:`WAIT_LEAD` times the last phrase's length, and replanned at every
+step while it lasts, without the pause's upper bound (at most :data:`WAIT_MAX`): the last phrase
+starts when the motion's time to go is its length plus the lead. For the choice rule it counts as
+its *planned* bounds (the lead for ``T#wait``), so the choices, ``t_min``/``t_max`` and the
+rule's mids are those of the words and the lead: only the silence before the last phrase
+stretches. A script needs no line for it.
+
+A plan says a repeat once: ``t_min``/``t_max`` of a vertex (and so the choice rule's mids) leave
+out its gap children, so a repeat whose ``times`` is large does not make every earlier wording
+look short; another saying is chosen, at each saying's end, when the motion's time to go is
+nearer one more saying than the end.
+
+Both keep the paper's choice rule: nothing here looks at the paces.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from langenv.errors import PhraseGraphError
+
+__all__ = [
+    "DEFAULT_GAP",
+    "MAX_REPEAT",
+    "SEP",
+    "WAIT_LEAD",
+    "WAIT_MAX",
+    "Repeat",
+    "expand",
+    "is_gap",
+    "parse_repeats",
+    "repeat_problems",
+]
+
+MAX_REPEAT = 20
+"""The most sayings a repeat may have in a row (a bound keeps the graph finite)."""
+DEFAULT_GAP = (1.0, 3.0)
+"""Silence between two sayings of a repeat when a file gives no ``gap`` (s at a = 1, on top of
+the graph's ``pause``)."""
+WAIT_MAX = 3600.0
+"""Longest silence before the last phrase (s at a = 1): the wait is open-ended in practice."""
+WAIT_LEAD = 0.3
+"""The last phrase starts when the motion's time to go is its length times ``1 + WAIT_LEAD``:
+the lead lets the pace law stretch it to end with the motion, and leaves room for a person who
+resists while it is said (the paper's law slows the voice then, down to ``a_min``)."""
+SEP = "#"
+"""Separator of the ids of unrolled vertices (``keep_going#2``, ``encourage#gap1``,
+``done#wait``); a graph file's own ids may not contain it."""
+_MAX_GAP = 10.0
+_KEYS = frozenset({"phrases", "times", "gap"})
+
+
+@dataclass(frozen=True)
+class Repeat:
+    """A group of phrases that may be said again, at most ``times`` sayings in a row.
+
+    Attributes:
+        name: The repeat's name (ids of its gap pauses: ``NAME#gapK``).
+        phrases: The phrases of the group (the alternatives of one step), in order.
+        times: Most sayings of the group in a row, ``2 <= times <= MAX_REPEAT``.
+        gap: Silence between two sayings, ``(min, max)`` s at a = 1, ``0 <= min <= max <= 10``
+            (on top of the graph's ``pause`` after every clip).
+    """
+
+    name: str
+    phrases: tuple[str, ...]
+    times: int
+    gap: tuple[float, float] = DEFAULT_GAP
+
+    def __post_init__(self) -> None:
+        where = f"repeat {self.name!r}"
+        if not isinstance(self.name, str) or not self.name or SEP in self.name:
+            raise PhraseGraphError(
+                f"repeat name must be a non-empty str without {SEP!r}, got {self.name!r}"
+            )
+        phrases = (self.phrases,) if isinstance(self.phrases, str) else tuple(self.phrases)
+        if not phrases or not all(isinstance(p, str) and p for p in phrases):
+            raise PhraseGraphError(f"{where}: 'phrases' must be a non-empty list of phrase ids")
+        if len(set(phrases)) != len(phrases):
+            raise PhraseGraphError(f"{where}: 'phrases' lists a phrase twice")
+        object.__setattr__(self, "phrases", phrases)
+        problem = _times_problem(self.times) or _gap_problem(self.gap)
+        if problem:
+            raise PhraseGraphError(f"{where}: {problem}")
+        lo, hi = self.gap
+        object.__setattr__(self, "gap", (float(lo), float(hi)))
+
+
+def _times_problem(times: object) -> str:
+    if times is None:
+        return (
+            f"a repeat needs a bound: 'times', the most sayings in a row (2-{MAX_REPEAT}); "
+            "a repeat without one would never let the graph end"
+        )
+    if isinstance(times, bool) or not isinstance(times, int) or not 2 <= times <= MAX_REPEAT:
+        return (
+            f"'times' must be an integer from 2 to {MAX_REPEAT} (sayings in a row), got {times!r}"
+        )
+    return ""
+
+
+def _gap_problem(gap: object) -> str:
+    if not isinstance(gap, list | tuple) or len(gap) != 2:
+        return f"'gap' must be seconds of silence, a number or [min, max], got {gap!r}"
+    lo, hi = gap
+    ok = all(
+        isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x) for x in gap
+    )
+    if not ok:
+        return f"'gap' bounds must be numbers of seconds, got {list(gap)!r}"
+    if lo < 0.0 or lo > hi or hi > _MAX_GAP:
+        return f"bad gap [{lo}, {hi}]: it needs 0 <= min <= max <= {_MAX_GAP:g} s"
+    return ""
+
+
+def parse_repeats(path: object, raw: object) -> tuple[dict[str, Repeat], list[str]]:
+    """The ``repeats`` mapping of a graph file (``NAME: {phrases, times, gap}``) and the problems
+    found in it, each naming the file and the repeat."""
+    if raw is None:
+        return {}, []
+    if not isinstance(raw, dict):
+        return {}, [f"{path}: 'repeats' must be a mapping of name -> {{phrases, times, gap}}"]
+    out: dict[str, Repeat] = {}
+    problems: list[str] = []
+    for name, spec in raw.items():
+        where = f"{path}: repeat {name!r}"
+        if not isinstance(spec, dict):
+            problems.append(f"{where}: must be a mapping with 'phrases', 'times' and 'gap'")
+            continue
+        bad = sorted(str(k) for k in spec if k not in _KEYS)
+        if bad:
+            problems.append(f"{where}: unknown key(s) {bad}; allowed: {sorted(_KEYS)}")
+            continue
+        gap: Any = spec.get("gap", DEFAULT_GAP)
+        if isinstance(gap, int | float) and not isinstance(gap, bool):
+            gap = (gap, gap)
+        try:
+            times: Any = spec.get("times")
+            out[str(name)] = Repeat(str(name), spec.get("phrases") or (), times, gap)
+        except PhraseGraphError as exc:
+            problems.append(f"{path}: {exc}")
+    return out, problems
+
+
+def repeat_problems(
+    label: str, phrases: Mapping[str, Any], repeats: Mapping[str, Repeat]
+) -> list[str]:
+    """What makes ``repeats`` impossible on these (source) vertices, one line each: an unknown
+    phrase, a pause or filler, a phrase in two repeats, a final phrase, members that follow one
+    another, or a repeat that can never be left."""
+    problems: list[str] = []
+    owner: dict[str, str] = {}
+    for rep in repeats.values():
+        where = f"{label}: repeat {rep.name!r}"
+        members = set(rep.phrases)
+        for pid in rep.phrases:
+            ph = phrases.get(pid)
+            if ph is None:
+                problems.append(f"{where}: {pid!r} is not a phrase of this graph")
+                continue
+            if ph.kind != "phrase":
+                problems.append(f"{where}: {ph.kind} {pid!r} cannot repeat (only phrases can)")
+            if pid in owner:
+                problems.append(f"{where}: phrase {pid!r} is also in repeat {owner[pid]!r}")
+            owner[pid] = rep.name
+            if not ph.next:
+                problems.append(
+                    f"{where}: phrase {pid!r} ends the speech and cannot repeat (the last phrase "
+                    "is said once, as the motion ends)"
+                )
+                continue
+            inside = [v for v in ph.next if v in members]
+            if inside:
+                problems.append(
+                    f"{where}: phrase {pid!r} lists {inside[0]!r} of the same repeat in its next; "
+                    "the repeat itself says which may follow which"
+                )
+            if all(v in members for v in ph.next):
+                problems.append(
+                    f"{where}: can never be left: after its last saying phrase {pid!r} has "
+                    "nowhere to go (give it a next outside the repeat)"
+                )
+        for pid in rep.phrases:
+            if SEP in pid:
+                problems.append(f"{where}: phrase id {pid!r} contains {SEP!r}")
+    return problems
+
+
+def expand(
+    phrases: Mapping[str, Any],
+    duration: Mapping[str, float],
+    repeats: Mapping[str, Repeat],
+    final_wait: bool,
+    make: Any,
+) -> tuple[dict[str, Any], dict[str, float], dict[str, float]]:
+    """The unrolled vertices (module docstring).
+
+    Args:
+        phrases: The graph's own (validated) vertices by id.
+        duration: Clip lengths of its phrases and fillers (s).
+        repeats: Its repeats (validated against ``phrases``).
+        final_wait: Whether the last phrase waits for the motion.
+        make: The vertex constructor (``Phrase``: id, text, audio, next, kind, bounds).
+
+    Returns:
+        ``(vertices, durations, waits)``: the unrolled vertices by id in a stable order, the clip
+        length of each phrase and filler, and the pauses whose length is open above their
+        bounds (the waits before the last phrase), each with its lead (s).
+    """
+    nxt = {u: list(ph.next) for u, ph in phrases.items()}
+    dur = {u: float(d) for u, d in duration.items()}
+    extra: dict[str, Any] = {}
+    for rep in repeats.values():
+        for k in range(1, rep.times + 1):
+            gap = f"{rep.name}{SEP}gap{k}"
+            for m in rep.phrases:
+                src = phrases[m]
+                kids = [*src.next, gap] if k < rep.times else list(src.next)
+                if k == 1:
+                    nxt[m] = kids
+                else:
+                    here = f"{m}{SEP}{k}"
+                    extra[here] = make(here, src.text, src.audio, tuple(kids), src.kind, None)
+                    dur[here] = dur[m]
+            if k < rep.times:
+                again = tuple(f"{m}{SEP}{k + 1}" for m in rep.phrases)
+                extra[gap] = make(gap, None, None, again, "pause", rep.gap)
+    table = {
+        u: make(u, ph.text, ph.audio, tuple(nxt[u]), ph.kind, ph.bounds)
+        for u, ph in phrases.items()
+    }
+    table.update(extra)
+    waits = _add_waits(table, dur, make) if final_wait else {}
+    return table, {u: d for u, d in dur.items() if u in table}, waits
+
+
+def is_gap(vertex: str) -> bool:
+    """Whether ``vertex`` is a repeat's gap (``NAME#gapK``)."""
+    head, sep, tail = vertex.rpartition(SEP)
+    return bool(sep) and bool(head) and tail.startswith("gap") and tail[3:].isdigit()
+
+
+def _add_waits(table: dict[str, Any], dur: Mapping[str, float], make: Any) -> dict[str, float]:
+    """Open silences before every final phrase (in place); returns each wait's lead."""
+    finals = [u for u, ph in table.items() if not ph.next and not ph.is_pause]
+    waits: dict[str, float] = {}
+    for t in finals:
+        lead = WAIT_LEAD * dur[t]
+        wait = f"{t}{SEP}wait"
+        parents = [u for u, ph in table.items() if t in ph.next]
+        redirect = [u for u in parents if not table[u].is_pause]
+        waits.update((u, lead) for u in parents if table[u].is_pause)
+        if not redirect:
+            continue
+        for u in redirect:
+            ph = table[u]
+            kids = tuple(wait if v == t else v for v in ph.next)
+            table[u] = make(u, ph.text, ph.audio, kids, ph.kind, ph.bounds)
+        table[wait] = make(wait, None, None, (t,), "pause", (lead, lead))
+        waits[wait] = lead
+    return waits
