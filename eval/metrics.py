@@ -266,7 +266,7 @@ def voice_trace(log: EpisodeLog) -> tuple[np.ndarray, np.ndarray]:
     silence there; shape ``(n,)`` each.
 
     A stretched voice (``log.voice == "stretch"``) is heard at the speech pace ``a``. A natural
-    voice (:mod:`langenv.speech.voice`) says every clip but the last at ``max(a, 1)`` and then
+    voice (:mod:`langenv.speech.voice`) says every clip but the last at ``max(a, 0.9)`` and then
     waits at rate 1 until the clip's slot ends (:func:`langenv.speech.voice.voice_rate`); the
     last clip of a finished speech follows ``a``.
     """

@@ -217,7 +217,7 @@ class PhraseGraph:
         duration: Clip length at a = 1 of every phrase and filler (s, > 0; pauses need none).
         pause: Silence after each clip at a = 1 (s, in [0, 10]).
         voice: How the speech pace is voiced: ``"stretch"`` (the paper: the voice is
-            time-stretched by ``a``) or ``"natural"`` (clips said at ``max(a, 1)``, then a wait
+            time-stretched by ``a``) or ``"natural"`` (clips said at ``max(a, 0.9)``, then a wait
             until the timeline reaches their end); see :mod:`langenv.speech.voice`. It changes
             the sound only, never the timeline.
         path: File the graph came from, named in error messages (None: built in memory).
@@ -327,6 +327,8 @@ class PhraseGraph:
         self.opened: frozenset[str] = frozenset(waits)
         """The pauses open above their bounds: the silences before the last phrase."""
         self._lead: dict[str, float] = {u: waits.get(u, 0.0) for u in table}
+        # the waits LangCtrl adds are planned as their lead but may last from 0 s
+        self._lead_only = frozenset(u for u in waits if u.endswith(f"{SEP}wait"))
         self._build_tables(table)
 
     def _build_tables(self, table: Mapping[str, Phrase]) -> None:
@@ -342,7 +344,7 @@ class PhraseGraph:
                 d = self.duration[pid] + (self.pause if ph.next else 0.0)
                 self._plan[pid] = (d, d)
         # what a pause may last (an opened one: up to WAIT_MAX), and what plans count with
-        self._lo = {pid: lo for pid, (lo, _) in self._plan.items()}
+        self._lo = {p: 0.0 if p in self._lead_only else lo for p, (lo, _) in self._plan.items()}
         self._hi = {
             pid: WAIT_MAX if pid in self.opened else hi for pid, (_, hi) in self._plan.items()
         }

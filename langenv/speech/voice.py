@@ -8,8 +8,10 @@ pace is *voiced* is a property of the phrase graph (its ``voice`` key):
     The voice is time-stretched by ``a`` at every instant, as in the paper: a resisting person
     hears slow speech.
 ``"natural"`` (the product's scripts)
-    As a person speaks: a clip that has a successor is said at ``max(a, 1)`` from the moment the
-    timeline starts it, so the voice never drags, and once its words are said the voice *waits*
+    As a person speaks: a clip that has a successor is said at ``max(a, SLOWEST)`` from the
+    moment the timeline starts it (:data:`SLOWEST` = 0.9: a voice at most 10 % slower than its
+    natural rate, which a listener hears as natural), so the voice never drags, and once its
+    words are said the voice *waits*
     in silence until the timeline reaches the clip's end. The timeline, its ETC ``t_a``, every
     phrase boundary and the speech's end are exactly those of ``"stretch"``: only where the
     silence falls inside a clip's slot changes. The last clip (no successor) follows ``a``
@@ -31,13 +33,25 @@ import numpy as np
 
 from langenv.errors import ConfigError
 
-__all__ = ["VOICES", "WAIT_AFTER", "NaturalVoice", "Voice", "check_voice", "voice_rate"]
+__all__ = [
+    "SLOWEST",
+    "VOICES",
+    "WAIT_AFTER",
+    "NaturalVoice",
+    "Voice",
+    "check_voice",
+    "voice_rate",
+]
 
 Voice = Literal["stretch", "natural"]
 VOICES: tuple[Voice, ...] = ("stretch", "natural")
 """The ways a speech pace may be voiced (see the module docstring)."""
 
 _EPS = 1e-9
+
+SLOWEST = 0.9
+"""The slowest rate at which the natural voice says a clip that has a successor (1 - 0.1, the
+tolerance within which the study counts a pace as natural): slower speech is a wait instead."""
 
 WAIT_AFTER = 0.06
 """How far into the silence after a clip the natural voice goes before it waits (s, at most that
@@ -139,7 +153,7 @@ class NaturalVoice:
                 return self._upto(n, start - voice_pos, a), a, False
             return self._upto(n, start - p, a), a, True
         if self._stop is None:  # the clip's words: never slower than natural
-            pace = max(a, 1.0)
+            pace = max(a, SLOWEST)
             stop = min(wait, known - self._reach(voc, pace))
             if voice_pos < stop - 0.5 / self.sr:
                 return self._upto(n, stop - voice_pos, pace), pace, False
@@ -172,7 +186,7 @@ def voice_rate(
 
     Each sample stands for the interval until the next one (zero-order hold, as in the
     evaluation's metrics). Inside each span ``[t_start, t_end)`` of a clip with a successor the
-    voice says the clip at ``max(a, 1)`` until it has said as much as the speech covers in the
+    voice says the clip at ``max(a, SLOWEST)`` until it has said as much as the speech covers in the
     span, then waits (rate 1: silence, nothing stretched); elsewhere it follows ``a``. It leaves
     out what :class:`NaturalVoice` adds at a sample's scale: its wait starts up to
     :data:`WAIT_AFTER` into the silence after the clip, or before the clip's last words where
@@ -205,9 +219,10 @@ def voice_rate(
         idx = np.arange(lo, hi)
         w = np.clip(np.minimum(ends[idx], t1) - np.maximum(t[idx], t0), 0.0, None)
         covered = float(np.sum(a[idx] * w))
-        said = np.cumsum(np.maximum(a[idx], 1.0) * w)
-        before = said - np.maximum(a[idx], 1.0) * w  # said when each sample starts
+        rate = np.maximum(a[idx], SLOWEST)
+        said = np.cumsum(rate * w)
+        before = said - rate * w  # said when each sample starts
         speaking = before < covered - _EPS
-        v[idx] = np.where(speaking, np.maximum(a[idx], 1.0), 1.0)
+        v[idx] = np.where(speaking, rate, 1.0)
         waiting[idx] = ~speaking
     return v, waiting
