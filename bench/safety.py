@@ -152,6 +152,7 @@ def fuzz_episode(
     import gymnasium as gym
 
     import langenv
+    from langenv.exercise.script import speak
     from policies import load_policy
 
     rng = np.random.default_rng(seed)
@@ -159,12 +160,13 @@ def fuzz_episode(
     policy = policy or str(rng.choice(["lc", "ac", "random"]))
     pol = load_policy("lc" if policy == "random" else policy)
     lim = limits if limits is not None else SafetyLimits()
-    key = (str(pol.phrase_graph), lim, round(seconds * 25))
+    graph = speak(pol).ref  # the study's exercise's graph for the policy's role
+    key = (graph, lim, round(seconds * 25))
     env = _ENVS.get(key)
     if env is None:  # one env per graph and limits: building one costs up to seconds
         env = _ENVS[key] = gym.make(
             langenv.ENV_ID,
-            phrase_graph=pol.phrase_graph,
+            phrase_graph=graph,
             safety=lim,
             max_episode_steps=key[2],
         )

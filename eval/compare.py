@@ -11,8 +11,10 @@ a temporary directory beside ``OUT`` and moved into place whole; an existing non
 refused unless ``--overwrite`` is given, which replaces only the outputs named here and leaves any
 other file in ``OUT`` alone:
 
-* ``OUT/sessions.csv``: one row per episode (policy, user, the paper's metrics, and whether it
-  ended in a protective stop: ``protective_stop`` 1/0 and ``stop_limit``, the limit's name);
+* ``OUT/sessions.csv``: one row per episode (policy, user, the paper's metrics, whether it
+  ended in a protective stop: ``protective_stop`` 1/0 and ``stop_limit``, the limit's name, and
+  the phrase graph the policy spoke: ``graph``, its name or path as tables give it, and
+  ``graph_role``);
 * ``OUT/summary.md``: per policy median and IQR of each metric, bootstrap 95 % intervals of the
   differences against LC, and the study's findings checked on the data;
 * ``OUT/summary.png``: the paper's violin figure;
@@ -23,8 +25,16 @@ other file in ``OUT`` alone:
   speech as its sound track (:mod:`eval.video`);
 * ``OUT/config.json``: the arguments of the run.
 
-It ends with the verdict on the terminal: per policy the medians of the main metrics, the
-study's findings (PASS/FAIL) and where the files are.
+It ends with the verdict on the terminal: per policy the medians of the main metrics and the
+graph it spoke, the study's findings (PASS/FAIL) and where the files are.
+
+Every policy speaks the exercise's words (:mod:`langenv.exercise.script`): the policies that
+choose phrases (LC, its variants, learned models) the exercise's phrase graph, AC and LC-noAP its
+one wording. ``--graph GRAPH`` gives the phrase-choosing policies another graph, ``--graph
+POLICY=GRAPH`` one of them only. A table of phrase-choosing policies that speak different graphs
+compares scripts as well as controllers: the run refuses it (exit 2) unless
+``--allow-mixed-graphs`` is given, and then marks them (``†``). AC and LC-noAP saying one wording
+while LC chooses among many is the paper's comparison, not a mixed one.
 """
 
 from __future__ import annotations
@@ -49,7 +59,17 @@ import numpy as np
 from eval.atomic import OutTaken, move_into_place
 from eval.metrics import METRIC_COLUMNS
 
-__all__ = ["EPISODE_COLUMNS", "CompareArgs", "Job", "main", "parse_args", "run_episode", "run_jobs"]
+__all__ = [
+    "EPISODE_COLUMNS",
+    "TEXT_COLUMNS",
+    "CompareArgs",
+    "Job",
+    "main",
+    "parse_args",
+    "policy_role",
+    "run_episode",
+    "run_jobs",
+]
 
 
 @dataclass(frozen=True)
@@ -70,17 +90,21 @@ class CompareArgs:
         audio: Render each session's speech to WAV.
         figures: Draw the per-session close-up figures.
         decision_hz: Override every policy's decision rate (default: each policy's own).
-        phrase_graph: Phrase graph for the policies that choose phrases (LC, learned), instead
-            of their own (LC's: ``default``): a YAML path or a shipped graph's name (``study``:
-            the study's graph, without pauses or fillers).
+        phrase_graph: Phrase graph for the policies that choose phrases (LC, its variants,
+            learned), instead of the exercise's (the study's exercise: ``default``): a YAML path
+            or a shipped graph's name (``study``: the study's graph, without pauses or fillers).
+        policy_graphs: ``(policy spec, graph)`` pairs: a graph for one phrase-choosing policy,
+            instead of ``phrase_graph`` or the exercise's.
+        allow_mixed_graphs: Run phrase-choosing policies that speak different graphs (the
+            tables mark them); without it such a run is refused.
         stat: Statistic of the differences against LC in ``summary.md``: ``median`` (of the
             per-user differences) or ``mean``.
         video: Render each session's video (MP4 with the speech as its sound track).
         overwrite: Replace the outputs of an earlier run in a non-empty ``out``.
         exercise: The exercise (a shipped name or a YAML path; ``python -m langenv.exercise
             list``), checked before any episode runs; None: the study's. Its script's graphs
-            are spoken: ``graph`` by the policies that choose phrases (unless ``phrase_graph``),
-            ``single`` by AC and LC-noAP.
+            are spoken: ``graph`` by the policies that choose phrases (unless ``phrase_graph``
+            or ``policy_graphs``), ``single`` by AC and LC-noAP.
     """
 
     policies: str = "ac,lc-noap,lc"
@@ -98,6 +122,8 @@ class CompareArgs:
     video: bool = False
     overwrite: bool = False
     exercise: str | None = None
+    policy_graphs: tuple[tuple[str, str], ...] = ()
+    allow_mixed_graphs: bool = False
 
 
 #: Most synthetic users one run accepts (``--users synthetic:N``).
@@ -116,7 +142,7 @@ class Job:
     audio: bool
     figures: bool
     decision_hz: int | None
-    phrase_graph: str | None = None
+    phrase_graph: str | None = None  # for a policy that chooses phrases: instead of the exercise's
     name: str | None = None  # the policy's name in outputs (default: its own name)
     video: bool = False
     user_params: Any = None  # SyntheticUserParams for synthetic users (default: calibrated)
@@ -166,9 +192,19 @@ def parse_args(argv: Sequence[str] | None = None) -> CompareArgs:
         "--graph",
         "--phrase-graph",
         dest="phrase_graph",
+        action="append",
         default=None,
-        help="phrase graph for the policies that choose phrases (lc, ppo): a YAML file or a "
-        "shipped graph (default: theirs; 'study' is the study's graph)",
+        metavar="[POLICY=]GRAPH",
+        help="phrase graph for the policies that choose phrases (lc and its variants, ppo): a "
+        "YAML file or a shipped graph ('study' is the study's graph); POLICY=GRAPH for one of "
+        "them only (repeatable). Default: the exercise's script (AC and LC-noAP always say its "
+        "one wording)",
+    )
+    p.add_argument(
+        "--allow-mixed-graphs",
+        action="store_true",
+        help="compare phrase-choosing policies that speak different graphs (marked in the "
+        "tables; default: refused)",
     )
     p.add_argument(
         "--exercise",
@@ -192,6 +228,10 @@ def parse_args(argv: Sequence[str] | None = None) -> CompareArgs:
         p.error(f"--workers must be >= 1, got {ns.workers}")
     if ns.seed < 0:
         p.error(f"--seed must be >= 0, got {ns.seed}")
+    try:
+        graph, policy_graphs = _split_graphs(ns.phrase_graph or [], ns.policies)
+    except UsageError as exc:
+        p.error(str(exc))
     return CompareArgs(
         policies=ns.policies,
         users=users,
@@ -203,12 +243,41 @@ def parse_args(argv: Sequence[str] | None = None) -> CompareArgs:
         audio=not ns.no_audio,
         figures=not ns.no_figures,
         decision_hz=ns.decision_hz,
-        phrase_graph=ns.phrase_graph,
+        phrase_graph=graph,
         stat=ns.stat,
         video=ns.video,
         overwrite=ns.overwrite,
         exercise=ns.exercise,
+        policy_graphs=policy_graphs,
+        allow_mixed_graphs=ns.allow_mixed_graphs,
     )
+
+
+def _split_graphs(
+    values: Sequence[str], policies: str
+) -> tuple[str | None, tuple[tuple[str, str], ...]]:
+    """``--graph`` values as (the graph for every phrase-choosing policy, ``(spec, graph)`` for
+    one policy each). ``POLICY=GRAPH`` counts as such only when ``POLICY`` is a spec of
+    ``policies`` or its name in the outputs (``ppo``); any other value is a graph."""
+    specs = [s.strip() for s in policies.split(",") if s.strip()]
+    by_name = {**{s: s for s in specs}, **{n: s for s, n in policy_names(specs).items()}}
+    common: str | None = None
+    own: dict[str, str] = {}
+    for value in values:
+        name, sep, graph = value.partition("=")
+        if sep and name.strip() in by_name:
+            spec = by_name[name.strip()]
+            if spec in own:
+                raise UsageError(f"--graph: two graphs for {name.strip()}")
+            own[spec] = graph.strip()
+        elif common is not None:
+            raise UsageError(
+                f"--graph: two graphs for every policy ({common}, {value}); give POLICY=GRAPH "
+                "for one policy"
+            )
+        else:
+            common = value
+    return common, tuple(own.items())
 
 
 def _check_policies(spec: str) -> list[str]:
@@ -225,23 +294,78 @@ def _check_policies(spec: str) -> list[str]:
     return names
 
 
-def _chooses_phrases(spec: str) -> bool:
-    return spec in ("lc", "lc-em", "lc-end", "lc-em-end") or spec.startswith("ppo:")
+def policy_role(spec: str) -> str:
+    """The graph role of policy ``spec`` (:func:`langenv.exercise.script.graph_role`):
+    ``"graph"`` for the policies that choose phrases, ``"single"`` for AC and LC-noAP."""
+    return _policy_facts(spec)[1]
 
 
 def _check_options(args: CompareArgs) -> None:
     if args.decision_hz is not None and (args.decision_hz <= 0 or 500 % args.decision_hz):
         raise UsageError(f"--decision-hz must divide 500, got {args.decision_hz}")
-    if args.phrase_graph is not None:
+    graphs = [args.phrase_graph] if args.phrase_graph is not None else []
+    for graph in [*graphs, *(g for _, g in args.policy_graphs)]:
         from langenv.errors import LangEnvError
         from langenv.speech.graph import PhraseGraph, graph_path
 
         try:
-            PhraseGraph.load(graph_path(args.phrase_graph))
+            PhraseGraph.load(graph_path(graph))
         except LangEnvError as exc:
-            raise UsageError(f"--graph: {exc}") from None
+            hint = ""
+            if "=" in str(graph):
+                hint = " (POLICY=GRAPH needs a POLICY of --policies or its name, e.g. ppo)"
+            raise UsageError(f"--graph: {exc}{hint}") from None
     if args.exercise is not None:
         _check_exercise(args.exercise)
+
+
+def _spoken_graphs(names: list[str], labels: dict[str, str], args: CompareArgs) -> dict[str, Any]:
+    """The graph each policy will speak (:class:`~langenv.exercise.script.SpokenGraph`), found
+    as the episodes will find it: a learned model that cannot act on its graph, an override for
+    a one-wording policy and, without ``--allow-mixed-graphs``, phrase-choosing policies that
+    speak different graphs are usage errors. Says on stderr what a learned model speaks when it
+    is not the graph it was trained on."""
+    from langenv.errors import LangEnvError
+    from langenv.exercise.script import graph_role, speak
+    from policies import load_policy
+
+    own = dict(args.policy_graphs)
+    spoken = {}
+    for spec in names:
+        policy = load_policy(spec)
+        role = graph_role(policy)
+        if spec in own and role != "graph":
+            raise UsageError(
+                f"--graph {labels[spec]}={own[spec]}: {labels[spec]} says the exercise's one "
+                "wording (script.single), as the paper's baselines do; --graph applies to the "
+                "policies that choose phrases"
+            )
+        try:
+            spoken[spec] = speak(policy, args.exercise, own.get(spec, args.phrase_graph))
+        except LangEnvError as exc:
+            raise UsageError(f"--policies: {spec}: {exc}") from None
+        trained = getattr(policy, "trained_graph", None)
+        widened = getattr(policy, "widened_from", None)
+        if widened is not None or (trained is not None and trained != spoken[spec].label):
+            line = f"eval.compare: {labels[spec]} speaks {spoken[spec].label}"
+            line += f" (trained on {trained})" if trained is not None else ""
+            if widened is not None:
+                line += (
+                    f"; the model reads {widened} choices and the graph has "
+                    f"{spoken[spec].max_children}: widened as python -m train.widen does (the "
+                    "extra choices' inputs unseen)"
+                )
+            print(line, file=sys.stderr)
+    choosing = {labels[s]: g.label for s, g in spoken.items() if g.role == "graph"}
+    if len(set(choosing.values())) > 1 and not args.allow_mixed_graphs:
+        said = ", ".join(f"{n} speaks {g}" for n, g in choosing.items())
+        raise UsageError(
+            f"the policies that choose phrases would speak different phrase graphs ({said}): "
+            "their table would compare scripts as well as controllers. Give them one graph "
+            "(--graph GRAPH), or --allow-mixed-graphs to compare them anyway (the tables mark "
+            "them)"
+        )
+    return spoken
 
 
 def _check_exercise(spec: str) -> None:
@@ -328,8 +452,18 @@ def _check_out(out: Path, overwrite: bool) -> None:
 
 
 #: The keys of :func:`run_episode`'s row, in ``sessions.csv``'s order: the paper's metrics, then
-#: whether the episode was cut by the time limit or ended in a protective stop (and which).
-EPISODE_COLUMNS = (*METRIC_COLUMNS, "truncated", "protective_stop", "stop_limit")
+#: whether the episode was cut by the time limit or ended in a protective stop (and which), and
+#: the phrase graph the policy spoke (:func:`langenv.exercise.script.graph_label`) and its role.
+EPISODE_COLUMNS = (
+    *METRIC_COLUMNS,
+    "truncated",
+    "protective_stop",
+    "stop_limit",
+    "graph",
+    "graph_role",
+)
+#: Columns of :data:`EPISODE_COLUMNS` that hold text.
+TEXT_COLUMNS = frozenset({"policy", "user", "stop_limit", "graph", "graph_role"})
 
 _ENVS: dict[tuple[Any, ...], Any] = {}
 #: Most envs one worker process keeps for reuse (a sweep over env parameters builds one per value).
@@ -345,6 +479,7 @@ def run_episode(job: Job) -> dict[str, Any]:
     from eval.episode import EpisodeRecorder
     from eval.metrics import episode_metrics
     from eval.plots import session_figure
+    from langenv.exercise.script import speak
     from langenv.speech.render import render_history
     from langenv.users import ReplayUser, SyntheticUser
     from policies import load_policy
@@ -357,8 +492,9 @@ def run_episode(job: Job) -> dict[str, Any]:
     if job.name is not None:
         policy.name = job.name
     hz = job.decision_hz or policy.decision_hz
-    graph = _episode_graph(job, policy.phrase_graph)
-    key = (job.policy, hz, str(graph), job.exercise, job.env_params)
+    spoken = speak(policy, job.exercise, job.phrase_graph)  # may adapt a learned model to it
+    graph = spoken.ref
+    key = (job.policy, hz, graph, job.exercise, job.env_params)
     env = _ENVS.get(key)
     if env is None:  # one env per policy and worker process: building one costs ~0.3 s
         from eval.overrides import env_kwargs_with
@@ -432,20 +568,9 @@ def run_episode(job: Job) -> dict[str, Any]:
     row["truncated"] = float(bool(info.get("TimeLimit.truncated", False)) or not terminated)
     row["protective_stop"] = float(info.get("safety_stop") is not None)
     row["stop_limit"] = info.get("safety_stop") or ""
+    row["graph"] = spoken.label
+    row["graph_role"] = spoken.role
     return row
-
-
-def _episode_graph(job: Job, own: str) -> str:
-    """The phrase graph ``job``'s policy speaks: ``--phrase-graph`` for the policies that choose
-    phrases, else the exercise's script for the policy's own graph
-    (:meth:`~langenv.exercise.Exercise.script_for`), else the policy's own."""
-    if job.phrase_graph is not None and _chooses_phrases(job.policy):
-        return job.phrase_graph
-    if job.exercise is None:
-        return own
-    from langenv.exercise import resolve_exercise
-
-    return resolve_exercise(job.exercise).script_for(own)
 
 
 def _run_law(
@@ -498,6 +623,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         _check_out(out, args.overwrite)
         names = _check_policies(args.policies)
         _check_options(args)
+        labels = policy_names(names)
+        _spoken_graphs(names, labels, args)
         if args.video:
             _check_video()
         users = _users(args)
@@ -507,7 +634,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     try:
         (tmp / "sessions").mkdir()
-        labels = policy_names(names)
+        own = dict(args.policy_graphs)
         jobs = [
             Job(
                 n,
@@ -518,7 +645,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 args.audio,
                 args.figures,
                 args.decision_hz,
-                str(args.phrase_graph) if args.phrase_graph else None,
+                own.get(n, str(args.phrase_graph) if args.phrase_graph else None),
                 labels[n],
                 args.video,
                 exercise=args.exercise,
@@ -612,11 +739,18 @@ def decision_rate(job: Job) -> int:
     return job.decision_hz or _policy_rate(job.policy)
 
 
-@functools.cache
 def _policy_rate(spec: str) -> int:
+    return _policy_facts(spec)[0]
+
+
+@functools.cache
+def _policy_facts(spec: str) -> tuple[int, str]:
+    """Policy ``spec``'s decision rate and graph role (it is loaded once per process)."""
+    from langenv.exercise.script import graph_role
     from policies import load_policy
 
-    return int(load_policy(spec).decision_hz)
+    policy = load_policy(spec)
+    return int(policy.decision_hz), graph_role(policy)
 
 
 def _preload() -> None:

@@ -28,9 +28,12 @@ from langenv.errors import ConfigError, SessionDataError
 
 __all__ = [
     "AM_TOLERANCE",
+    "MIXED_MARK",
     "Finding",
     "atomic_write",
     "display_name",
+    "graphs_spoken",
+    "mixed_graph_policies",
     "read_sessions_csv",
     "render_summary_md",
     "study_findings",
@@ -57,6 +60,63 @@ Row = Mapping[str, object]
 def display_name(policy: str) -> str:
     """The paper's name of a policy (``"lc-noap"`` -> ``"LC-noAP"``); others unchanged."""
     return _NAMES.get(policy, policy)
+
+
+MIXED_MARK = "\u2020"
+"""Marks, in tables, the policies of one graph role that spoke different phrase graphs."""
+
+_ROLE_WORDS = {"single": "one wording", "graph": "chooses phrases"}
+
+
+def graphs_spoken(rows: Sequence[Row], policies: Sequence[str]) -> dict[str, str]:
+    """Per policy the phrase graph(s) it spoke, as the rows' ``graph`` column names them
+    (several joined with ``", "``); empty when the rows have no such column (older tables)."""
+    if not any(r.get("graph") for r in rows):
+        return {}
+    out = {}
+    for p in policies:
+        found = dict.fromkeys(str(r.get("graph") or "") for r in rows if str(r["policy"]) == p)
+        out[p] = ", ".join(g for g in found if g) or "n/a"
+    return out
+
+
+def mixed_graph_policies(rows: Sequence[Row], policies: Sequence[str]) -> list[str]:
+    """The policies of a graph role (``graph_role`` column) whose policies spoke different
+    phrase graphs: a table of them compares scripts as well as controllers. AC and LC-noAP
+    saying one wording while LC chooses among many is one role each, so not mixed."""
+    spoken = graphs_spoken(rows, policies)
+    roles: dict[str, dict[str, str]] = {}
+    for p, graph in spoken.items():
+        role = next((str(r.get("graph_role") or "") for r in rows if str(r["policy"]) == p), "")
+        roles.setdefault(role, {})[p] = graph
+    return [p for p in policies if any(p in g and len(set(g.values())) > 1 for g in roles.values())]
+
+
+def _graphs_line(rows: Sequence[Row], policies: Sequence[str], mixed: Sequence[str]) -> list[str]:
+    """The phrase graphs spoken, and a note when policies of one role spoke different ones."""
+    spoken = graphs_spoken(rows, policies)
+    if not spoken:
+        return []
+    parts = []
+    for p, graph in spoken.items():
+        role = next((str(r.get("graph_role") or "") for r in rows if str(r["policy"]) == p), "")
+        words = f" ({_ROLE_WORDS[role]})" if role in _ROLE_WORDS else ""
+        parts.append(f"{_marked(p, mixed)} `{graph}`{words}")
+    lines = [f"Phrase graphs spoken: {'; '.join(parts)}.", ""]
+    if mixed:
+        names = ", ".join(display_name(p) for p in mixed)
+        lines += [
+            f"{MIXED_MARK} **Mixed graphs**: {names} spoke different phrase graphs in one role "
+            "(run with `--allow-mixed-graphs`), so differences between them compare scripts as "
+            "well as controllers.",
+            "",
+        ]
+    return lines
+
+
+def _marked(policy: str, mixed: Sequence[str]) -> str:
+    """The policy's display name, marked when it spoke a graph others of its role did not."""
+    return display_name(policy) + (f" {MIXED_MARK}" if policy in mixed else "")
 
 
 def _columns(rows: Sequence[Row]) -> list[str]:
@@ -325,6 +385,7 @@ def render_summary_md(
         rows, metrics, reference, rng=rng, policies=policies, stat=stat, n_boot=n_boot, level=level
     )
     users = sorted({str(r["user"]) for r in rows if str(r["policy"]) in table.policies})
+    mixed = mixed_graph_policies(rows, table.policies)
     ref_name = display_name(reference)
     pct = f"{100 * level:g} %"
     boot = f"{n_boot:,}".replace(",", " ")
@@ -343,6 +404,7 @@ def render_summary_md(
         + against,
         "",
     ]
+    lines += _graphs_line(rows, table.policies, mixed)
     stops = _stops_line(rows, table.policies)
     if stops:
         lines += [stops, ""]
@@ -350,8 +412,10 @@ def render_summary_md(
         lines += [f"![Distributions per controller]({figure})", ""]
 
     lines += _md_findings(rows)
-    lines += _md_spread(table, metrics)
-    lines += _md_differences(table, metrics, reference, stat=stat, pct=pct, has_ref=has_ref)
+    lines += _md_spread(table, metrics, mixed)
+    lines += _md_differences(
+        table, metrics, reference, stat=stat, pct=pct, has_ref=has_ref, mixed=mixed
+    )
     lines += _md_how_to_read(ref_name, pct)
     return "\n".join(lines)
 
@@ -370,9 +434,9 @@ def _md_findings(rows: Sequence[Row]) -> list[str]:
     ]
 
 
-def _md_spread(table: SummaryTable, metrics: Sequence[str]) -> list[str]:
+def _md_spread(table: SummaryTable, metrics: Sequence[str], mixed: Sequence[str] = ()) -> list[str]:
     """Per controller: median [Q1, Q3] of every metric."""
-    names = [display_name(p) for p in table.policies]
+    names = [_marked(p, mixed) for p in table.policies]
     header = [
         "metric",
         *(f"{n} (n={table.n_sessions[p]})" for n, p in zip(names, table.policies, strict=True)),
@@ -389,9 +453,10 @@ def _md_differences(
     stat: Stat,
     pct: str,
     has_ref: bool,
+    mixed: Sequence[str] = (),
 ) -> list[str]:
     """Every other controller minus the reference, with its bootstrap interval."""
-    ref_name = display_name(reference)
+    ref_name = _marked(reference, mixed)
     others = [p for p in table.policies if p != reference]
     what = "median of per-user differences" if stat == "median" else "mean difference"
     lines = [f"## Differences against {ref_name}: {what} [{pct} CI]", ""]
@@ -403,7 +468,7 @@ def _md_differences(
         header = ["metric"]
         for p in others:
             kind = "paired by user" if table[p, metrics[0]].paired else "unpaired"
-            header.append(f"{display_name(p)} - {ref_name} ({kind})")
+            header.append(f"{_marked(p, mixed)} - {ref_name} ({kind})")
         body = [[_label(m), *(_diff_cell(table[p, m]) for p in others)] for m in metrics]
         lines += _table(header, body)
     return [*lines, ""]

@@ -8,8 +8,10 @@ The table has one row per policy: the median over users of ``|AM|``, the mean ov
 mean ``|EM|`` and of the mean ``|a - 1|`` while speaking, the mean shares of speech time at
 ``|a - 1| <= 0.1``, in pauses and in fillers (when the rows have them), the number of truncated
 episodes when
-there are any, and the number of protective stops when ``sessions.csv`` has a column for them
-(the first of :data:`STOP_COLUMNS` present).
+there are any, the number of protective stops when ``sessions.csv`` has a column for them
+(the first of :data:`STOP_COLUMNS` present) and the phrase graph each policy spoke when it has a
+``graph`` column; policies of one graph role that spoke different graphs are marked
+(:data:`~eval.report.MIXED_MARK`) and a line under the table says what that means.
 """
 
 from __future__ import annotations
@@ -22,7 +24,13 @@ from typing import IO, Any
 
 import numpy as np
 
-from eval.report import display_name, study_findings
+from eval.report import (
+    MIXED_MARK,
+    display_name,
+    graphs_spoken,
+    mixed_graph_policies,
+    study_findings,
+)
 
 __all__ = ["STOP_COLUMNS", "print_verdict"]
 
@@ -91,6 +99,10 @@ def verdict_table(
         header.append("truncated")
     if stop_col is not None:
         header.append("protective stops")
+    spoken = graphs_spoken(rows, policies)
+    mixed = mixed_graph_policies(rows, policies)
+    if spoken:
+        header.append("graph")
     body = []
     for p in policies:
         line = [
@@ -105,6 +117,8 @@ def verdict_table(
             line.append(str(int(np.nansum(_values(rows, p, "truncated")))))
         if stop_col is not None:
             line.append(str(int(np.nansum(_values(rows, p, stop_col)))))
+        if spoken:
+            line.append(spoken[p] + (f" {MIXED_MARK}" if p in mixed else ""))
         body.append(line)
     return header, body
 
@@ -142,7 +156,7 @@ def print_verdict(
         no_color=not terminal,
         highlight=False,
         emoji=False,
-        width=None if terminal else 150,
+        width=None if terminal else 300,  # a log's lines are as long as the table needs
     )
     header, body = verdict_table(rows, policies)
     table = Table(
@@ -153,10 +167,21 @@ def print_verdict(
         header_style="bold" if terminal else "",
     )
     for k, name in enumerate(header):
-        table.add_column(name, justify="left" if k == 0 else "right")
+        if name == "graph":  # a path: left, and folded rather than cut on a narrow terminal
+            table.add_column(name, justify="left", overflow="fold")
+        else:
+            table.add_column(name, justify="left" if k == 0 else "right")
     for cells in body:
         table.add_row(*cells)
     console.print(table)
+    mixed = mixed_graph_policies(rows, policies)
+    if mixed:
+        names = ", ".join(display_name(p) for p in mixed)
+        console.print(
+            f"{MIXED_MARK} {names} spoke different phrase graphs in one role "
+            "(--allow-mixed-graphs): their figures compare scripts as well as controllers",
+            markup=False,
+        )
 
     console.print("study's findings:" if not terminal else "[bold]study's findings[/bold]")
     styles = {"PASS": "bold green", "FAIL": "bold red", "n/a": "dim"}

@@ -68,6 +68,29 @@ class ObservationLayoutError(ModelError):
         )
 
 
+class GraphChoicesError(ModelError):
+    """A learned model cannot act on the phrase graph it is to speak: the graph offers more
+    choices at a vertex than the model can read or choose among, and it cannot be widened.
+
+    Attributes:
+        path: The model file.
+        graph: The graph, as tables name it (a shipped graph's name or the YAML's path).
+        model_choices: The largest number of choices the model was trained for.
+        graph_choices: The graph's largest number of choices.
+    """
+
+    def __init__(
+        self, path: object, graph: str, model_choices: int, graph_choices: int, hint: str = ""
+    ) -> None:
+        self.path, self.graph = path, graph
+        self.model_choices, self.graph_choices = model_choices, graph_choices
+        tail = f"; {hint}" if hint else ""
+        super().__init__(
+            f"{path}: cannot speak the phrase graph {graph}: it offers up to {graph_choices} "
+            f"choices at a phrase, the model was trained for {model_choices}{tail}"
+        )
+
+
 class ExerciseError(ConfigError):
     """An exercise file is malformed, or its exercise is unsafe for the arm (names the file).
 

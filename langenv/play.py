@@ -52,8 +52,9 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
         "--phrase-graph",
         dest="phrase_graph",
         default=None,
-        help="phrase graph: a YAML file or a shipped graph such as 'study' (default: the "
-        "exercise's script for the policy)",
+        help="phrase graph for a policy that chooses phrases (lc, ppo...): a YAML file or a "
+        "shipped graph such as 'study' (default: the exercise's script; AC and LC-noAP always "
+        "say its one wording)",
     )
     p.add_argument(
         "--exercise",
@@ -125,6 +126,7 @@ def _make_env(ns: argparse.Namespace, policy: Any, user: Any) -> Any:
 
     import langenv
 
+    spoken = _speak(ns, policy)  # before env_kwargs: it may fit a learned model to the graph
     kwargs: dict[str, Any] = dict(policy.env_kwargs)
     if user is not None:
         kwargs["users"] = user
@@ -133,21 +135,27 @@ def _make_env(ns: argparse.Namespace, policy: Any, user: Any) -> Any:
     else:
         kwargs.update(users="replay", session=ns.user.removeprefix("replay:"))
     hz = int(policy.decision_hz)
-    graph = ns.phrase_graph if ns.phrase_graph is not None else policy.phrase_graph
     if ns.exercise is not None:
         from langenv.exercise import resolve_exercise
 
-        exercise = resolve_exercise(ns.exercise)
-        kwargs["exercise"] = exercise
-        if ns.phrase_graph is None:
-            graph = exercise.script_for(policy.phrase_graph)
+        kwargs["exercise"] = resolve_exercise(ns.exercise)
     return gym.make(
         langenv.ENV_ID,
-        phrase_graph=graph,
+        phrase_graph=spoken.ref,
         decision_hz=hz,
         max_episode_steps=int(120 * hz),
         **kwargs,
     )
+
+
+def _speak(ns: argparse.Namespace, policy: Any) -> Any:
+    """The graph ``policy`` speaks on ``--exercise`` (:func:`langenv.exercise.script.speak`):
+    ``--graph`` for a policy that chooses phrases; for AC and LC-noAP a ConfigError."""
+    from langenv.exercise.script import graph_role, speak, spoken_graph
+
+    if ns.phrase_graph is not None:
+        spoken_graph(graph_role(policy), ns.exercise, ns.phrase_graph)  # refuses a one-wording one
+    return speak(policy, ns.exercise, ns.phrase_graph)
 
 
 def run_robot(ns: argparse.Namespace) -> str:
@@ -177,6 +185,7 @@ def run_robot(ns: argparse.Namespace) -> str:
                 robot,
                 policy,
                 exercise=ns.exercise,
+                graph=ns.phrase_graph,
                 make_sink=lambda ring, sr: WavSink(ring, out, sr),
                 log_path=ns.log_out,
                 max_seconds=ns.seconds,

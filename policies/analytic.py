@@ -17,6 +17,7 @@ import numpy as np
 
 from langenv import observation as ob
 from langenv.errors import ConfigError
+from langenv.exercise.spec import GRAPH_ROLES
 from langenv.observation import Obs
 from langenv.pacing import PaceLaw, PaceLimits, action_from_command
 from policies.aligner import AlignerGains, audio_command, optimal_paces
@@ -36,7 +37,7 @@ class AdmittanceController:
     """AC: fixed admittance (``p = a = 1``), one long utterance started with the motion."""
 
     name: str = "ac"
-    phrase_graph: str = "ac"
+    graph_role: str = "single"  # the exercise's one wording, said as one utterance
     decision_hz: int = 25
     action_dim: int = 3
     env_kwargs: dict[str, Any] = field(default_factory=dict)
@@ -55,7 +56,8 @@ class LanguageController:
 
     Args:
         name: ``"lc"`` or ``"lc-noap"``.
-        phrase_graph: Graph to speak with (``"lc"`` or ``"lc-noap"`` by default).
+        graph_role: ``"graph"`` (LC: the exercise's phrase graph) or ``"single"`` (LC-noAP: its
+            one wording); see :mod:`langenv.exercise.script`.
         gains: ``k_c`` of the audio law; ``k_a`` must equal the env's (``PaceLimits.k_a``).
         limits: The env's pace limits (for the action map).
         decision_hz: Decision rate; 500 reproduces the paper's 500 Hz loop exactly.
@@ -78,7 +80,7 @@ class LanguageController:
     """
 
     name: str = "lc"
-    phrase_graph: str = "lc"
+    graph_role: str = "graph"
     gains: AlignerGains = field(default_factory=AlignerGains)
     limits: PaceLimits = field(default_factory=PaceLimits)
     decision_hz: int = 500
@@ -91,6 +93,11 @@ class LanguageController:
     _rate: float = field(default=1.0, init=False, repr=False)
 
     def __post_init__(self) -> None:
+        if self.graph_role not in GRAPH_ROLES:
+            raise ConfigError(
+                f"LanguageController.graph_role must be one of {sorted(GRAPH_ROLES)}, "
+                f"got {self.graph_role!r}"
+            )
         for name in ("k_em", "em_clip", "terminal"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
@@ -197,7 +204,7 @@ def make_analytic(
         return AdmittanceController(decision_hz=decision_hz or 25)
     if name == "lc-noap":
         return LanguageController(
-            name="lc-noap", phrase_graph="lc-noap", decision_hz=decision_hz or 500
+            name="lc-noap", graph_role="single", decision_hz=decision_hz or 500
         )
     if name == "lc":
         return LanguageController(decision_hz=decision_hz or 500)

@@ -11,8 +11,9 @@ the same units) keeps what they agree on. An ensemble is a YAML *manifest* besid
       - ...
 
 ``ppo:PATH.yaml`` loads one (:func:`policies.load_policy`); ``python -m train.ensemble`` writes one.
-Every member must share the residual design, the decision rate, the phrase graph and the env
-arguments, since one env serves them all.
+Every member must share the residual design, the decision rate, the phrase graph it was trained
+on and the env arguments, since one env serves them all; like any learned policy, the ensemble
+speaks the exercise's phrase graph (:meth:`PPOEnsemble.use_graph`).
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from langenv.exercise.script import SpokenGraph
 from policies.learned import PPOPolicy, file_sha256
 
 __all__ = ["MANIFEST_KIND", "PPOEnsemble", "write_manifest"]
@@ -50,7 +52,7 @@ class PPOEnsemble:
     members: tuple[PPOPolicy, ...]
     path: Path = Path()
     name: str = "ppo"
-    phrase_graph: str = field(init=False)
+    graph_role: str = "graph"
     decision_hz: int = field(init=False)
     env_kwargs: dict[str, Any] = field(init=False)
 
@@ -62,7 +64,7 @@ class PPOEnsemble:
             for what, a, b in (
                 ("residual design", m.residual.spec, first.residual.spec),
                 ("decision rate", m.decision_hz, first.decision_hz),
-                ("phrase graph", m.phrase_graph, first.phrase_graph),
+                ("training phrase graph", m.trained_graph, first.trained_graph),
                 ("env arguments", m.env_kwargs, first.env_kwargs),
             ):
                 if a != b:
@@ -70,9 +72,28 @@ class PPOEnsemble:
                         f"{self.path}: member {m.path} differs from {first.path} in its {what}: "
                         f"{a!r} != {b!r}"
                     )
-        self.phrase_graph = first.phrase_graph
         self.decision_hz = first.decision_hz
         self.env_kwargs = dict(first.env_kwargs)
+
+    @property
+    def trained_graph(self) -> str | None:
+        """The phrase graph the members were trained on (see :class:`PPOPolicy`)."""
+        return self.members[0].trained_graph
+
+    @property
+    def widened_from(self) -> int | None:
+        """The members' number of choices before :meth:`use_graph` widened them, or None."""
+        return self.members[0].widened_from
+
+    def use_graph(self, spoken: SpokenGraph) -> None:
+        """Fit every member to the graph spoken (:meth:`PPOPolicy.use_graph`).
+
+        Raises:
+            GraphChoicesError: naming the first member that cannot act on it.
+        """
+        for m in self.members:
+            m.use_graph(spoken)
+        self.env_kwargs = dict(self.members[0].env_kwargs)
 
     @classmethod
     def load(cls, path: str | Path) -> PPOEnsemble:

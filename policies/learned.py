@@ -28,7 +28,7 @@ import math
 import pickle
 import warnings
 import zipfile
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -36,7 +36,8 @@ import numpy as np
 import yaml
 
 from langenv import observation as ob
-from langenv.errors import ConfigError, ModelError, ObservationLayoutError
+from langenv.errors import ConfigError, GraphChoicesError, ModelError, ObservationLayoutError
+from langenv.exercise.script import SpokenGraph, graph_label
 from langenv.observation import Obs
 from langenv.pacing import PaceLimits, action_from_command, command_from_action
 from policies.analytic import LanguageController
@@ -47,6 +48,7 @@ __all__ = [
     "PPOPolicy",
     "ResidualLC",
     "ResidualSpec",
+    "child_inputs",
     "file_sha256",
     "graph_digest",
     "model_files",
@@ -91,6 +93,20 @@ def observation_layout(max_children: int) -> dict[str, Any]:
 
 def _layout_text(layout: dict[str, Any]) -> str:
     return f"size={layout.get('size')} signature={layout.get('signature')}"
+
+
+def child_inputs(old_children: int, new_children: int) -> tuple[int, int]:
+    """Where a model's input grows when its graphs' largest number of choices goes from
+    ``old_children`` to ``new_children``: ``(at, n)``, the new child blocks' ``n`` inputs
+    inserted before input ``at`` (after the old child blocks, before :data:`FEATURES`).
+
+    Widening puts zero weights on them and neutral normalisation (mean 0, variance 1), so the
+    widened model acts as the original whatever they hold (:meth:`PPOPolicy.use_graph` in
+    memory, ``python -m train.widen`` on disk).
+    """
+    return ob.FIRST_CHILD + ob.CHILD_FIELDS * old_children, ob.CHILD_FIELDS * (
+        new_children - old_children
+    )
 
 
 _RATE_TAU = 1.0  # s, time constant of the motion-rate average
@@ -453,22 +469,37 @@ class PPOPolicy:
 
     Build it with :meth:`load`. ``act`` is deterministic (the mean action of the Gaussian policy).
 
+    It chooses phrases (``graph_role = "graph"``): it speaks the exercise's phrase graph, or an
+    override, never silently the one it was trained on (:mod:`langenv.exercise.script`).
+    :meth:`use_graph` fits it to that graph before the env is built.
+
     Attributes:
         name: ``"ppo"``.
-        phrase_graph: Phrase graph the model was trained with.
+        graph_role: ``"graph"``.
         decision_hz: Decision rate the model was trained at.
-        env_kwargs: Further env arguments it was trained with (``choice_mode``...).
+        env_kwargs: Further env arguments it was trained with (``choice_mode``...); after
+            :meth:`use_graph` also ``max_children``, the observation's child blocks.
         path: The model zip.
+        trained_graph: The phrase graph it was trained on, as tables name it (its config's
+            ``env_kwargs.phrase_graph`` or single ``phrase_graphs`` entry, or the shipped graph
+            whose digest it records), or None (trained on several: across exercises, each
+            speaking its own script). For reports and the "changed since" warning only.
+        trained_digest: SHA-256 of that graph's YAML when it was trained, or None.
+        widened_from: The number of choices the model was trained for, when :meth:`use_graph`
+            widened it to a graph with more; else None.
     """
 
     model: MlpActor
     normalizer: Any
     residual: ResidualLC
-    phrase_graph: str = "lc"
     decision_hz: int = 50
     env_kwargs: dict[str, Any] = field(default_factory=dict)
     path: Path = Path()
     name: str = "ppo"
+    graph_role: str = "graph"
+    trained_graph: str | None = None
+    trained_digest: str | None = None
+    widened_from: int | None = None
     _started: bool = False
 
     @classmethod
@@ -511,25 +542,85 @@ class PPOPolicy:
             )
         _check_layout(config, cfg_path, zip_path, n_obs, spec.max_children)
         hz = int(env_kwargs.pop("decision_hz", spec.decision_hz))
-        digest = config.get("phrase_graph_sha256")
-        graph = str(env_kwargs.pop("phrase_graph", None) or _shipped_graph_of(digest) or "lc")
+        digest = config.get("phrase_graph_sha256") or None
+        listed = config.get("phrase_graphs")
+        one = listed[0] if isinstance(listed, list) and len(listed) == 1 else None
+        trained = env_kwargs.pop("phrase_graph", None) or one or _shipped_graph_of(digest)
         env_kwargs.pop("max_episode_steps", None)
+        env_kwargs.pop("max_children", None)  # set by use_graph for the graph spoken
         env_kwargs.pop("exercise", None)  # trained on one or several: the caller chooses
-        if digest and digest != graph_digest(graph):
-            warnings.warn(
-                f"{zip_path}: the phrase graph {graph!r} changed since this model was trained; "
-                "retrain it (python -m train.ppo) for best results",
-                stacklevel=2,
-            )
         return cls(
             model=model,
             normalizer=normalizer,
             residual=ResidualLC(spec),
-            phrase_graph=graph,
             decision_hz=hz,
             env_kwargs=env_kwargs,
             path=zip_path,
+            trained_graph=graph_label(str(trained)) if trained else None,
+            trained_digest=str(digest) if digest else None,
         )
+
+    @property
+    def max_children(self) -> int:
+        """The largest number of choices the model reads (its observation's child blocks)."""
+        return self.residual.spec.max_children
+
+    def use_graph(self, spoken: SpokenGraph) -> None:
+        """Fit the model to the phrase graph it is to speak (before the env is built).
+
+        * a graph with at most :attr:`max_children` choices: the env's observation keeps the
+          model's child blocks (``env_kwargs["max_children"]``), the extra ones empty, as in
+          training across exercises;
+        * a graph with more, for a ``"target"`` model (one phrase action whatever the number of
+          children): the model is widened in memory exactly as ``python -m train.widen`` widens
+          it on disk (zero weights and neutral normalisation on the new child blocks: it acts as
+          trained, blind to the extra children's inputs; the env's choice rule still chooses
+          among all of them); :attr:`widened_from` records it;
+        * a graph with more for a ``"scores"`` model (one output per child): refused.
+
+        Warns when the graph is the one the model was trained on and its file changed since.
+
+        Raises:
+            GraphChoicesError: a ``"scores"`` model and a graph with more choices than it has
+                outputs (naming the model, the graph and both numbers).
+        """
+        spec = self.residual.spec
+        if spoken.max_children > spec.max_children:
+            if spec.choice_mode != "target":
+                raise GraphChoicesError(
+                    self.path,
+                    spoken.label,
+                    spec.max_children,
+                    spoken.max_children,
+                    "its 'scores' action has one output per choice, which widening cannot add: "
+                    "retrain it on this graph (python -m train.ppo) or speak another (--graph)",
+                )
+            self._widen(spoken.max_children)
+        self.env_kwargs["max_children"] = self.residual.spec.max_children
+        if (
+            self.trained_digest is not None
+            and spoken.label == self.trained_graph
+            and graph_digest(spoken.ref) != self.trained_digest
+        ):
+            warnings.warn(
+                f"{self.path}: the phrase graph {spoken.label} changed since this model was "
+                "trained on it; retrain it (python -m train.ppo) for best results",
+                stacklevel=2,
+            )
+
+    def _widen(self, max_children: int) -> None:
+        """Widen the model's input to ``max_children`` child blocks (see :meth:`use_graph`)."""
+        old = self.residual.spec.max_children
+        at, n = child_inputs(old, max_children)
+        weights = list(self.model.weights)
+        weights[0] = np.insert(weights[0], [at] * n, 0.0, axis=1)
+        self.model = MlpActor(tuple(weights), self.model.biases, self.model.activation)
+        rms = self.normalizer.obs_rms
+        rms.mean = np.insert(np.asarray(rms.mean, np.float64), at, np.zeros(n))
+        rms.var = np.insert(np.asarray(rms.var, np.float64), at, np.ones(n))
+        spec = replace(self.residual.spec, max_children=max_children)
+        self.residual = ResidualLC(spec, self.residual.limits)
+        self.widened_from = old if self.widened_from is None else self.widened_from
 
     def reset(self) -> None:
         """Start a new episode (the next observation is the one ``reset`` returned)."""
@@ -548,8 +639,9 @@ class PPOPolicy:
                     self.path,
                     f"size={n_env} (this env's observation and the features)",
                     f"size={self.model.n_inputs}",
-                    "the phrase graph spoken has another largest number of choices than the "
-                    "one the model was trained on",
+                    "the env's observation has another number of child blocks than the model "
+                    "reads: build the env after langenv.exercise.speak(policy, exercise), "
+                    "with the policy's env_kwargs",
                 )
             aug = self.residual.start(observation)
             self._started = True

@@ -40,20 +40,26 @@ def _obs(
 def test_names_build_the_right_controllers() -> None:
     assert isinstance(make_analytic("ac"), AdmittanceController)
     lc, noap, em = make_analytic("lc"), make_analytic("lc-noap"), make_analytic("lc-em")
-    assert (lc.name, lc.phrase_graph, lc.decision_hz, lc.k_em) == ("lc", "lc", 500, 0.0)
-    assert (noap.name, noap.phrase_graph) == ("lc-noap", "lc-noap")
-    assert (em.name, em.phrase_graph, em.k_em) == ("lc-em", "lc", 1.0)
+    assert (lc.name, lc.graph_role, lc.decision_hz, lc.k_em) == ("lc", "graph", 500, 0.0)
+    assert (noap.name, noap.graph_role) == ("lc-noap", "single")
+    assert make_analytic("ac").graph_role == "single"
+    assert (em.name, em.graph_role, em.k_em) == ("lc-em", "graph", 1.0)
     end = make_analytic("lc-end")
     assert isinstance(end, LanguageController)
-    assert (end.name, end.phrase_graph, end.terminal, end.k_em, lc.terminal) == (
+    assert (end.name, end.graph_role, end.terminal, end.k_em, lc.terminal) == (
         "lc-end",
-        "lc",
+        "graph",
         1.0,
         0.0,
         0.0,
     )
     both = make_analytic("lc-em-end")
-    assert (both.name, both.phrase_graph, both.k_em, both.terminal) == ("lc-em-end", "lc", 1.0, 1.0)
+    assert (both.name, both.graph_role, both.k_em, both.terminal) == (
+        "lc-em-end",
+        "graph",
+        1.0,
+        1.0,
+    )
     assert make_analytic("lc", decision_hz=25).decision_hz == 25
     with pytest.raises(KeyError, match="lc-em"):
         make_analytic("lq")

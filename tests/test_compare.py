@@ -113,7 +113,7 @@ def test_lc_speaks_the_default_graph_unless_told_the_study_s(tmp_path: Path) -> 
         graphs[name] = (log.phrase_graph, {u.phrase for u in log.utterances})
         rows = list(csv.DictReader((out / "sessions.csv").open()))
         assert float(rows[0]["pause_share"]) > 0.0
-    assert graphs["default"][0] == "lc" and graphs["study"][0] == "study"
+    assert graphs["default"][0] == "default" and graphs["study"][0] == "study"
     assert "intro" in graphs["study"][1] and "intro" not in graphs["default"][1]
     assert any(u.startswith("pause_") for u in graphs["default"][1])
 

@@ -13,6 +13,7 @@ import yaml
 
 import langenv
 from eval.compare import policy_names
+from langenv.exercise import speak
 from policies import load_policy
 from policies.ensemble import PPOEnsemble, write_manifest
 from policies.learned import PPOPolicy, model_files
@@ -40,7 +41,7 @@ def _copy(model: Path, folder: Path, stem: str) -> Path:
 def _env(policy: Any) -> Any:
     return gym.make(
         langenv.ENV_ID,
-        phrase_graph=policy.phrase_graph,
+        phrase_graph=speak(policy).ref,  # the study's exercise's graph; fits the members to it
         decision_hz=policy.decision_hz,
         max_episode_steps=60 * policy.decision_hz,
         **policy.env_kwargs,

@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 import langenv
 from langenv import observation as ob
 from langenv.errors import ConfigError
+from langenv.exercise import speak
 from langenv.observation import ChildField, Obs
 from langenv.pacing import command_from_action
 from policies import load_policy
@@ -300,9 +301,8 @@ def test_load_missing_files_name_the_path(tmp_path: Path) -> None:
 def test_trained_model_acts_deterministically(tiny_ppo_models: tuple[Path, ...]) -> None:
     policy = load_policy(f"ppo:{tiny_ppo_models[0]}")
     assert isinstance(policy, PPOPolicy)
-    env = _make(
-        phrase_graph=policy.phrase_graph, decision_hz=policy.decision_hz, **policy.env_kwargs
-    )
+    graph = speak(policy).ref  # fits the model to the graph it speaks: before env_kwargs
+    env = _make(phrase_graph=graph, decision_hz=policy.decision_hz, **policy.env_kwargs)
     assert policy.decision_hz == env.unwrapped.decision_hz
     obs, _ = env.reset(seed=5)
     policy.reset()
@@ -336,9 +336,8 @@ def test_shipped_model_corrects_paces_and_phrase_choice() -> None:
     spec = policy.residual.spec
     assert spec.pace_scale > 0 and spec.audio_gain > 0
     assert (spec.k_em, spec.terminal) == (1.0, 1.0)
-    env = _make(
-        phrase_graph=policy.phrase_graph, decision_hz=policy.decision_hz, **policy.env_kwargs
-    )
+    graph = speak(policy, override="study").ref  # the graph it was trained on: 6 choices
+    env = _make(phrase_graph=graph, decision_hz=policy.decision_hz, **policy.env_kwargs)
     base = LanguageController(action_dim=3, terminal=spec.terminal, k_em=spec.k_em)
     obs, _ = env.reset(seed=11)
     policy.reset()

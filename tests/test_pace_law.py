@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 import langenv
 from langenv.env import LAW_CHUNK
 from langenv.errors import ConfigError
+from langenv.exercise import speak
 from langenv.kernels import pacer
 from langenv.kernels import steps as sk
 from langenv.observation import Obs, encode_flag, encode_fraction, encode_seconds
@@ -31,7 +32,7 @@ FIELDS = (*pacer.ROW_FIELDS, "qpos", "f_user")
 
 def _make(policy: LanguageController, **kwargs: Any) -> Any:
     return gym.make(
-        langenv.ENV_ID, phrase_graph=policy.phrase_graph, decision_hz=500, **kwargs
+        langenv.ENV_ID, phrase_graph=speak(policy).ref, decision_hz=500, **kwargs
     ).unwrapped
 
 

@@ -42,6 +42,7 @@ import pytest
 
 import langenv
 from langenv.control.admittance import AdmittanceParams
+from langenv.exercise import speak
 from policies import load_policy
 from policies.aligner import AlignerGains
 from train.wrappers import ResidualLCWrapper
@@ -145,7 +146,7 @@ def _analytic(
     policy.decision_hz = hz
     env = gym.make(
         langenv.ENV_ID,
-        phrase_graph=graph or policy.phrase_graph,
+        phrase_graph=graph or speak(policy).ref,
         decision_hz=hz,
         max_episode_steps=60 * hz,
         admittance=admittance,

@@ -17,6 +17,7 @@ import yaml
 
 import langenv
 from langenv.errors import ConfigError
+from langenv.exercise import speak
 from policies.analytic import LanguageController
 from policies.learned import PPOPolicy, file_sha256, model_files
 from train.ppo import (
@@ -94,7 +95,7 @@ def _policy_env(policy: PPOPolicy) -> Any:
 
     return gym.make(
         langenv.ENV_ID,
-        phrase_graph=policy.phrase_graph,
+        phrase_graph=speak(policy).ref,  # fits the model to the graph: before env_kwargs
         decision_hz=policy.decision_hz,
         **policy.env_kwargs,
     )

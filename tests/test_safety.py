@@ -17,6 +17,7 @@ from langenv.control.admittance import AdmittanceParams
 from langenv.control.cooperation import CooperationFilter
 from langenv.control.trajectory import default_exercise
 from langenv.errors import ConfigError
+from langenv.exercise import speak
 from langenv.motion import GuidedArm
 from langenv.robot.arm import Arm
 from langenv.robot.force_sensor import ForceSensor
@@ -169,7 +170,7 @@ def _episode(user: Any, policy: str = "lc", steps: int | None = None) -> list[di
     pol = load_policy(policy)
     env = _ENVS.get(policy)
     if env is None:  # one env per policy: building one takes a while
-        env = _ENVS[policy] = gym.make(langenv.ENV_ID, phrase_graph=pol.phrase_graph)
+        env = _ENVS[policy] = gym.make(langenv.ENV_ID, phrase_graph=speak(pol).ref)
     obs, info = env.reset(seed=0, options={"user": CallableUser(user)})
     pol.reset()
     infos = [info]

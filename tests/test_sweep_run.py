@@ -71,6 +71,8 @@ def test_rows_hold_every_column(reference: list[dict[str, Any]], tmp_path: Path)
     for extra in ("policy_spec", "exercise", "lc.k_c", "env.admittance.damping", "users", "seed"):
         assert extra in columns
     assert {r["status"] for r in reference} == {"ok"}
+    spoken = {(r["policy"], r["graph"], r["graph_role"]) for r in reference}
+    assert spoken == {("ac", "lc-noap", "single"), ("lc", "default", "graph")}  # what each spoke
     assert {r["version"] for r in reference} == {__import__("langenv").__version__}
     ac = [r for r in reference if r["policy"] == "ac"]
     assert all(r["lc.k_c"] is None and r["env.admittance.damping"] == 70.0 for r in ac)

@@ -138,3 +138,27 @@ def test_bad_file_starts_nothing(tmp_path: Path) -> None:
 def test_the_example_loads() -> None:
     spec = load_spec(ROOT / "configs" / "sweeps" / "example.yaml")
     assert spec.param_names == ("lc.k_c", "env.admittance.damping")
+
+
+def test_a_model_that_cannot_speak_a_graph_of_the_grid_is_named(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Checked with the model's own rule (PPOPolicy.use_graph) before any worker starts: here a
+    model refuses every graph of more than 6 choices, as a 'scores' model of 6 outputs does."""
+    from langenv.errors import GraphChoicesError
+    from policies.learned import PPOPolicy
+
+    def refuse(self: PPOPolicy, spoken: object) -> None:
+        choices = getattr(spoken, "max_children", 0)
+        if choices > 6:
+            raise GraphChoicesError(self.path, getattr(spoken, "label", "?"), 6, choices)
+
+    monkeypatch.setattr(PPOPolicy, "use_graph", refuse)
+    model = ROOT / "models" / "ppo_aligner.zip"
+    grid = f"  policy: [lc, 'ppo:{model}']\n  phrase_graph: [study, default]\n"
+    err = _error(tmp_path, "grid:\n" + grid + USERS)
+    assert err.key.startswith("grid.policy")
+    assert "default" in err.detail and "9 choices" in err.detail and "study" not in err.detail
+    load_spec(
+        _write(tmp_path, f"grid:\n  policy: ['ppo:{model}']\n  phrase_graph: [study]\n{USERS}")
+    )

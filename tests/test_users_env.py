@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import langenv  # noqa: F401  (registers LangCtrl-v0)
+from langenv.exercise import speak
 from langenv.users import ReplayUser, SyntheticUser
 from policies import load_policy
 
@@ -23,7 +24,7 @@ NOMINAL = 10.1  # s, the default exercise without resistance
 def _session(seed: int, user: Any = None, policy: str = "lc") -> dict[str, Any]:
     pol = load_policy(policy)
     pol.decision_hz = 25
-    env = gym.make("LangCtrl-v0", phrase_graph=pol.phrase_graph, decision_hz=25)
+    env = gym.make("LangCtrl-v0", phrase_graph=speak(pol).ref, decision_hz=25)
     obs, info = env.reset(seed=seed, options={"user": user} if user is not None else None)
     pol.reset()
     coop = [info["cooperation"]]

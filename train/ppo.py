@@ -625,7 +625,7 @@ def _config_dict(run: _Run, residual: dict[str, Any], extra: dict[str, Any]) -> 
     import langenv
     from policies.learned import graph_digest, observation_layout
 
-    graph = str(run.env_kwargs.get("phrase_graph", "lc"))
+    graphs = _trained_graphs(run)
     if run.worlds is not None:
         extra = {"worlds": run.worlds.to_dict(), **extra}
     if residual:
@@ -635,8 +635,12 @@ def _config_dict(run: _Run, residual: dict[str, Any], extra: dict[str, Any]) -> 
         "train": recorded_args(run.args),
         "env_kwargs": _plain(run.env_kwargs),
         "residual": residual,
-        # across worlds each exercise speaks its own script: no one graph to record
-        "phrase_graph_sha256": graph_digest(graph) if run.worlds is None else None,
+        # every graph trained on, as tables name them (langenv.exercise.script.graph_label);
+        # the digest of the one graph a single-graph run trained on (None: several, varied)
+        "phrase_graphs": [label for label, _ in graphs],
+        "phrase_graph_sha256": (
+            graph_digest(graphs[0][1]) if run.worlds is None and len(graphs) == 1 else None
+        ),
         "n_envs": run.n_envs,
         "total_timesteps": run.total,
         "versions": {
@@ -646,6 +650,27 @@ def _config_dict(run: _Run, residual: dict[str, Any], extra: dict[str, Any]) -> 
         },
         **extra,
     }
+
+
+def _trained_graphs(run: _Run) -> list[tuple[str, str]]:
+    """``(label, ref)`` of each phrase graph the run's envs speak, in first-use order: the
+    config's ``env_kwargs.phrase_graph``, else each training exercise's script (across worlds:
+    the train role's, before their variants)."""
+    from langenv.exercise import resolve_exercise
+    from langenv.exercise.script import graph_label
+
+    given = run.env_kwargs.get("phrase_graph")
+    if run.worlds is not None:
+        names = run.worlds.exercises("train")
+        refs = [run.worlds.graphs.get(n, resolve_exercise(n).graph) for n in names]
+    elif given is not None:
+        refs = [str(given)]
+    else:
+        exercise = run.env_kwargs.get("exercise")
+        listed = exercise if isinstance(exercise, list | tuple) else [exercise]
+        refs = [resolve_exercise(ex).graph for ex in listed]
+    found = {graph_label(ref): str(ref) for ref in refs}
+    return list(found.items())
 
 
 def code_version(installed: str) -> dict[str, str]:

@@ -12,10 +12,15 @@ the same spaces). The widened model has the new child blocks inserted after the 
 zero weights into both first layers (actor and critic) and neutral normalisation statistics
 (mean 0, variance 1): its actions and values are the original's (to rounding) for any values of
 the new inputs, and fine-tuning can learn to read them. Writes ``OUT.zip``,
-``OUT_vecnormalize.pkl`` and ``OUT_config.yaml``, whose ``residual.max_children``,
-``observation_layout`` and phrase graph (``--phrase-graph``, default ``lc``: the exercise's own
-script) are the new ones and whose ``widened_from`` records the source (file name, SHA-256,
-``max_children``). The result is loaded once with :meth:`policies.learned.PPOPolicy.load`.
+``OUT_vecnormalize.pkl`` and ``OUT_config.yaml``, whose ``residual.max_children`` and
+``observation_layout`` are the new ones, whose training graph records stay the source's (the
+widened model was trained on nothing new) and whose ``widened_from`` records the source (file
+name, SHA-256, ``max_children``). Like any learned policy it speaks the exercise's phrase graph
+(:mod:`langenv.exercise.script`). The result is loaded once with
+:meth:`policies.learned.PPOPolicy.load`.
+
+Evaluating a ``"target"`` model on a graph with more choices needs no file:
+:meth:`policies.learned.PPOPolicy.use_graph` widens it in memory the same way.
 """
 
 from __future__ import annotations
@@ -35,14 +40,13 @@ __all__ = ["main", "widen"]
 _FIRST_LAYERS = ("mlp_extractor.policy_net.0.weight", "mlp_extractor.value_net.0.weight")
 
 
-def widen(src: Path, max_children: int, out: Path, phrase_graph: str = "lc") -> Path:
+def widen(src: Path, max_children: int, out: Path) -> Path:
     """Write the widened copy of model ``src`` (module docstring); returns ``OUT.zip``.
 
     Args:
         src: A model zip (``STEM.zip`` with ``STEM_vecnormalize.pkl``, ``STEM_config.yaml``).
         max_children: The new largest number of choices, > the model's.
         out: Stem of the widened model.
-        phrase_graph: The graph the widened model speaks (a shipped key or a YAML path).
 
     Raises:
         FileNotFoundError: naming a missing input file.
@@ -52,9 +56,8 @@ def widen(src: Path, max_children: int, out: Path, phrase_graph: str = "lc") -> 
     """
     from stable_baselines3 import PPO
 
-    from langenv import observation as ob
     from langenv.errors import ConfigError
-    from policies.learned import file_sha256, graph_digest, model_files, observation_layout
+    from policies.learned import child_inputs, file_sha256, model_files, observation_layout
 
     zip_in, pkl_in, cfg_in = model_files(src)
     zip_out, pkl_out, cfg_out = model_files(out)
@@ -69,8 +72,7 @@ def widen(src: Path, max_children: int, out: Path, phrase_graph: str = "lc") -> 
         raise ConfigError(f"train.widen: --max-children {max_children} must exceed {old_k}")
     model = PPO.load(zip_in, device="cpu")
     n_old = int(np.prod(model.observation_space.shape or (0,)))
-    at = ob.FIRST_CHILD + ob.CHILD_FIELDS * old_k  # where the new child blocks go
-    n_new = ob.CHILD_FIELDS * (max_children - old_k)
+    at, n_new = child_inputs(old_k, max_children)  # where the new child blocks go
     space = _box(n_old + n_new)
     state = model.policy.state_dict()
     for key in _FIRST_LAYERS:
@@ -86,8 +88,6 @@ def widen(src: Path, max_children: int, out: Path, phrase_graph: str = "lc") -> 
     norm.save(pkl_out)
     config["residual"]["max_children"] = max_children
     config["observation_layout"] = observation_layout(max_children)
-    config.setdefault("env_kwargs", {})["phrase_graph"] = phrase_graph
-    config["phrase_graph_sha256"] = graph_digest(phrase_graph)
     config["widened_from"] = {
         "model": zip_in.name,
         "sha256": file_sha256(zip_in),
@@ -139,7 +139,6 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     p.add_argument("model", type=Path, help="the model zip to widen")
     p.add_argument("--max-children", type=int, required=True, help="the new number of choices")
     p.add_argument("--out", type=Path, required=True, help="stem of the widened model")
-    p.add_argument("--phrase-graph", default="lc", help="the graph it speaks (default lc)")
     return p.parse_args(argv)
 
 
@@ -147,7 +146,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the exit status (2: a bad input)."""
     ns = parse_args(argv)
     try:
-        path = widen(ns.model, ns.max_children, ns.out, ns.phrase_graph)
+        path = widen(ns.model, ns.max_children, ns.out)
     except (FileNotFoundError, FileExistsError, ValueError, KeyError, TypeError) as exc:
         print(f"train.widen: error: {exc}", file=sys.stderr)
         return 2

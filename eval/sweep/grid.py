@@ -8,7 +8,9 @@ coordinates and the seed) keys ``--resume`` and de-duplication.
 
 Order: policy, exercise, phrase graph, rate, grid parameters (in file order, last fastest),
 sample point, user set, user. A policy varies only over its own parameters and the env's; one
-that does not choose phrases speaks its own graph (its ``phrase_graph`` coordinate is empty).
+that does not choose phrases (AC, LC-noAP: graph role ``single``) says the exercise's one wording
+(its ``phrase_graph`` coordinate is empty); the row's ``graph`` column names the graph each
+session spoke.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from eval.compare import Job, _chooses_phrases
+from eval.compare import Job, policy_role
 from eval.sweep.exercises import job_exercise
 from eval.sweep.spec import Param, SweepSpec
 
@@ -36,7 +38,7 @@ class SweepSession:
     Attributes:
         session_id: Stable id (:func:`session_id`).
         coords: Coordinates, in row order: ``policy``, ``policy_spec``, ``exercise``,
-            ``phrase_graph`` (None: the policy's own), ``decision_hz`` (None: the policy's own),
+            ``phrase_graph`` (None: the exercise's), ``decision_hz`` (None: the policy's own),
             each parameter (None where it does not apply), ``sample`` (None without sampling),
             ``users`` (the set's name), ``user``.
         seed: The user's seed (the env's reset seed).
@@ -68,7 +70,7 @@ def _sessions(spec: SweepSpec) -> Iterator[SweepSession]:
     points = spec.sample.points() if spec.sample is not None else [None]
     sampled = {d.param.name: d.param for d in spec.sample.space} if spec.sample else {}
     for policy_spec, policy in spec.policies.items():
-        graphs = spec.phrase_graphs if _chooses_phrases(policy_spec) else (None,)
+        graphs = spec.phrase_graphs if policy_role(policy_spec) == "graph" else (None,)
         grid = [p for p in spec.params if _applies(p, policy)]
         mine = {n: p for n, p in sampled.items() if _applies(p, policy)}
         own_points = points if mine else [None]

@@ -83,7 +83,13 @@ def session_row(session: SweepSession) -> dict[str, Any]:
         error = "".join(frames)[-4000:]
         status = "error"
         episode = {c: math.nan for c in EPISODE_COLUMNS}
-        episode.update(policy=session.coords["policy"], user=session.coords["user"], stop_limit="")
+        episode.update(
+            policy=session.coords["policy"],
+            user=session.coords["user"],
+            stop_limit="",
+            graph="",
+            graph_role="",
+        )
     return {
         **episode,
         **session.coords,

@@ -25,7 +25,9 @@ key                    meaning
                        is named ``ppo`` (or ``ppo-STEM``) in rows and parameter names
 ``grid.exercise``      exercise names (:data:`~eval.sweep.exercises.SWEEP_EXERCISES`)
 ``grid.phrase_graph``  shipped graph names or YAML paths; only the policies that choose phrases
-                       (LC variants, learned) vary over them, the others speak their own
+                       (LC variants, learned) vary over them, instead of the exercise's graph;
+                       AC and LC-noAP say the exercise's one wording. A row's ``graph`` names
+                       the graph its session spoke
 ``grid.decision_hz``   decision rates (dividing 500)
 ``grid.POLICY.NAME``   values of a ``float`` parameter of that policy (``lc.k_c``, ``lc.gains.k_p``,
                        ``lc.k_em``); sessions of other policies do not vary over it
@@ -153,7 +155,7 @@ class SweepSpec:
         file: The file it was read from.
         policies: Policy specs, with their names in rows (``policy_spec -> policy``).
         exercises: Exercise names.
-        phrase_graphs: Graphs for the policies that choose phrases (None: their own).
+        phrase_graphs: Graphs for the policies that choose phrases (None: the exercise's).
         decision_hz: Rates (None: each policy's own).
         params: Grid parameters.
         sample: Random points, or None.
@@ -218,9 +220,10 @@ def load_spec(path: str | Path) -> SweepSpec:
     """Read and check a sweep file; nothing runs.
 
     Checks: known keys; policies load (``ppo:PATH`` model files exist); exercises, phrase graphs
-    and rates exist; each parameter is a ``float`` field of its policy or the env, named once,
-    and each of its values is accepted by the dataclass it sets; ranges and distributions are
-    well formed; the grid and every user set are non-empty.
+    and rates exist; every learned model can act on the graph it would speak; each parameter is
+    a ``float`` field of its policy or the env, named once, and each of its values is accepted
+    by the dataclass it sets; ranges and distributions are well formed; the grid and every user
+    set are non-empty.
 
     Raises:
         SweepError: every problem found, one line each (file, key, line, what is allowed).
@@ -250,6 +253,8 @@ def load_spec(path: str | Path) -> SweepSpec:
     exercises = _names(grid, "exercise", [DEFAULT_EXERCISE], problems, _check_exercise)
     graphs = _names(grid, "phrase_graph", [None], problems, _check_graph)
     rates = _names(grid, "decision_hz", [None], problems, _check_rate)
+    if not problems.items:
+        _check_spoken(policies, exercises, graphs, problems)
     loaded = {name: pol for name, pol in policies.values() if pol is not None}
     params = []
     for key, values in grid.items():
@@ -362,6 +367,30 @@ def _check_graph(graph: Any) -> str | None:
         known = ", ".join(SHIPPED_GRAPHS)
         return f"phrase graph {graph!r} is neither shipped ({known}) nor a valid file: {exc}"
     return None
+
+
+def _check_spoken(
+    policies: Mapping[str, tuple[str, Any]],
+    exercises: list[Any],
+    graphs: list[Any],
+    problems: _Problems,
+) -> None:
+    """Every policy that adapts to the graph it speaks (a learned model) can act on the graph
+    of every exercise and ``phrase_graph`` of the grid: one that cannot is a problem of
+    ``grid.policy``, found before any worker starts."""
+    from langenv.errors import LangEnvError
+    from langenv.exercise.script import speak
+    from policies import load_policy
+
+    for spec, (_name, policy) in policies.items():
+        if policy is None or not callable(getattr(policy, "use_graph", None)):
+            continue
+        for exercise in exercises:
+            for graph in graphs:
+                try:
+                    speak(load_policy(spec), exercise, graph)  # a fresh one: use_graph adapts it
+                except LangEnvError as exc:
+                    problems.add("grid.policy", f"{spec} on {exercise}: {exc}")
 
 
 def _check_rate(hz: Any) -> str | None:

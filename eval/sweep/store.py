@@ -37,10 +37,9 @@ def row_schema(spec: SweepSpec) -> Any:
     """The Arrow schema of every row of ``spec``'s sweep."""
     import pyarrow as pa
 
-    from eval.compare import EPISODE_COLUMNS
+    from eval.compare import EPISODE_COLUMNS, TEXT_COLUMNS
 
-    text = {"policy", "user", "stop_limit"}
-    fields = [(c, pa.string() if c in text else pa.float64()) for c in EPISODE_COLUMNS]
+    fields = [(c, pa.string() if c in TEXT_COLUMNS else pa.float64()) for c in EPISODE_COLUMNS]
     coords = [
         ("policy_spec", pa.string()),
         *[(c, pa.int64() if c == "decision_hz" else pa.string()) for c in COORDINATES[1:]],

@@ -17,8 +17,8 @@ load. Coordinates are the robot's base frame (z up, the table top at z = 0).
 | ``start`` | [x, y, z] | m | required | where the hand starts, at rest |
 | ``speed`` | float | m/s | 0.125 | nominal hand speed: the guide's plateau ``F_prop / D0`` (0.02–0.25) |
 | ``switch_tol`` | float | m, rad | 0.1 | the guide moves on to the next leg when the hand's pose is this close to the leg's end pose, in the lab's 6-D norm (SPEC §2); with a tool that does not turn that is this many metres before the end: 0.035 gives the study's 3.5 cm (0.01–0.1) |
-| ``script.graph`` | str | | ``lc`` | phrase graph of the aligners that choose phrases: a shipped graph name or a YAML path relative to the file |
-| ``script.single`` | str | | ``lc-noap`` | the one-wording graph AC and LC-noAP say |
+| ``script.graph`` | str | | ``lc`` | phrase graph of the policies that choose phrases (graph role ``graph``: LC, its variants, learned aligners): a shipped graph name or a YAML path relative to the file |
+| ``script.single`` | str | | ``lc-noap`` | the one-wording graph AC and LC-noAP say (graph role ``single``) |
 | ``legs`` | list | | required | 1–40 legs, in order, each starting where the previous ends |
 
 A leg is a map with ``name`` (unique) and exactly one of:
@@ -52,9 +52,10 @@ import numpy as np
 
 from langenv.control.admittance import AdmittanceParams
 from langenv.control.trajectory import ArcSegment, LineSegment, Segment, Trajectory
-from langenv.errors import ExerciseError, TrajectoryError
+from langenv.errors import ConfigError, ExerciseError, TrajectoryError
 
 __all__ = [
+    "GRAPH_ROLES",
     "LEG_KINDS",
     "MAX_LEGS",
     "PROBLEM_KINDS",
@@ -93,6 +94,17 @@ PROBLEM_KINDS = MappingProxyType(
     }
 )
 """Every ``kind`` of :class:`Problem` (the stable names tests assert on) and what it means."""
+
+GRAPH_ROLES = MappingProxyType(
+    {
+        "graph": "the exercise's phrase graph (script.graph): the policies that choose phrases "
+        "(LC, its variants, learned aligners)",
+        "single": "the exercise's one wording (script.single): AC and LC-noAP, the paper's "
+        "baselines",
+    }
+)
+"""What graph a policy speaks, by role (a policy declares its ``graph_role``; the exercise maps
+the role to a graph: :meth:`Exercise.graph_for`). A policy brings a rule, not a script."""
 
 LEG_KINDS = ("line", "arc", "spline")
 """The shapes a leg may take."""
@@ -357,14 +369,18 @@ class Exercise:
             return params
         return replace(params, propel_force=force, switch_tol=self.switch_tol)
 
-    def script_for(self, own: str) -> str:
-        """The phrase graph a policy speaks on this exercise, from the graph it speaks on the
-        study's (``policy.phrase_graph``): the one-wording ``single`` for ``"ac"`` and
-        ``"lc-noap"``, the exercise's ``graph`` for ``"lc"``; any other graph (a file) is kept."""
-        key = str(own).replace("_", "-")
-        if key in ("ac", "lc-noap"):
+    def graph_for(self, role: str) -> str:
+        """The phrase graph this exercise gives a policy of graph role ``role``
+        (:data:`GRAPH_ROLES`): ``graph`` for ``"graph"``, ``single`` for ``"single"``.
+
+        Raises:
+            ConfigError: an unknown role (listing the known ones).
+        """
+        if role == "graph":
+            return self.graph
+        if role == "single":
             return self.single
-        return self.graph if key == "lc" else str(own)
+        raise ConfigError(f"graph role must be one of {sorted(GRAPH_ROLES)}, got {role!r}")
 
     @property
     def leg_names(self) -> tuple[str, ...]:

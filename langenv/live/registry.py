@@ -8,10 +8,11 @@ A package that provides policies declares, in its ``pyproject.toml``::
 
 Each entry point's name is a policy *kind* (the part of a spec before ``:``, e.g. ``ppo`` in
 ``ppo:models/x.zip``) and its object a factory ``f(spec: str) -> policy``, the policy offering
-``act(observation)``, ``reset()``, ``phrase_graph``, ``decision_hz`` and ``env_kwargs`` (see
-``policies.Policy``). LangCtrl's own ``policies`` package registers ``ac``, ``lc-noap``, ``lc``,
-``lc-em``, ``lc-end`` and ``ppo``; entry points appear once the package is installed (for an
-editable install, after running its ``pip install -e`` line again).
+``act(observation)``, ``reset()``, ``graph_role``, ``decision_hz`` and ``env_kwargs`` (see
+``policies.Policy``; the exercise gives it its phrase graph by role,
+:mod:`langenv.exercise.script`). LangCtrl's own ``policies`` package registers ``ac``,
+``lc-noap``, ``lc``, ``lc-em``, ``lc-end`` and ``ppo``; entry points appear once the package is
+installed (for an editable install, after running its ``pip install -e`` line again).
 """
 
 from __future__ import annotations

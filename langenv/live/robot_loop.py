@@ -122,14 +122,16 @@ class RobotLoop:
 
     Args:
         robot: The robot, at the exercise's start and at rest.
-        policy: Offers ``act(observation)``, ``reset()``, ``decision_hz``, ``phrase_graph``
+        policy: Offers ``act(observation)``, ``reset()``, ``decision_hz``, ``graph_role``
             and ``env_kwargs`` (what :func:`langenv.live.registry.load_registered_policy` gives).
         trajectory: The exercise's path in the robot's base frame (default: the exercise's
             own, in our UR5 model's base frame).
         exercise: The exercise (a name, a YAML path or an
             :class:`~langenv.exercise.Exercise`; None: the study's): its guide speed
-            (admittance) and the script the policy speaks on it
-            (:meth:`~langenv.exercise.Exercise.script_for`).
+            (admittance) and the script the policy speaks on it, by its graph role
+            (:func:`langenv.exercise.script.speak`).
+        graph: For a policy that chooses phrases, a phrase graph (a shipped name or a YAML
+            path) instead of the exercise's; None: the exercise's.
         make_sink: Builds the audio sink from the ring and the sample rate (None: no audio).
         log_path: The session CSV to write (None: none).
         log_every: Periods between two logged rows (10: 50 Hz, as the study's recordings).
@@ -145,6 +147,7 @@ class RobotLoop:
         *,
         trajectory: Trajectory | None = None,
         exercise: str | Path | Exercise | None = None,
+        graph: str | Path | None = None,
         make_sink: Callable[[AudioRing, int], AudioSink] | None = None,
         log_path: str | Path | None = None,
         log_every: int = 10,
@@ -153,16 +156,19 @@ class RobotLoop:
         seed: int = 0,
     ) -> None:
         from langenv.env import LangCtrlEnv
+        from langenv.exercise.script import speak
 
-        kwargs = {k: v for k, v in dict(policy.env_kwargs).items() if k != "users"}
-        own = kwargs.pop("exercise", None)
+        own = dict(policy.env_kwargs).get("exercise")
         ex = resolve_exercise(exercise if exercise is not None else own)
+        self.spoken = speak(policy, ex, graph)  # may fit a learned model to the graph
+        drop = ("users", "exercise")
+        kwargs = {k: v for k, v in dict(policy.env_kwargs).items() if k not in drop}
         kwargs.setdefault("admittance", ex.admittance())
         self.exercise = ex
         self.env = LangCtrlEnv(
             robot=robot,
             trajectory=trajectory if trajectory is not None else ex.trajectory,
-            phrase_graph=ex.script_for(policy.phrase_graph),
+            phrase_graph=self.spoken.ref,
             decision_hz=int(policy.decision_hz),
             robot_acceleration=acceleration,
             **kwargs,
