@@ -33,7 +33,7 @@ from langenv.pacing import PaceLimits
 from langenv.speech.coverage import NATURAL, coverage
 from langenv.speech.graph import PhraseGraph
 
-__all__ = ["POPULATION", "MotionTimes", "fit_warnings", "motion_times"]
+__all__ = ["POPULATION", "MotionTimes", "fit_report", "fit_warnings", "motion_times"]
 
 POPULATION = 48
 """Synthetic people a script is checked against (seeds 0-47)."""
@@ -116,6 +116,17 @@ def fit_warnings(
     out: list[str] = []
     name = graph.path.name if graph.path is not None else "the script"
     slow, fast, nominal = times.q95, times.q05, times.nominal
+    if np.isfinite(nominal) and nominal > hi:
+        out.append(
+            f"warning: {name}: its words cover motions up to {hi:.1f} s at a natural pace, the "
+            f"motion takes {nominal:.1f} s even when nobody resists (cooperation 1); "
+            + (
+                "the last phrase would wait in silence. "
+                if graph.final_wait
+                else "the speech would run out before the motion ends. "
+            )
+            + "Add steps or longer wordings"
+        )
     if slow > hi:
         gap = slow - hi
         if graph.final_wait:
@@ -140,6 +151,21 @@ def fit_warnings(
             "end late. Make a step optional ([...]) or add shorter wordings (|)"
         )
     return out
+
+
+def fit_report(graph: PhraseGraph, exercise: Exercise) -> list[str]:
+    """The exercise's motion times, the words' natural range and :func:`fit_warnings`, a line
+    each (the CLIs print them)."""
+    times = motion_times(exercise)
+    lo, hi = coverage(graph).natural_range
+    pop = times.population
+    return [
+        f"  motion: {times.nominal:.1f} s at cooperation 1; {len(pop)} synthetic people at pace 1 "
+        f"{pop[0]:.1f}-{pop[-1]:.1f} s (5-95 %: {times.q05:.1f}-{times.q95:.1f} s)",
+        f"  words of {graph.path.name if graph.path else 'the script'}: {lo:.1f}-{hi:.1f} s at a "
+        "natural pace" + ("; the last phrase waits for longer motions" if graph.final_wait else ""),
+        *fit_warnings(graph, times),
+    ]
 
 
 def _repeats_for(gap: float) -> int:

@@ -1,4 +1,5 @@
-"""The natural voice: clips said at max(a, 0.9), then a wait until the timeline reaches their end."""
+"""The natural voice: clips said at max(a, 0.9), then a wait until the timeline reaches their
+end."""
 
 from __future__ import annotations
 

@@ -19,6 +19,7 @@ from pathlib import Path
 
 from langenv.errors import ConfigError, ExerciseError, LangEnvError
 from langenv.exercise.registry import SHIPPED_EXERCISES, exercise_path, resolve_exercise
+from langenv.exercise.spec import Exercise
 
 __all__ = ["main"]
 
@@ -67,7 +68,17 @@ def _check(specs: Sequence[str]) -> int:
             continue
         print(report.summary())
         print(f"  OK (checked in {report.seconds:.2f} s)")
+        for line in _script_fit(report.exercise):
+            print(line)
     return status
+
+
+def _script_fit(exercise: Exercise) -> list[str]:
+    """The script's words against the exercise's motion times (warnings included)."""
+    from langenv.script_fit import fit_report
+    from langenv.speech.graph import PhraseGraph, graph_path
+
+    return fit_report(PhraseGraph.load(graph_path(exercise.graph)), exercise)
 
 
 def _render(spec: str, out: Path, width: int, height: int) -> int:

@@ -91,6 +91,13 @@ def _parser() -> argparse.ArgumentParser:
     w.add_argument("script", metavar="SCRIPT", type=Path, help="plain-text script")
     w.add_argument("--out", required=True, type=Path, help="phrase graph YAML to write")
     w.add_argument("--overwrite", action="store_true", help="replace an existing OUT")
+    w.add_argument(
+        "--exercise",
+        metavar="E",
+        default=None,
+        help="check the script's words against this exercise's motion times (a shipped name or "
+        "an exercise YAML) and print 'warning:' lines where they fall short (default: no check)",
+    )
 
     r = sub.add_parser(
         "render",
@@ -235,10 +242,21 @@ def _author(args: argparse.Namespace) -> int:
     if out.exists() and not args.overwrite:
         print(f"error: {out}: exists; give --overwrite to replace it", file=sys.stderr)
         return 1
+    exercise = None
+    if args.exercise is not None:
+        from langenv.exercise import resolve_exercise
+
+        exercise = resolve_exercise(args.exercise)  # a bad exercise before anything is written
     graph = author(args.script, out, _clips(args))
     print(f"wrote {out} from {args.script}")
     print(_summary(graph))
     print(format_coverage(coverage(graph)))
+    if exercise is not None:
+        from langenv.script_fit import fit_report
+
+        print(f"against exercise {exercise.name}:")
+        for line in fit_report(graph, exercise):
+            print(line)
     return 0
 
 
