@@ -122,7 +122,8 @@ def test_author_writes_a_valid_graph_and_prints_its_coverage(
     assert "3 fillers" not in printed and "2 fillers" in printed and "1 pause" in printed
     assert "at |a - 1| <= 0.1:" in printed and "at a in [0.6, 1.4]:" in printed
     g = PhraseGraph.load(out)
-    assert g.pauses == {"pause_4"} and g.fillers == {"okay", "so"}
+    assert {u for u, ph in g.source_phrases.items() if ph.is_pause} == {"pause_4"}
+    assert g.fillers == {"okay", "so"} and g.final_wait and g.opened  # the last phrase waits
     assert main(["author", str(script), "--out", str(out)]) == 1  # no silent overwrite
     assert "--overwrite" in capsys.readouterr().err
     assert main(["check", str(out), "--coverage"]) == 0

@@ -20,7 +20,7 @@ from langenv.speech.audio import ClipLibrary
 from langenv.speech.author import parse_script
 from langenv.speech.coverage import speech_lengths
 from langenv.speech.graph import Phrase, PhraseGraph
-from langenv.speech.repeat import MAX_REPEAT, SEP, WAIT_LEAD, Repeat, is_gap
+from langenv.speech.repeat import MAX_REPEAT, SEP, WAIT_LEAD, WAIT_PLAN, Repeat, is_gap
 from langenv.speech.timeline import SpeechTimeline
 
 
@@ -63,15 +63,16 @@ def test_a_repeat_unrolls_into_sayings_and_gaps() -> None:
 def test_a_plan_says_a_repeat_once_and_the_coverage_counts_every_saying() -> None:
     g = encourage(times=4)
     lead = WAIT_LEAD * 0.8
-    # intro's plan: intro (2.3) + one saying (1.3 or 1.5) + the wait's lead + done (0.8)
+    assert g.plan_range("done#wait") == pytest.approx((lead, lead + WAIT_PLAN))
+    # intro's plan: intro (2.3) + one saying (1.3 or 1.5) + the planned wait + done (0.8)
     assert g.t_min("intro") == pytest.approx(2.3 + 0.8 + lead)  # straight to the end
-    assert g.t_max("intro") == pytest.approx(2.3 + 1.5 + lead + 0.8)
+    assert g.t_max("intro") == pytest.approx(2.3 + 1.5 + lead + WAIT_PLAN + 0.8)
     # the words' longest speech: four sayings of the longer wording with the longest gaps
-    longest = 2.3 + 4 * 1.5 + 3 * 2.0 + lead + 0.8
+    longest = 2.3 + 4 * 1.5 + 3 * 2.0 + lead + WAIT_PLAN + 0.8
     assert speech_lengths(g)[-1][1] == pytest.approx(longest)
     # a gap's plan: the gap, one more saying and the end
     assert g.t_min("again#gap1") == pytest.approx(1.0 + 1.3 + lead + 0.8)
-    assert g.t_max("again#gap1") == pytest.approx(2.0 + 1.5 + lead + 0.8)
+    assert g.t_max("again#gap1") == pytest.approx(2.0 + 1.5 + lead + WAIT_PLAN + 0.8)
 
 
 def test_the_rule_says_another_round_when_the_motion_s_time_to_go_is_nearer_it() -> None:

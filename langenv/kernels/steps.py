@@ -47,9 +47,9 @@ def pack_graph(graph: Any, order: tuple[str, ...]) -> tuple[np.ndarray, ...]:
     order."""
     index = {u: i for i, u in enumerate(order)}
     mid = np.array([graph._mid[u] for u in order])
-    slot = np.array(
-        [(graph.slot(u), *graph.slot_range(u), graph._lead[u]) for u in order]
-    ).reshape(-1, 4)
+    slot = np.array([(graph.slot(u), *graph.slot_range(u), graph._lead[u]) for u in order]).reshape(
+        -1, 4
+    )
     kids = [index[v] for u in order for v in graph.children(u)]
     counts = [len(graph.children(u)) for u in order]
     kid_ptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)

@@ -22,9 +22,10 @@ Its length is planned like any pause's (:meth:`PhraseGraph.pause_length
 end) less a *lead* of :data:`WAIT_LEAD` times the last phrase's length, and replanned at every
 step while it lasts, without the pause's upper bound (at most :data:`WAIT_MAX`): the last phrase
 starts when the motion's time to go is its length plus the lead. For the choice rule it counts as
-its *planned* bounds (the lead for ``T#wait``), so the choices, ``t_min``/``t_max`` and the
-rule's mids are those of the words and the lead: only the silence before the last phrase
-stretches. A script needs no line for it.
+its *planned* bounds (the lead up to the lead and :data:`WAIT_PLAN` for ``T#wait``, as written
+for a pause), so the choices, ``t_min``/``t_max`` and the rule's mids are those of the words, the
+lead and a short planned silence: only the silence before the last phrase stretches beyond
+that. A script needs no line for it.
 
 A plan says a repeat once: ``t_min``/``t_max`` of a vertex (and so the choice rule's mids) leave
 out its gap children, so a repeat whose ``times`` is large does not make every earlier wording
@@ -49,6 +50,7 @@ __all__ = [
     "SEP",
     "WAIT_LEAD",
     "WAIT_MAX",
+    "WAIT_PLAN",
     "Repeat",
     "expand",
     "is_gap",
@@ -63,10 +65,15 @@ DEFAULT_GAP = (1.0, 3.0)
 the graph's ``pause``)."""
 WAIT_MAX = 3600.0
 """Longest silence before the last phrase (s at a = 1): the wait is open-ended in practice."""
-WAIT_LEAD = float(__import__("os").environ.get("LC_LEAD", "0.3"))
+WAIT_LEAD = 0.3
 """The last phrase starts when the motion's time to go is its length times ``1 + WAIT_LEAD``:
 the lead lets the pace law stretch it to end with the motion, and leaves room for a person who
 resists while it is said (the paper's law slows the voice then, down to ``a_min``)."""
+WAIT_PLAN = 1.0
+"""How long a plan counts the wait before the last phrase beyond its lead (s at a = 1): the
+choice rule aims the words about half of it before the motion's end. Overshooting costs more
+than stopping short: a wait fills a short speech, while the paper's law slows the voice, never
+speeds it, when the person resists as the motion ends."""
 SEP = "#"
 """Separator of the ids of unrolled vertices (``keep_going#2``, ``encourage#gap1``,
 ``done#wait``); a graph file's own ids may not contain it."""
@@ -280,7 +287,6 @@ def _add_waits(table: dict[str, Any], dur: Mapping[str, float], make: Any) -> di
             ph = table[u]
             kids = tuple(wait if v == t else v for v in ph.next)
             table[u] = make(u, ph.text, ph.audio, kids, ph.kind, ph.bounds)
-        xs = float(__import__("os").environ.get("LC_X", "0"))
-        table[wait] = make(wait, None, None, (t,), "pause", (lead, lead + xs))
+        table[wait] = make(wait, None, None, (t,), "pause", (lead, lead + WAIT_PLAN))
         waits[wait] = lead
     return waits

@@ -1,0 +1,95 @@
+"""A script checked against its exercise: motion times (cached), warnings, the two CLIs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from langenv.exercise import resolve_exercise
+from langenv.exercise.__main__ import main as exercise_main
+from langenv.script_fit import MotionTimes, fit_warnings, motion_times
+from langenv.speech.__main__ import main as speech_main
+from langenv.speech.audio import ClipLibrary
+from langenv.speech.author import author
+from langenv.speech.graph import PhraseGraph
+
+SHORT = "Reach forward.\nAnd bring it back.\nAnd you're done.\n"
+LONG = (
+    "@pause 0.3\nI want you to reach forward and up, nice and slowly.\n"
+    "[We are reaching up together.] | [Up, up, up.]\n"
+    "And now bring your hand back towards your body. | Bring it back.\n"
+    "[Keep going.] | [Nice and slow.] | [Almost there.] (repeat 12, gap 0.5-2)\n"
+    "And you're done.\n"
+)
+
+
+@pytest.fixture(scope="module")
+def flexion_times() -> MotionTimes:
+    return motion_times(resolve_exercise("shoulder_flexion"))
+
+
+def graph_of(tmp_path: Path, text: str, clips: ClipLibrary) -> PhraseGraph:
+    script = tmp_path / "s.txt"
+    script.write_text(text)
+    return author(script, tmp_path / "s.yaml", clips)
+
+
+def test_motion_times_are_the_population_s_and_cached(
+    flexion_times: MotionTimes, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    pop = flexion_times.population
+    assert len(pop) == 48 and list(pop) == sorted(pop)
+    assert 9.0 < flexion_times.nominal < pop[0] + 1.0  # resisting people are slower
+    assert flexion_times.q05 <= flexion_times.q95 <= pop[-1]
+    import langenv.script_fit as fit
+
+    monkeypatch.setattr(fit, "_population", lambda *a: pytest.fail("simulated again"))
+    assert motion_times(resolve_exercise("shoulder_flexion")) == flexion_times
+
+
+def test_a_short_script_is_warned_about_with_what_would_close_the_gap(
+    tmp_path: Path, clips: ClipLibrary, flexion_times: MotionTimes
+) -> None:
+    warnings = fit_warnings(graph_of(tmp_path, SHORT, clips), flexion_times)
+    assert len(warnings) == 2 and all(w.startswith("warning: s.yaml: ") for w in warnings)
+    assert "even when nobody resists" in warnings[0]
+    assert "slowest 5 % of 48 synthetic people" in warnings[1]
+    assert "(repeat " in warnings[1] and "silence" in warnings[1]
+
+
+def test_a_script_with_a_repeat_covers_the_population(
+    tmp_path: Path, clips: ClipLibrary, flexion_times: MotionTimes
+) -> None:
+    assert fit_warnings(graph_of(tmp_path, LONG, clips), flexion_times) == []
+
+
+def test_without_the_final_wait_the_warning_says_the_speech_runs_out(
+    tmp_path: Path, clips: ClipLibrary, flexion_times: MotionTimes
+) -> None:
+    graph = graph_of(tmp_path, "@final-wait off\n" + SHORT, clips)
+    assert any("would run out" in w for w in fit_warnings(graph, flexion_times))
+
+
+def test_speech_author_with_an_exercise_prints_the_warnings(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], flexion_times: MotionTimes
+) -> None:
+    script = tmp_path / "s.txt"
+    script.write_text(SHORT)
+    args = ["author", str(script), "--out", str(tmp_path / "g.yaml"), "--exercise"]
+    assert speech_main([*args, "shoulder_flexion", "--cache-dir", str(tmp_path / "c")]) == 0
+    out = capsys.readouterr().out
+    assert "against exercise shoulder_flexion:" in out
+    assert sum(line.startswith("warning: g.yaml") for line in out.splitlines()) == 2
+    # an unknown exercise is refused before anything is written
+    assert speech_main([*args[:-1], "--overwrite", "--exercise", "nowhere"]) == 1
+    assert "nowhere" in capsys.readouterr().err
+
+
+def test_exercise_check_reports_the_script_against_the_people(
+    capsys: pytest.CaptureFixture[str], flexion_times: MotionTimes
+) -> None:
+    assert exercise_main(["check", "shoulder_flexion"]) == 0
+    out = capsys.readouterr().out
+    assert "48 synthetic people at pace 1" in out and "words of shoulder_flexion_lc.yaml" in out
+    assert "warning:" not in out  # the shipped script covers its exercise
