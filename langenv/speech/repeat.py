@@ -65,7 +65,7 @@ DEFAULT_GAP = (1.0, 3.0)
 the graph's ``pause``)."""
 WAIT_MAX = 3600.0
 """Longest silence before the last phrase (s at a = 1): the wait is open-ended in practice."""
-WAIT_LEAD = 0.3
+WAIT_LEAD = 0.0
 """The last phrase starts when the motion's time to go is its length times ``1 + WAIT_LEAD``:
 the lead lets the pace law stretch it to end with the motion, and leaves room for a person who
 resists while it is said (the paper's law slows the voice then, down to ``a_min``)."""
