@@ -51,7 +51,13 @@ from types import MappingProxyType
 import numpy as np
 
 from langenv.control.admittance import AdmittanceParams
-from langenv.control.trajectory import ArcSegment, LineSegment, Segment, Trajectory
+from langenv.control.trajectory import (
+    ArcSegment,
+    LineSegment,
+    Segment,
+    Trajectory,
+    split_arc,
+)
 from langenv.errors import ExerciseError, TrajectoryError
 
 __all__ = [
@@ -248,7 +254,8 @@ class Leg:
         if self.kind == "arc":
             assert self.center is not None and self.axis is not None
             own = None if self.tool_turn is None else turn  # None: the tool turns with the arc
-            return [ArcSegment(self.center, self.axis, start, self.angle, True, own)]
+            arc = ArcSegment(self.center, self.axis, start, self.angle, True, own)
+            return list(split_arc(arc))  # more than half a turn: as the Trajectory keeps it
         assert self.through is not None
         segs = fit_spline(start, self.through, self.tolerance)
         total = sum(s.length for s in segs)
