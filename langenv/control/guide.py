@@ -180,7 +180,9 @@ class Guide:
         self._v_turn2 = params.plateau_speed**2
         self._q_sw = [self.switch_distance(k) for k in range(self._n_legs)]
         reach = GATE_REACH * params.switch_tol
-        self._gate = [switch_gate(trajectory, a, b, reach) for a, b in zip(self._starts, ends)]
+        self._gate = [
+            switch_gate(trajectory, a, b, reach) for a, b in zip(self._starts, ends, strict=True)
+        ]
 
     @property
     def n_legs(self) -> int:

@@ -52,6 +52,7 @@ import numpy as np
 
 from langenv.control.admittance import AdmittanceParams
 from langenv.control.trajectory import (
+    MIN_LENGTH,
     ArcSegment,
     LineSegment,
     Segment,
@@ -90,6 +91,8 @@ PROBLEM_KINDS = MappingProxyType(
         "curvature": "a bend too tight to follow at the nominal speed",
         "path_error": "the guided hand would leave the path by more than the tolerance",
         "short_leg": "a leg shorter than the guide's switch distance",
+        "loop": "a leg the guide would take as done before the hand has gone along it: a loop "
+        "too small to go round, or one with no way round",
         "unreachable": "a point the UR5 cannot reach with the tool orientation asked for",
         "joint_margin": "a joint within the margin of the end of its range",
         "singular": "a pose near a singularity (manipulability below the bound)",
@@ -239,6 +242,36 @@ class Leg:
             return np.array([0.0, 0.0, 1.0])
         return np.asarray(axis / np.linalg.norm(axis))
 
+    def no_way_round(self, start: np.ndarray) -> Problem | None:
+        """The problem of a leg from ``start`` that ends where it starts with no way round, or
+        None: a line back to its own start (``degenerate``: zero length) or a spline back to its
+        start through fewer than two points on the way (``loop``: it would go out and back
+        along itself, or nowhere)."""
+        if self.kind == "line" and self.end is not None:
+            if float(np.linalg.norm(self.end - start)) < MIN_LENGTH:
+                return Problem(
+                    "degenerate",
+                    self.name,
+                    None,
+                    "the line ends where it starts (zero length): there is nothing to guide "
+                    "along. Drop the leg; for a loop, use an arc (angle: 360, tool: {turn: 0}) "
+                    "or a spline through points around it",
+                )
+        if self.kind == "spline" and self.through is not None and len(self.through) < 3:
+            if float(np.linalg.norm(self.through[-1] - start)) < MIN_LENGTH:
+                k = len(self.through) - 1
+                how = "goes out and back along itself" if k else "has no length"
+                return Problem(
+                    "loop",
+                    self.name,
+                    None,
+                    f"the spline ends where it starts and passes through {k} point"
+                    f"{'' if k == 1 else 's'} on the way: it {how}, with no way round. A loop "
+                    "needs at least two points around it (three or four points of a circle "
+                    "make a round one)",
+                )
+        return None
+
     def segments(self, start: np.ndarray) -> list[Segment]:
         """The leg's segments from ``start``, the last one ending the leg (a waypoint).
 
@@ -336,6 +369,10 @@ class Exercise:
         spans: list[tuple[int, int]] = []
         cursor = start
         for leg in legs:
+            closed = leg.no_way_round(cursor)
+            if closed is not None:
+                problems.append(closed)
+                continue
             try:
                 segs = leg.segments(cursor)
             except TrajectoryError as exc:
