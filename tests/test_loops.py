@@ -390,3 +390,41 @@ def test_the_renderer_draws_a_figure_eight(tmp_path: Path) -> None:
     if code != 0:
         pytest.skip("no off-screen rendering here")
     assert out.stat().st_size > 1000
+
+
+def test_the_ur_bridge_runs_a_loop_round_to_its_end(tmp_path: Path) -> None:
+    """The robot loop (the Python guide over the fake ur-rtde), the exercise shifted by the
+    lab's origin: the session goes round the circle and ends at its end, not at its start."""
+    from langenv.live.registry import load_registered_policy
+    from langenv.live.robot_loop import RobotLoop
+    from langenv.robot.ur import fake_rtde
+    from langenv.robot.ur.bridge import URRobot
+    from langenv.robot.ur.config import URConfig
+    from langenv.robot.ur.exercise import exercise_trajectory
+    from langenv.robot.ur.preflight import move_to_start, zero_sensor
+
+    ex = _loop("circle")
+    host = "127.0.0.1"
+    cfg = URConfig(host=host, exercise_origin=(0.01, 0.0, 0.0))
+    trajectory = exercise_trajectory(cfg, ex)
+    assert Guide(trajectory, ex.admittance()).returns(0)  # still a loop where the lab puts it
+    with fake_rtde.FakeUR(host) as ur:
+        robot = URRobot(cfg, backend=fake_rtde)
+        zero_sensor(robot)
+        move_to_start(robot, cfg, lambda q: True, ex)
+        loop = RobotLoop(
+            robot,
+            load_registered_policy("ac"),
+            trajectory=trajectory,
+            exercise=ex,
+            log_path=tmp_path / "session.csv",
+        )
+        report = loop.run()
+        robot.close()
+    assert report.stop is None and loop.env.motion.motion_done
+    assert 0.9 * NOMINAL["circle"] < report.duration_s < 2.0 * NOMINAL["circle"]
+    went = loop.env.motion.state
+    assert went.leg == 1 and went.s == pytest.approx(trajectory.length)
+    end = trajectory.position(trajectory.length)  # the circle's end: its start, where the lab is
+    np.testing.assert_allclose(end, ex.start + np.array([0.01, 0.0, 0.0]), atol=1e-9)
+    assert np.linalg.norm(ur.pose[:3] - end) < ex.switch_tol + 0.02  # round, braked near the end

@@ -8,13 +8,13 @@ sharply, even reverse: the guide switches legs there and the hand dips (as in th
 * ``gap``: a leg's stated ``waypoint`` farther than :data:`WAYPOINT_TOL` from where the leg ends;
 * ``short_leg``: a leg not longer than twice its switch distance (the guide would move on before
   the hand has set off);
-* ``loop``: a leg the guide would take as done before the hand is half-way along it, following
-  the path (sampled every :data:`~langenv.control.guide.GATE_STEP`): a loop (a leg that ends
-  where it starts) never farther than 2 ``switch_tol`` from its end, so the guide cannot tell its
-  start from its end (:mod:`langenv.control.guide`, "Loops"), or a leg that passes that close to
-  its end pose early. The message says how far from its end the leg goes and the ``switch_tol``
-  that would let it run. While a leg has this problem the guided motion is not judged (its run
-  ends at once: ``duration`` and ``etc`` would only repeat it);
+* ``loop``: a leg (not a ``short_leg``) the guide would take as done before the hand is half-way
+  along it, following the path (sampled every :data:`~langenv.control.guide.GATE_STEP`): a loop
+  (a leg that ends where it starts) never farther than 2 ``switch_tol`` from its end, so the
+  guide cannot tell its start from its end (:mod:`langenv.control.guide`, "Loops"), or a leg that
+  passes that close to its end pose early. The message says how far from its end the leg goes
+  and the ``switch_tol`` that would let it run. While a leg has this problem the guided motion is
+  not judged (its run ends at once: ``duration`` and ``etc`` would only repeat it);
 * ``curvature``: a bend of radius ``R`` whose centripetal acceleration at the nominal speed,
   ``v^2 / R``, exceeds :data:`~langenv.control.guide.GOVERNOR_SHARE` of the velocity command's
   acceleration limit: the command can change at most at ``max_acceleration`` (a UR's ``speedL``),
@@ -165,7 +165,8 @@ def _shape_problems(exercise: Exercise, params: AdmittanceParams) -> list[Proble
                 )
         span = exercise.leg_span(k)
         q_sw = guide.switch_distance(k)
-        if span[1] - span[0] <= 2.0 * q_sw:
+        short = span[1] - span[0] <= 2.0 * q_sw
+        if short:
             out.append(
                 Problem(
                     "short_leg",
@@ -175,7 +176,7 @@ def _shape_problems(exercise: Exercise, params: AdmittanceParams) -> list[Proble
                     "its end (a leg must be longer than twice that)",
                 )
             )
-        loop = _early_switch(exercise, guide, k, params.switch_tol)
+        loop = None if short else _early_switch(exercise, guide, k, params.switch_tol)
         if loop is not None:
             out.append(loop)
         bends = [(seg.radius, j) for j, seg in enumerate(segs) if isinstance(seg, ArcSegment)]

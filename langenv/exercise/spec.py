@@ -26,7 +26,7 @@ A leg is a map with ``name`` (unique) and exactly one of:
 | key | fields | meaning |
 |---|---|---|
 | ``line`` | ``to: [x, y, z]`` or ``to: start`` (m) | straight to the point |
-| ``arc`` | ``center: [x, y, z]`` (m), ``axis: [x, y, z]``, ``angle`` (deg, signed, 0 < abs <= 360) | rotation of the leg's start about the axis through ``center`` (right-handed) |
+| ``arc`` | ``center: [x, y, z]`` (m), ``axis: [x, y, z]``, ``angle`` (deg, signed, 0 < abs <= 360) | rotation of the leg's start about the axis through ``center`` (right-handed); 360: a circle (kept as arcs of at most 180 deg) |
 | ``spline`` | ``through: [[x, y, z], ...]`` (m, last = end), ``tolerance`` (m, default 0.001) | cubic spline through the points, fitted with lines and arcs within ``tolerance`` (:mod:`~langenv.exercise.curves`) |
 
 optionally ``waypoint: [x, y, z]`` (m), where the leg is meant to end (``check`` refuses a leg
@@ -36,6 +36,11 @@ optionally ``tool: {turn: deg, axis: [x, y, z]}``: how far the handle turns over
 axis); a line or spline keeps the tool still unless ``tool`` says otherwise. The simulated arm
 holds the handle's home orientation (as in the study's simulation); the turn enters the lab's
 6-D leg-switch test (SPEC §2) and the reach checks (IK with the orientation asked for).
+
+A leg may end where it starts (a loop: a circle, a lobe of a figure eight): the guide moves on
+only once the hand has gone round it (:mod:`langenv.control.guide`, "Loops"); a spline loop needs
+at least two points on the way round, and a loop that the guide cannot tell from its start (one
+never farther than 2 ``switch_tol`` from its end) is refused (problem kind ``loop``).
 
 A comment block at the top of the file says what the patient does.
 """
