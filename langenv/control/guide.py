@@ -29,18 +29,18 @@ such a leg as done before the hand has gone round it. So each leg also has a *ga
   pose *and* the closest point is at or past the gate, so the hand must go round first;
 * any other leg's gate is its start. The closest point never lies before its leg's start (its
   window), so the gate adds nothing there and the switch is the lab's, to the bit. No leg of a
-  shipped exercise returns (``tests/test_guide.py`` checks it).
+  shipped exercise returns (``tests/test_loops.py`` checks it).
 
 Why 2 switch_tol: when the pose test passes, the hand is within ``switch_tol`` of the end point and
 its closest point is no farther from it than the end point is, so the closest point lies within
 2 switch_tol of the end point: on the final approach, past the gate, for a hand that has come
-round. A leg that never goes that far from its end (smaller than 2 switch_tol across) and starts
-within ``switch_tol`` of its end pose cannot be gone round: the checks refuse it (problem kind
-``loop``, :mod:`langenv.exercise.path_checks`). The closest point's search stays local inside the
-leg: at a loop's start it starts from the leg's start (the window's low end, so it cannot wrap
-back to the loop's end), and near the loop's end the window's high end stops it; arcs of more than
-half a turn are split (:func:`~langenv.control.trajectory.split_arc`) so that no segment's own
-projection wraps round either.
+round. A leg that never goes that far from its end (a loop less than 2 switch_tol across) and
+starts within ``switch_tol`` of its end pose cannot be gone round: the checks refuse it (problem
+kind ``loop``, :mod:`langenv.exercise.path_checks`). The closest point's search stays local
+inside the leg: at a loop's start it starts from the leg's start (the window's low end, so it
+cannot wrap back to the loop's end), and near the loop's end the window's high end stops it; arcs
+of more than half a turn are split (:func:`~langenv.control.trajectory.split_arc`) so that no
+segment's own projection wraps round either.
 
 Speed governor (an addition to the study, :meth:`Guide.speed_limit`). The hand follows ``v_ref``
 changing its velocity at most at ``max_acceleration``, so a hand that a person pushes along
