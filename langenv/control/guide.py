@@ -14,6 +14,34 @@ to slow down: about 3.5 cm before the end point on the default exercise. The han
 towards the next leg in a short V-shaped dip of its speed. Motion is over when the last leg's end
 pose is reached the same way; the robot then holds still.
 
+Loops (an addition to the study: its legs never come back near their own ends). A leg may pass
+near its end before it gets there: a loop that ends where it starts (a circle, a lobe of a
+figure eight), or a leg that crosses its own end point on the way. The pose test alone would take
+such a leg as done before the hand has gone round it. So each leg also has a *gate*
+(:meth:`Guide.gate`), an arc length the closest point must have reached for the guide to move on:
+
+* the leg's *final approach* is the stretch that ends at its end point and, walking back from
+  there, stays within ``GATE_REACH * switch_tol`` (2 switch_tol) of that point (the path sampled
+  every :data:`GATE_STEP`);
+* a leg that comes within that distance of its end point before its final approach *returns*:
+  its gate is where its final approach begins (the sample before it, where the path is still
+  that far from the end). The guide moves on when the pose is within ``switch_tol`` of the end
+  pose *and* the closest point is at or past the gate, so the hand must go round first;
+* any other leg's gate is its start. The closest point never lies before its leg's start (its
+  window), so the gate adds nothing there and the switch is the lab's, to the bit. No leg of a
+  shipped exercise returns (``tests/test_loops.py`` checks it).
+
+Why 2 switch_tol: when the pose test passes, the hand is within ``switch_tol`` of the end point and
+its closest point is no farther from it than the end point is, so the closest point lies within
+2 switch_tol of the end point: on the final approach, past the gate, for a hand that has come
+round. A leg that never goes that far from its end (a loop less than 2 switch_tol across) and
+starts within ``switch_tol`` of its end pose cannot be gone round: the checks refuse it (problem
+kind ``loop``, :mod:`langenv.exercise.path_checks`). The closest point's search stays local
+inside the leg: at a loop's start it starts from the leg's start (the window's low end, so it
+cannot wrap back to the loop's end), and near the loop's end the window's high end stops it; arcs
+of more than half a turn are split (:func:`~langenv.control.trajectory.split_arc`) so that no
+segment's own projection wraps round either.
+
 Speed governor (an addition to the study, :meth:`Guide.speed_limit`). The hand follows ``v_ref``
 changing its velocity at most at ``max_acceleration``, so a hand that a person pushes along
 faster than the guided plateau speed ``F_prop / D0`` would overshoot the corners (by 20 cm at
@@ -46,12 +74,54 @@ from langenv.control.admittance import AdmittanceParams
 from langenv.control.trajectory import Trajectory
 from langenv.errors import ConfigError
 
-__all__ = ["GOVERNOR_SHARE", "Guide", "GuideState"]
+__all__ = ["GATE_REACH", "GATE_STEP", "GOVERNOR_SHARE", "Guide", "GuideState", "switch_gate"]
 
 GOVERNOR_SHARE = 0.5
 """Share of ``max_acceleration`` the speed governor plans its braking and turning with (the rest
 is left for the guide's corrections)."""
 _TURNED_COS2 = math.cos(math.radians(25.0)) ** 2
+GATE_REACH = 2.0
+"""A leg's final approach stays within this many ``switch_tol`` of its end point (module
+docstring, "Loops")."""
+GATE_STEP = 0.001
+"""Spacing (m) of the samples of a leg that :func:`switch_gate` measures."""
+
+
+def switch_gate(trajectory: Trajectory, start: float, end: float, reach: float) -> float:
+    """The gate of the leg ``[start, end]``: where its closest point must be for a switch (m).
+
+    ``start`` if the path stays farther than ``reach`` from the leg's end point everywhere before
+    its final approach (the stretch that ends there and stays within ``reach`` of it), else the
+    arc length just before the final approach (module docstring, "Loops"). The leg is sampled
+    every :data:`GATE_STEP` (at least at its two ends).
+
+    Args:
+        trajectory: The path.
+        start: Arc length of the leg's start (m).
+        end: Arc length of the leg's end (m), ``> start``.
+        reach: Radius of the final approach (m), ``> 0``.
+
+    Returns:
+        The gate's arc length, in ``[start, end]`` (m).
+    """
+    n = max(2, math.ceil((end - start) / GATE_STEP) + 1)
+    seg, t = trajectory.locate(end, True)
+    e0, e1, e2 = seg.point(t)
+    far = reach * reach
+    ss = [start + (end - start) * i / (n - 1) for i in range(n)]
+    d2 = []
+    for s in ss:
+        seg, t = trajectory.locate(s)
+        p = seg.point(t)
+        d2.append((p[0] - e0) ** 2 + (p[1] - e1) ** 2 + (p[2] - e2) ** 2)
+    approach = n - 1
+    while approach > 0 and d2[approach - 1] < far:
+        approach -= 1
+    if approach == 0:  # the whole leg lies within reach of its end: nothing to tell apart
+        return start
+    gate = approach - 1  # the last sample at least ``reach`` from the end
+    returns = any(d < far for d in d2[:gate])
+    return ss[gate] if returns else start
 
 
 @dataclass
@@ -109,6 +179,10 @@ class Guide:
         self._acc = params.max_acceleration
         self._v_turn2 = params.plateau_speed**2
         self._q_sw = [self.switch_distance(k) for k in range(self._n_legs)]
+        reach = GATE_REACH * params.switch_tol
+        self._gate = [
+            switch_gate(trajectory, a, b, reach) for a, b in zip(self._starts, ends, strict=True)
+        ]
 
     @property
     def n_legs(self) -> int:
@@ -123,6 +197,17 @@ class Guide:
         """Arc-length span ``(start, end)`` of the current leg (m): the closest point's window."""
         k = min(state.leg, self._n_legs - 1)
         return self._starts[k], self._ends[k]
+
+    def gate(self, leg: int) -> float:
+        """Arc length (m) the closest point must have reached on ``leg`` before the guide moves
+        on: the leg's start, or where a leg that returns near its end begins its final approach
+        (:func:`switch_gate`, module docstring "Loops")."""
+        return self._gate[leg]
+
+    def returns(self, leg: int) -> bool:
+        """Whether ``leg`` comes back near its end before its final approach (a loop): its gate
+        is not its start."""
+        return self._gate[leg] > self._starts[leg]
 
     def switch_distance(self, leg: int) -> float:
         """How far before the end of ``leg`` (m, along the path) the guide moves on.
@@ -212,8 +297,9 @@ class Guide:
         """Move the closest point to the hand and move on to the next leg when its end is near.
 
         Mutates ``state``: ``s`` (local closest point inside the current leg); when the pose is
-        within ``switch_tol`` of the leg's end pose, ``leg`` advances and ``s`` is set to the
-        next leg's start (``done`` at the last leg, with ``s`` at the end).
+        within ``switch_tol`` of the leg's end pose and ``s`` has reached the leg's
+        :meth:`gate`, ``leg`` advances (``s`` stays, and the next tick's search starts from the
+        next leg's start; ``done`` at the last leg, with ``s`` at the end).
 
         Args:
             state: Guide state, updated in place.
@@ -229,7 +315,7 @@ class Guide:
         p = self._end_pts[k]
         d0, d1, d2 = x0 - p[0], x1 - p[1], x2 - p[2]
         dphi = self._end_angle[k] - self.trajectory.tool_angle(s)
-        if d0 * d0 + d1 * d1 + d2 * d2 + dphi * dphi < self._tol2:
+        if d0 * d0 + d1 * d1 + d2 * d2 + dphi * dphi < self._tol2 and s >= self._gate[k]:
             state.leg = k + 1
             if k + 1 >= self._n_legs:
                 state.done = True

@@ -11,7 +11,11 @@ it if it followed the exercise (it does on an arc, and back along the line in th
 the lab's 6-D closeness test; :meth:`Trajectory.tool_angle` is its running total along the path.
 :meth:`Trajectory.closest` finds the closest point *locally*, by descent from the previous
 closest point and inside a window ``[s_lo, s_hi]``: the default exercise returns over its own path,
-so a global argmin would jump between its outbound and return legs.
+so a global argmin would jump between its outbound and return legs. An arc of more than half a turn
+(a circle, a lobe) is kept as equal pieces of at most :data:`MAX_ARC_ANGLE` (:func:`split_arc`):
+an arc's projection picks, for a point beside its gap, the end nearer in angle, so on one piece
+of a full circle a hand just behind its start would project to its end, and one just past its
+end to its start; on pieces of at most half a turn the descent moves from piece to piece.
 
 The hot-path methods (:meth:`Trajectory.locate`, :meth:`Trajectory.closest_xyz`, the segments'
 ``point``, ``unit_tangent``, ``frame`` and ``project``) work on plain Python floats and check
@@ -39,12 +43,15 @@ __all__ = [
     "Trajectory",
     "default_exercise",
     "line",
+    "split_arc",
 ]
 
 #: Shortest segment (m) and smallest arc radius (m) accepted; below, a segment is degenerate.
 MIN_LENGTH = 1e-6
 #: Largest gap (m) between the end of a segment and the start of the next.
 CONTINUITY_TOL = 1e-6
+#: Largest angle (rad) of one arc segment of a :class:`Trajectory`: longer arcs are split.
+MAX_ARC_ANGLE = math.pi
 
 Vec3 = tuple[float, float, float]
 
@@ -289,12 +296,41 @@ class ArcSegment:
 Segment = LineSegment | ArcSegment
 
 
+def split_arc(arc: ArcSegment) -> list[ArcSegment]:
+    """``arc`` as equal arcs of at most :data:`MAX_ARC_ANGLE` each, end to start.
+
+    An arc of at most half a turn is returned as it is. Longer ones (up to a full circle) become
+    ``ceil(|angle| / pi)`` pieces, each with its share of the tool's turn; only the last keeps
+    the ``waypoint`` flag. The pieces trace the same circle (their ends differ from the whole
+    arc's by rounding only).
+
+    Args:
+        arc: The arc.
+
+    Returns:
+        The pieces, in order.
+    """
+    n = math.ceil(abs(arc.angle) / MAX_ARC_ANGLE - 1e-12)
+    if n <= 1:
+        return [arc]
+    turn = float(arc.turn or 0.0) / n
+    pieces: list[ArcSegment] = []
+    start = arc.start
+    for i in range(n):
+        last = i == n - 1
+        piece = ArcSegment(arc.center, arc.axis, start, arc.angle / n, arc.waypoint and last, turn)
+        pieces.append(piece)
+        start = piece.end
+    return pieces
+
+
 class Trajectory:
     """A directed curve made of segments, parametrised by arc length, in legs between waypoints.
 
     Args:
         segments: The pieces, in order; each must start where the previous one ends (within
-            ``CONTINUITY_TOL``). The end of the last segment always ends the last leg.
+            ``CONTINUITY_TOL``). The end of the last segment always ends the last leg. An arc
+            of more than half a turn is kept as its :func:`split_arc` pieces.
 
     Attributes:
         segments: The segments, as a tuple.
@@ -308,15 +344,21 @@ class Trajectory:
     """
 
     def __init__(self, segments: Sequence[Segment]) -> None:
-        segs = tuple(segments)
-        if not segs:
+        given = tuple(segments)
+        if not given:
             raise TrajectoryError("Trajectory.segments must contain at least one segment")
-        for i, seg in enumerate(segs):
+        for i, seg in enumerate(given):
             if not isinstance(seg, LineSegment | ArcSegment):
                 raise TrajectoryError(
                     f"Trajectory.segments[{i}] must be a LineSegment or ArcSegment, "
                     f"got {type(seg).__name__}"
                 )
+        segs: tuple[Segment, ...] = tuple(
+            piece
+            for seg in given
+            for piece in (split_arc(seg) if isinstance(seg, ArcSegment) else (seg,))
+        )
+        for i, seg in enumerate(segs):
             if i > 0:
                 gap = vec.norm(seg.start - segs[i - 1].end)
                 if gap > CONTINUITY_TOL:

@@ -8,10 +8,18 @@ sharply, even reverse: the guide switches legs there and the hand dips (as in th
 * ``gap``: a leg's stated ``waypoint`` farther than :data:`WAYPOINT_TOL` from where the leg ends;
 * ``short_leg``: a leg not longer than twice its switch distance (the guide would move on before
   the hand has set off);
+* ``loop``: a leg (not a ``short_leg``) the guide would take as done before the hand is half-way
+  along it, following the path (sampled every :data:`~langenv.control.guide.GATE_STEP`): a loop
+  (a leg that ends where it starts) never farther than 2 ``switch_tol`` from its end, so the
+  guide cannot tell its start from its end (:mod:`langenv.control.guide`, "Loops"), or a leg that
+  passes that close to its end pose early. The message says how far from its end the leg goes
+  and the ``switch_tol`` that would let it run. While a leg has this problem the guided motion is
+  not judged (its run ends at once: ``duration`` and ``etc`` would only repeat it);
 * ``curvature``: a bend of radius ``R`` whose centripetal acceleration at the nominal speed,
   ``v^2 / R``, exceeds :data:`~langenv.control.guide.GOVERNOR_SHARE` of the velocity command's
   acceleration limit: the command can change at most at ``max_acceleration`` (a UR's ``speedL``),
-  and, as the guide's speed governor does, half of it stays for the guide's corrections;
+  and, as the guide's speed governor does, half of it stays for the guide's corrections. One
+  problem per leg, at its tightest bend, with the speed that bend allows (``sqrt(a R)``);
 * ``path_error``, ``etc``, ``duration``: the guided motion at cooperation 1 and pace 1, simulated
   (:func:`~langenv.control.virtual_loop.simulate_virtual`, the reference of the motion ETC): it
   must finish, stay within :data:`PATH_TOL` of the path, last between the bounds of
@@ -27,9 +35,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from langenv.control.admittance import AdmittanceParams, VariableAdmittance
-from langenv.control.guide import GOVERNOR_SHARE, Guide
+from langenv.control.guide import GATE_REACH, GATE_STEP, GOVERNOR_SHARE, Guide, GuideState
 from langenv.control.trajectory import ArcSegment
-from langenv.exercise.spec import Exercise, Problem
+from langenv.exercise.spec import SPEED_RANGE, SWITCH_TOL_RANGE, Exercise, Problem
 
 __all__ = [
     "DURATION_RANGE",
@@ -97,6 +105,8 @@ def path_problems(
     params = params if params is not None else exercise.admittance()
     out = _shape_problems(exercise, params)
     run = guided_run(exercise, params)
+    if any(p.kind == "loop" for p in out):
+        return out, run  # the guide would move on at once: the run says nothing more
     if run.time is None:
         out.append(Problem("etc", None, None, "the guided hand does not finish the exercise"))
         return out, run
@@ -155,7 +165,8 @@ def _shape_problems(exercise: Exercise, params: AdmittanceParams) -> list[Proble
                 )
         span = exercise.leg_span(k)
         q_sw = guide.switch_distance(k)
-        if span[1] - span[0] <= 2.0 * q_sw:
+        short = span[1] - span[0] <= 2.0 * q_sw
+        if short:
             out.append(
                 Problem(
                     "short_leg",
@@ -165,16 +176,72 @@ def _shape_problems(exercise: Exercise, params: AdmittanceParams) -> list[Proble
                     "its end (a leg must be longer than twice that)",
                 )
             )
-        for j, seg in enumerate(segs):
-            if isinstance(seg, ArcSegment) and v * v / seg.radius > a_lat:
-                out.append(
-                    Problem(
-                        "curvature",
-                        leg.name,
-                        j,
-                        f"a bend of radius {seg.radius:.3f} m needs {v * v / seg.radius:.3f} m/s^2 "
-                        f"at {v} m/s (at most {a_lat:.3f}: radius >= {v * v / a_lat:.3f} m, or a "
-                        "lower speed)",
-                    )
+        loop = None if short else _early_switch(exercise, guide, k, params.switch_tol)
+        if loop is not None:
+            out.append(loop)
+        bends = [(seg.radius, j) for j, seg in enumerate(segs) if isinstance(seg, ArcSegment)]
+        radius, j = min(bends, default=(math.inf, -1))
+        if v * v / radius > a_lat:
+            fits = math.sqrt(a_lat * radius)
+            speed = (
+                f"a speed of at most {math.floor(fits * 1000) / 1000:.3f} m/s"
+                if fits >= SPEED_RANGE[0]
+                else f"no speed allowed (>= {SPEED_RANGE[0]} m/s) is that slow"
+            )
+            out.append(
+                Problem(
+                    "curvature",
+                    leg.name,
+                    j,
+                    f"a bend of radius {radius:.3f} m (its tightest) needs "
+                    f"{v * v / radius:.3f} m/s^2 at {v} m/s (at most {a_lat:.3f}): {speed}, or "
+                    f"bends of radius >= {v * v / a_lat:.3f} m",
                 )
+            )
     return out
+
+
+def _early_switch(exercise: Exercise, guide: Guide, k: int, tol: float) -> Problem | None:
+    """The ``loop`` problem of leg ``k``, or None: where a hand following the path would make
+    the guide move on (pose within ``tol`` of the end pose, closest point past the gate)."""
+    traj = exercise.trajectory
+    a, b = exercise.leg_span(k)
+    n = max(2, math.ceil((b - a) / GATE_STEP) + 1)
+    gate = guide.gate(k)
+    end = traj.position(b)
+    half = a + 0.5 * (b - a)
+    for i in range(n):
+        s = a + (b - a) * i / (n - 1)
+        if s >= half:
+            return None
+        if s >= gate and guide.pose_distance(GuideState(s, k, False), traj.position(s)) < tol:
+            break
+    gap = float(np.linalg.norm(traj.position(a) - end))
+    far = max(  # how far from its end the leg goes after that pass
+        float(np.linalg.norm(traj.position(a + (b - a) * j / (n - 1)) - end)) for j in range(i, n)
+    )
+    reach = GATE_REACH * tol
+    lo = SWITCH_TOL_RANGE[0]
+    most = math.floor(far / GATE_REACH * 1000.0 - 1e-9) / 1000.0
+    fix = f"or set switch_tol to at most {most:.3f}" if most >= lo else f"(switch_tol >= {lo})"
+    where = "at its start" if s == a else f"{s - a:.3f} m into it"
+    if gap < tol:
+        why = (
+            f"it ends {gap:.3f} m from where it starts (a loop) and never goes farther than "
+            f"{far:.3f} m from its end, so the guide cannot tell going round it from not having "
+            f"started (a loop must reach more than {GATE_REACH:g} switch_tol = {reach:.3f} m from "
+            f"its end): make it wider, {fix}"
+        )
+    else:
+        why = (
+            f"the hand passes within switch_tol ({tol}) of its end pose there and the leg goes "
+            f"no farther than {far:.3f} m from its end after that, so the guide cannot tell that "
+            f"pass from the end (it can when the leg goes more than {GATE_REACH:g} switch_tol = "
+            f"{reach:.3f} m away in between): keep the path farther from its end, {fix}"
+        )
+    return Problem(
+        "loop",
+        exercise.legs[k].name,
+        None,
+        f"the guide would take this {b - a:.3f} m leg as done {where}: {why}",
+    )

@@ -92,6 +92,15 @@ def _samples(exercise: Exercise) -> list[tuple[int, int, float]]:
     return out
 
 
+def _turn_hint(exercise: Exercise, k: int, kind: str) -> str:
+    """For a leg that turns the tool half a turn or more (an arc's default turn on a circle),
+    what keeps it still, said with the orientation's problems."""
+    turn = math.degrees(abs(exercise.legs[k].turn))
+    if kind not in ("unreachable", "joint_margin") or turn < 180.0:
+        return ""
+    return f"; the leg turns the tool {turn:.0f} deg (tool: {{turn: 0}} keeps it still)"
+
+
 class _Contacts:
     """A copy of the arm's model in which its collision geoms collide with each other too."""
 
@@ -145,7 +154,7 @@ def reach_problems(
     def report(kind: str, k: int, j: int, detail: str) -> None:
         if (kind, names[k]) not in seen:
             seen.add((kind, names[k]))
-            out.append(Problem(kind, names[k], j, detail))
+            out.append(Problem(kind, names[k], j, detail + _turn_hint(exercise, k, kind)))
 
     try:
         arm.reset(exercise.start)

@@ -2,16 +2,20 @@
 
 The arm stands at the exercise's start (the pose its reset gives); each leg is drawn in its own
 colour, the start as a white ball and each leg's end (its waypoint) as a ball of the leg's colour;
-a caption names the exercise and its legs. Needs an off-screen OpenGL backend (EGL on a headless
+a leg that comes back near its end (a loop, whose end ball may hide in the start's) also gets an
+arrow a quarter of the way along it, showing which way round it goes; a caption names the
+exercise and its legs (loops marked). Needs an off-screen OpenGL backend (EGL on a headless
 Linux machine: :mod:`langenv.robot.gl`).
 """
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 
+from langenv.control.guide import Guide
 from langenv.exercise.spec import Exercise
 
 __all__ = ["LEG_COLOURS", "render_exercise"]
@@ -39,6 +43,22 @@ def _ball(scene: object, pos: np.ndarray, rgb: tuple[float, float, float], r: fl
     rgba = np.array([*rgb, 1.0], dtype=np.float32)
     size = np.array([r, r, r])
     mujoco.mjv_initGeom(geom, mujoco.mjtGeom.mjGEOM_SPHERE, size, pos, np.eye(3).ravel(), rgba)
+    geom.category = mujoco.mjtCatBit.mjCAT_DECOR
+    scene.ngeom += 1  # type: ignore[attr-defined]
+
+
+def _arrow(
+    scene: object, frm: np.ndarray, to: np.ndarray, rgb: tuple[float, float, float], w: float
+) -> None:
+    import mujoco
+
+    if scene.ngeom >= scene.maxgeom:  # type: ignore[attr-defined]
+        return
+    geom = scene.geoms[scene.ngeom]  # type: ignore[attr-defined]
+    rgba = np.array([*rgb, 1.0], dtype=np.float32)
+    arrow = mujoco.mjtGeom.mjGEOM_ARROW
+    mujoco.mjv_initGeom(geom, arrow, np.zeros(3), np.zeros(3), np.zeros(9), rgba)
+    mujoco.mjv_connector(geom, arrow, w, frm, to)
     geom.category = mujoco.mjtCatBit.mjCAT_DECOR
     scene.ngeom += 1  # type: ignore[attr-defined]
 
@@ -74,6 +94,8 @@ def render_exercise(
     from langenv.robot.arm import Arm
     from langenv.robot.camera import SceneRenderer, add_polyline
 
+    guide = Guide(exercise.trajectory, exercise.admittance())
+    loops = [guide.returns(k) for k in range(guide.n_legs)]
     arm = Arm(model_path)
     arm.reset(exercise.start)
     renderer = SceneRenderer(arm.model, width, height)
@@ -86,10 +108,16 @@ def render_exercise(
         traj = exercise.trajectory
         for k in range(len(exercise.legs)):
             a, b = exercise.leg_span(k)
-            pts = np.array([traj.position(s) for s in np.linspace(a, b, 80)])
+            n = max(80, math.ceil((b - a) / 0.005) + 1)  # a long loop stays round
+            pts = np.array([traj.position(s) for s in np.linspace(a, b, n)])
             rgb = LEG_COLOURS[k % len(LEG_COLOURS)]
             add_polyline(scene, pts, 0.005, np.array([*rgb, 0.95], dtype=np.float32))
             _ball(scene, pts[-1], rgb, 0.012)
+            if loops[k]:
+                s = a + 0.25 * (b - a)
+                p = traj.position(s)
+                lift = np.array([0.0, 0.0, 0.012])  # above the path, not inside it
+                _arrow(scene, p + lift, p + lift + 0.06 * traj.tangent(s), rgb, 0.006)
         _ball(scene, exercise.start, _START, 0.015)
         pixels = raw.render()
     finally:
@@ -102,7 +130,8 @@ def render_exercise(
     for k, leg in enumerate(exercise.legs):
         y += 16
         r, g, b = (int(255 * c) for c in LEG_COLOURS[k % len(LEG_COLOURS)])
-        draw.text((10, y), f"- leg {k + 1}: {leg.name} ({leg.kind})", fill=(r, g, b))
+        kind = f"{leg.kind}, loop" if loops[k] else leg.kind
+        draw.text((10, y), f"- leg {k + 1}: {leg.name} ({kind})", fill=(r, g, b))
     out = Path(out)
     image.save(out, format="PNG", dpi=(100, 100))
     return out

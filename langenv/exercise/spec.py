@@ -26,7 +26,7 @@ A leg is a map with ``name`` (unique) and exactly one of:
 | key | fields | meaning |
 |---|---|---|
 | ``line`` | ``to: [x, y, z]`` or ``to: start`` (m) | straight to the point |
-| ``arc`` | ``center: [x, y, z]`` (m), ``axis: [x, y, z]``, ``angle`` (deg, signed, 0 < abs <= 360) | rotation of the leg's start about the axis through ``center`` (right-handed) |
+| ``arc`` | ``center: [x, y, z]`` (m), ``axis: [x, y, z]``, ``angle`` (deg, signed, 0 < abs <= 360) | rotation of the leg's start about the axis through ``center`` (right-handed); 360: a circle (kept as arcs of at most 180 deg) |
 | ``spline`` | ``through: [[x, y, z], ...]`` (m, last = end), ``tolerance`` (m, default 0.001) | cubic spline through the points, fitted with lines and arcs within ``tolerance`` (:mod:`~langenv.exercise.curves`) |
 
 optionally ``waypoint: [x, y, z]`` (m), where the leg is meant to end (``check`` refuses a leg
@@ -36,6 +36,11 @@ optionally ``tool: {turn: deg, axis: [x, y, z]}``: how far the handle turns over
 axis); a line or spline keeps the tool still unless ``tool`` says otherwise. The simulated arm
 holds the handle's home orientation (as in the study's simulation); the turn enters the lab's
 6-D leg-switch test (SPEC §2) and the reach checks (IK with the orientation asked for).
+
+A leg may end where it starts (a loop: a circle, a lobe of a figure eight): the guide moves on
+only once the hand has gone round it (:mod:`langenv.control.guide`, "Loops"); a spline loop needs
+at least two points on the way round, and a loop that the guide cannot tell from its start (one
+never farther than 2 ``switch_tol`` from its end) is refused (problem kind ``loop``).
 
 A comment block at the top of the file says what the patient does.
 """
@@ -51,7 +56,14 @@ from types import MappingProxyType
 import numpy as np
 
 from langenv.control.admittance import AdmittanceParams
-from langenv.control.trajectory import ArcSegment, LineSegment, Segment, Trajectory
+from langenv.control.trajectory import (
+    MIN_LENGTH,
+    ArcSegment,
+    LineSegment,
+    Segment,
+    Trajectory,
+    split_arc,
+)
 from langenv.errors import ConfigError, ExerciseError, TrajectoryError
 
 __all__ = [
@@ -85,6 +97,8 @@ PROBLEM_KINDS = MappingProxyType(
         "curvature": "a bend too tight to follow at the nominal speed",
         "path_error": "the guided hand would leave the path by more than the tolerance",
         "short_leg": "a leg shorter than the guide's switch distance",
+        "loop": "a leg the guide would take as done before the hand has gone along it: a loop "
+        "too small to go round, or one with no way round",
         "unreachable": "a point the UR5 cannot reach with the tool orientation asked for",
         "joint_margin": "a joint within the margin of the end of its range",
         "singular": "a pose near a singularity (manipulability below the bound)",
@@ -245,6 +259,36 @@ class Leg:
             return np.array([0.0, 0.0, 1.0])
         return np.asarray(axis / np.linalg.norm(axis))
 
+    def no_way_round(self, start: np.ndarray) -> Problem | None:
+        """The problem of a leg from ``start`` that ends where it starts with no way round, or
+        None: a line back to its own start (``degenerate``: zero length) or a spline back to its
+        start through fewer than two points on the way (``loop``: it would go out and back
+        along itself, or nowhere)."""
+        if self.kind == "line" and self.end is not None:
+            if float(np.linalg.norm(self.end - start)) < MIN_LENGTH:
+                return Problem(
+                    "degenerate",
+                    self.name,
+                    None,
+                    "the line ends where it starts (zero length): there is nothing to guide "
+                    "along. Drop the leg; for a loop, use an arc (angle: 360, tool: {turn: 0}) "
+                    "or a spline through points around it",
+                )
+        if self.kind == "spline" and self.through is not None and len(self.through) < 3:
+            if float(np.linalg.norm(self.through[-1] - start)) < MIN_LENGTH:
+                k = len(self.through) - 1
+                how = "goes out and back along itself" if k else "has no length"
+                return Problem(
+                    "loop",
+                    self.name,
+                    None,
+                    f"the spline ends where it starts and passes through {k} point"
+                    f"{'' if k == 1 else 's'} on the way: it {how}, with no way round. A loop "
+                    "needs at least two points around it (three or four points of a circle "
+                    "make a round one)",
+                )
+        return None
+
     def segments(self, start: np.ndarray) -> list[Segment]:
         """The leg's segments from ``start``, the last one ending the leg (a waypoint).
 
@@ -260,7 +304,8 @@ class Leg:
         if self.kind == "arc":
             assert self.center is not None and self.axis is not None
             own = None if self.tool_turn is None else turn  # None: the tool turns with the arc
-            return [ArcSegment(self.center, self.axis, start, self.angle, True, own)]
+            arc = ArcSegment(self.center, self.axis, start, self.angle, True, own)
+            return list(split_arc(arc))  # more than half a turn: as the Trajectory keeps it
         assert self.through is not None
         segs = fit_spline(start, self.through, self.tolerance)
         total = sum(s.length for s in segs)
@@ -341,6 +386,10 @@ class Exercise:
         spans: list[tuple[int, int]] = []
         cursor = start
         for leg in legs:
+            closed = leg.no_way_round(cursor)
+            if closed is not None:
+                problems.append(closed)
+                continue
             try:
                 segs = leg.segments(cursor)
             except TrajectoryError as exc:

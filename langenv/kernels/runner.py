@@ -72,6 +72,7 @@ class CompiledTick:
                 *guide._end_pts[j],
                 guide._end_angle[j],
                 guide._q_sw[j],
+                guide._gate[j],
             )
         bounds = tk.LEGS + tk.LEG_COLS * n_legs
         ws[bounds:] = np.asarray(mon._bounds, dtype=np.float64).reshape(-1)

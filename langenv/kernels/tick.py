@@ -76,8 +76,8 @@ C_DOVERM, C_INVD, C_MAXACC, C_DVMAX, C_HOLD, C_VMAX, C_FMAX, C_DMAX, C_VTRIP = (
 )
 C_PERTICK, C_HASJL, C_NLEGS, C_NJ = 51, 52, 53, 54
 LEGS = 56
-"""Start of the legs: start, end, end point (3), end tool angle, switch distance."""
-LEG_COLS = 7
+"""Start of the legs: start, end, end point (3), end tool angle, switch distance, gate."""
+LEG_COLS = 8
 
 # control()'s answers (the arm's LIMITS_DUE is 1)
 OK = 0
@@ -124,14 +124,15 @@ def _limit_velocity(
 
 @kernel
 def _guide_update(ws: np.ndarray, path: np.ndarray, x0: float, x1: float, x2: float) -> None:
-    """``Guide.update``: closest point in the leg, next leg (or done) near its end pose."""
+    """``Guide.update``: closest point in the leg, next leg (or done) near its end pose once
+    the closest point has reached the leg's gate."""
     k = int(ws[S_LEG])
     s_end = _leg(ws, k, 1)
     s = closest(path, x0, x1, x2, ws[S_S], _leg(ws, k, 0), s_end)
     ws[S_S] = s
     d0, d1, d2 = x0 - _leg(ws, k, 2), x1 - _leg(ws, k, 3), x2 - _leg(ws, k, 4)
     dphi = _leg(ws, k, 5) - tool_angle(path, s)
-    if d0 * d0 + d1 * d1 + d2 * d2 + dphi * dphi < ws[C_TOL2]:
+    if d0 * d0 + d1 * d1 + d2 * d2 + dphi * dphi < ws[C_TOL2] and s >= _leg(ws, k, 7):
         ws[S_LEG] = k + 1
         if k + 1 >= int(ws[C_NLEGS]):
             ws[S_DONE] = 1.0
