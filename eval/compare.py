@@ -142,6 +142,8 @@ class UsageError(Exception):
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl compare`` (``python -m eval.compare``)."""
+    from langenv.live.registry import registered_policies
+
     p = argparse.ArgumentParser(
         prog="langctrl compare",
         description="Compare aligners (AC, LC-noAP, LC, learned) on simulated or recorded users: "
@@ -151,8 +153,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--policies",
         default=CompareArgs.policies,
         metavar="LIST",
-        help="comma-separated policies: ac, lc-noap, lc, lc-em, lc-end, lc-em-end, ppo:PATH "
-        "(default: %(default)s)",
+        help=f"comma-separated policies: {', '.join(registered_policies())} (ppo:PATH: a learned "
+        "model) (default: %(default)s)",
     )
     p.add_argument(
         "--users",
@@ -166,8 +168,8 @@ def build_parser() -> argparse.ArgumentParser:
         type=Path,
         default=None,
         metavar="DIR",
-        help="directory of recorded session CSVs (t, cooperation; s) to replay, one episode "
-        "each, instead of --users (default: none)",
+        help="directory of recorded session CSVs (columns t in s, cooperation) to replay, one "
+        "episode each, instead of --users (default: none)",
     )
     p.add_argument(
         "--pattern",

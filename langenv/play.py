@@ -42,6 +42,8 @@ __all__ = ["build_parser", "main", "parse_args"]
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl play`` (``python -m langenv.play``)."""
+    from langenv.live.registry import registered_policies
+
     p = argparse.ArgumentParser(
         prog="langctrl play",
         description="Run LangCtrl live: you drag the handle, the robot talks you through it. Also "
@@ -51,7 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--policy",
         default="lc",
         metavar="NAME",
-        help="policy by name: lc, ac, lc-noap, lc-em, lc-end, lc-em-end, ppo:PATH "
+        help=f"policy by name: {', '.join(registered_policies())} (ppo:PATH: a learned model) "
         "(default: %(default)s)",
     )
     p.add_argument(

@@ -35,6 +35,8 @@ __all__ = ["build_parser", "main", "parse_args"]
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl robot`` (``python -m langenv.robot.ur``)."""
+    from langenv.live.registry import registered_policies
+
     p = argparse.ArgumentParser(
         prog="langctrl robot",
         description="Run LangCtrl on a UR (or URSim) through ur-rtde: connect, check, then one "
@@ -66,7 +68,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--policy",
         default="lc",
         metavar="NAME",
-        help="policy by name: lc, ac, lc-noap, ppo:PATH... (default: %(default)s)",
+        help=f"policy by name: {', '.join(registered_policies())} (ppo:PATH: a learned model) "
+        "(default: %(default)s)",
     )
     p.add_argument(
         "--log-out",
