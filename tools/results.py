@@ -223,6 +223,10 @@ def run(commands: Sequence[str], workdir: Path = REPO) -> list[str]:
         if res.returncode not in (0, 1):  # 1: ran, and its verdict found a FAIL: still a result
             sys.stderr.write(res.stderr)
             raise SystemExit(f"{command}: exit status {res.returncode}")
+        if res.returncode == 1:
+            print(
+                "  (exit status 1: its verdict failed; its output is shown as is)", file=sys.stderr
+            )
         outputs.append(res.stdout)
     return outputs
 
