@@ -296,12 +296,28 @@ SECTIONS: dict[str, Callable[[], dict[str, float]]] = {
 }
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m bench", description=__doc__.splitlines()[0])
-    parser.add_argument("--json", action="store_true", help="print one JSON object")
-    parser.add_argument(
-        "--only", default=",".join(SECTIONS), help=f"comma-separated sections of {list(SECTIONS)}"
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``langctrl bench`` (``python -m bench``)."""
+    parser = argparse.ArgumentParser(
+        prog="langctrl bench",
+        description="Speed and accuracy figures of LangCtrl, measured in one run (each figure: "
+        "bench/__main__.py's docstring). Also run as python -m bench.",
     )
+    parser.add_argument(
+        "--json", action="store_true", help="print one JSON object instead of a table"
+    )
+    parser.add_argument(
+        "--only",
+        default=",".join(SECTIONS),
+        metavar="LIST",
+        help=f"comma-separated sections of {', '.join(SECTIONS)} (default: all)",
+    )
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point; returns the exit status."""
+    parser = build_parser()
     args = parser.parse_args(argv)
     wanted = [s.strip() for s in args.only.split(",") if s.strip()]
     unknown = [s for s in wanted if s not in SECTIONS]

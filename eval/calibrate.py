@@ -59,6 +59,7 @@ __all__ = [
     "STRUCTURE",
     "ClosedLoopScore",
     "EpisodeStats",
+    "build_parser",
     "closed_loop_fit",
     "extract_episodes",
     "fit_params",
@@ -425,27 +426,69 @@ def _floats(text: str) -> list[float]:
     return values
 
 
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``langctrl calibrate`` (``python -m eval.calibrate``)."""
+    parser = argparse.ArgumentParser(
+        prog="langctrl calibrate",
+        description=__doc__.split("\n\n")[0] + " Also run as python -m eval.calibrate.",
+    )
+    parser.add_argument(
+        "--sessions",
+        type=Path,
+        required=True,
+        metavar="DIR",
+        help="directory of the recorded session CSVs (required)",
+    )
+    parser.add_argument(
+        "--users",
+        type=int,
+        default=48,
+        metavar="N",
+        help="synthetic users per candidate (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--seed",
+        type=int,
+        default=1000,
+        help="first calibration seed, >= 1000 (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=2,
+        metavar="N",
+        help="parallel episode processes (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--duration",
+        type=_floats,
+        default=[4.5, 4.75, 5.0],
+        metavar="LIST",
+        help="candidate medians of a resistance episode's duration, s, comma-separated "
+        "(default: 4.5,4.75,5.0)",
+    )
+    parser.add_argument(
+        "--magnitude",
+        type=_floats,
+        default=[8.5, 9.0],
+        metavar="LIST",
+        help="candidate medians of a resistance episode's force, N, comma-separated "
+        "(default: 8.5,9.0)",
+    )
+    parser.add_argument(
+        "--write",
+        action="store_true",
+        help="store the result in langenv/assets/users/synthetic.yaml",
+    )
+    return parser
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line: the direct fit, the closed-loop fit, and (``--write``) the stored file."""
     from langenv.errors import SessionDataError
     from langenv.users import load_sessions
 
-    parser = argparse.ArgumentParser(
-        prog="python -m eval.calibrate", description=__doc__.split("\n\n")[0]
-    )
-    parser.add_argument("--sessions", type=Path, required=True, help="directory of session CSVs")
-    parser.add_argument("--users", type=int, default=48, help="synthetic users per candidate")
-    parser.add_argument("--seed", type=int, default=1000, help="first calibration seed (>= 1000)")
-    parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument(
-        "--duration", type=_floats, default=[4.5, 4.75, 5.0], help="episode duration medians (s)"
-    )
-    parser.add_argument(
-        "--magnitude", type=_floats, default=[8.5, 9.0], help="episode magnitude medians (N)"
-    )
-    parser.add_argument(
-        "--write", action="store_true", help=f"store the result in {CALIBRATED_YAML}"
-    )
+    parser = build_parser()
     args = parser.parse_args(argv)
     if args.users < 1 or args.seed < 1000:
         parser.error("--users must be >= 1 and --seed >= 1000 (calibration seeds)")

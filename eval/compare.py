@@ -64,6 +64,7 @@ __all__ = [
     "TEXT_COLUMNS",
     "CompareArgs",
     "Job",
+    "build_parser",
     "main",
     "parse_args",
     "policy_role",
@@ -157,18 +158,52 @@ class UsageError(Exception):
     """Bad command-line arguments (reported without a traceback, exit code 2)."""
 
 
-def parse_args(argv: Sequence[str] | None = None) -> CompareArgs:
-    """Parse the command line into :class:`CompareArgs`."""
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``langctrl compare`` (``python -m eval.compare``)."""
+    from langenv.live.registry import registered_policies
+
     p = argparse.ArgumentParser(
-        prog="python -m eval.compare",
-        description="Compare aligners (AC, LC-noAP, LC, learned) on simulated or recorded users.",
+        prog="langctrl compare",
+        description="Compare aligners (AC, LC-noAP, LC, learned) on simulated or recorded users: "
+        "the study's evaluation. Also run as python -m eval.compare.",
     )
-    p.add_argument("--policies", default=CompareArgs.policies, help="e.g. ac,lc-noap,lc,ppo:PATH")
-    p.add_argument("--users", default=None, help="synthetic:N (default synthetic:12)")
-    p.add_argument("--sessions", type=Path, default=None, help="directory of session CSVs")
-    p.add_argument("--pattern", default="*.csv", help="glob of session CSVs (with --sessions)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--out", type=Path, required=True, help="output directory")
+    p.add_argument(
+        "--policies",
+        default=CompareArgs.policies,
+        metavar="LIST",
+        help=f"comma-separated policies: {', '.join(registered_policies())} (ppo:PATH: a learned "
+        "model) (default: %(default)s)",
+    )
+    p.add_argument(
+        "--users",
+        default=None,
+        metavar="synthetic:N",
+        help="synthetic:N: N seeded synthetic users, user i with seed SEED + i "
+        "(default: synthetic:12 unless --sessions is given)",
+    )
+    p.add_argument(
+        "--sessions",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="directory of recorded session CSVs (columns t in s, cooperation) to replay, one "
+        "episode each, instead of --users (default: none)",
+    )
+    p.add_argument(
+        "--pattern",
+        default="*.csv",
+        metavar="GLOB",
+        help="glob of the session CSVs in --sessions (default: %(default)s)",
+    )
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="seed of the first synthetic user and of the bootstrap, >= 0 (default: %(default)s)",
+    )
+    p.add_argument(
+        "--out", type=Path, required=True, metavar="DIR", help="output directory (required)"
+    )
     p.add_argument(
         "--overwrite",
         action="store_true",
@@ -178,7 +213,8 @@ def parse_args(argv: Sequence[str] | None = None) -> CompareArgs:
         "--workers",
         type=int,
         default=usable_cores(),
-        help="parallel episode processes (default: one per usable CPU core)",
+        metavar="N",
+        help="parallel episode processes, >= 1 (default: one per usable CPU core)",
     )
     p.add_argument("--no-audio", action="store_true", help="skip WAV rendering")
     p.add_argument("--no-figures", action="store_true", help="skip per-session figures")
@@ -187,7 +223,13 @@ def parse_args(argv: Sequence[str] | None = None) -> CompareArgs:
         action="store_true",
         help="also write each session's video (MP4: the arm, traces, captions, the speech)",
     )
-    p.add_argument("--decision-hz", type=int, default=None, help="override every policy's rate")
+    p.add_argument(
+        "--decision-hz",
+        type=int,
+        default=None,
+        metavar="HZ",
+        help="every policy's decision rate, Hz, a divisor of 500 (default: each policy's own)",
+    )
     p.add_argument(
         "--graph",
         "--phrase-graph",
@@ -209,15 +251,22 @@ def parse_args(argv: Sequence[str] | None = None) -> CompareArgs:
     p.add_argument(
         "--exercise",
         default=None,
-        help="exercise: a shipped name (python -m langenv.exercise list) or a YAML path "
+        metavar="NAME|FILE",
+        help="exercise: a shipped name (langctrl exercise list) or a YAML path "
         "(default: the study's external_rotation)",
     )
     p.add_argument(
         "--stat",
         choices=("median", "mean"),
         default="median",
-        help="statistic of the differences against LC in summary.md",
+        help="statistic of the differences against LC in summary.md (default: %(default)s)",
     )
+    return p
+
+
+def parse_args(argv: Sequence[str] | None = None) -> CompareArgs:
+    """Parse the command line into :class:`CompareArgs`."""
+    p = build_parser()
     ns = p.parse_args(argv)
     if ns.users is not None and ns.sessions is not None:
         p.error("give either --users or --sessions, not both")

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["exercise_rows", "main", "path_deviation"]
+__all__ = ["build_parser", "exercise_rows", "main", "path_deviation"]
 
 POLICIES = ("ac", "lc-noap", "lc")
 _LABEL = {"ac": "AC", "lc-noap": "LC-noAP", "lc": "LC"}
@@ -124,21 +124,56 @@ def _verdict(rows: list[dict[str, Any]]) -> list[str]:
     return bad
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point; returns the exit status."""
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``langctrl exercises`` (``python -m eval.exercises``)."""
     from langenv.exercise import SHIPPED_EXERCISES
 
-    p = argparse.ArgumentParser(prog="python -m eval.exercises", description=__doc__)
-    p.add_argument("--users", default="synthetic:12")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--workers", type=int, default=2)
-    p.add_argument("--out", type=Path, required=True)
+    p = argparse.ArgumentParser(
+        prog="langctrl exercises",
+        description="Every shipped exercise under AC, LC-noAP and LC, one eval.compare run each, "
+        "and the table of their medians. Also run as python -m eval.exercises.",
+    )
+    p.add_argument(
+        "--users",
+        default="synthetic:12",
+        metavar="synthetic:N",
+        help="users per exercise and controller (default: %(default)s)",
+    )
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="seed of the first synthetic user (default: %(default)s)",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=2,
+        metavar="N",
+        help="parallel episode processes (default: %(default)s)",
+    )
+    p.add_argument(
+        "--out",
+        type=Path,
+        required=True,
+        metavar="DIR",
+        help="output directory: one eval.compare run per exercise in DIR/NAME (required)",
+    )
     p.add_argument("--table-only", action="store_true", help="read existing runs in --out")
     p.add_argument(
         "--exercises",
         default=",".join(SHIPPED_EXERCISES),
+        metavar="LIST",
         help="comma-separated shipped exercises (default: all)",
     )
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point; returns the exit status."""
+    from langenv.exercise import SHIPPED_EXERCISES
+
+    p = build_parser()
     ns = p.parse_args(argv)
     names = [n.strip() for n in ns.exercises.split(",") if n.strip()]
     unknown = sorted(set(names) - set(SHIPPED_EXERCISES))

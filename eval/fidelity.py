@@ -51,8 +51,10 @@ __all__ = [
     "FidelityTargets",
     "Measures",
     "Trace",
+    "build_parser",
     "main",
     "measure",
+    "parse_args",
     "run_checks",
     "trace_from_log",
     "trace_from_session",
@@ -685,17 +687,53 @@ def _plot_am(
 
 
 # ------------------------------------------------------------------------------------ CLI
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``langctrl fidelity`` (``python -m eval.fidelity``)."""
+    p = argparse.ArgumentParser(
+        prog="langctrl fidelity",
+        description="Replay recorded sessions and measure the simulation against them. Also run "
+        "as python -m eval.fidelity.",
+    )
+    p.add_argument(
+        "--sessions",
+        type=Path,
+        required=True,
+        metavar="DIR",
+        help="directory of the recorded session CSVs: *_ac.csv, *_lcnoap.csv, *_lc.csv (required)",
+    )
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=Path("out/fidelity"),
+        metavar="DIR",
+        help="output directory: fidelity.md, fidelity.png, fidelity.json (default: %(default)s)",
+    )
+    p.add_argument(
+        "--users",
+        default=None,
+        metavar="synthetic:N",
+        help="also run N synthetic users under each controller and compare their motion times "
+        "and cooperation with the recordings' (default: none)",
+    )
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="first synthetic user's seed (default: %(default)s)",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=2,
+        metavar="N",
+        help="parallel episode processes (default: %(default)s)",
+    )
+    return p
+
+
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     """The command line of ``python -m eval.fidelity``."""
-    p = argparse.ArgumentParser(
-        prog="python -m eval.fidelity",
-        description="Replay recorded sessions and measure the simulation against them.",
-    )
-    p.add_argument("--sessions", type=Path, required=True, help="directory of session CSVs")
-    p.add_argument("--out", type=Path, default=Path("out/fidelity"), help="output directory")
-    p.add_argument("--users", default=None, help="also synthetic:N users under each controller")
-    p.add_argument("--seed", type=int, default=0, help="first synthetic user's seed")
-    p.add_argument("--workers", type=int, default=2)
+    p = build_parser()
     return p.parse_args(argv)
 
 

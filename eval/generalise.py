@@ -43,7 +43,15 @@ import numpy as np
 
 from eval.stats import Stat
 
-__all__ = ["COMPARED", "Comparison", "compare_rows", "main", "markdown"]
+__all__ = [
+    "COMPARED",
+    "Comparison",
+    "build_parser",
+    "compare_rows",
+    "main",
+    "markdown",
+    "parse_args",
+]
 
 #: The metrics compared: column -> (statistic, label). Lower is better for all of them except
 #: ``abs_am_le_1s`` (the share of sessions with ``|AM| <= 1 s``), where higher is.
@@ -242,22 +250,84 @@ def _jobs(ns: argparse.Namespace, split: Any, specs: list[str], names: dict[str,
     return jobs
 
 
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``langctrl generalise`` (``python -m eval.generalise``)."""
+    p = argparse.ArgumentParser(
+        prog="langctrl generalise",
+        description=__doc__.split("\n")[0] + " Also run as python -m eval.generalise.",
+    )
+    p.add_argument(
+        "--model",
+        type=Path,
+        required=True,
+        metavar="ZIP",
+        help="the learned model (.zip; required)",
+    )
+    p.add_argument(
+        "--policies",
+        default="ac,lc-noap,lc,lc-em-end",
+        metavar="LIST",
+        help="comma-separated analytic policies to compare it with (default: %(default)s)",
+    )
+    p.add_argument(
+        "--split",
+        default=None,
+        metavar="CONFIG",
+        help="a training config with a 'worlds' section (default: the split recorded with the "
+        "model)",
+    )
+    p.add_argument(
+        "--role",
+        choices=("validation", "test"),
+        default="validation",
+        help="which held-out exercises and users; test only for the model you ship, at most "
+        "twice (default: %(default)s)",
+    )
+    p.add_argument(
+        "--users",
+        type=int,
+        default=24,
+        metavar="N",
+        help="users per exercise: the role's first N user seeds (default: %(default)s)",
+    )
+    p.add_argument(
+        "--no-perturb",
+        action="store_true",
+        help="the plain synthetic population instead of the split's perturbed users",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=2,
+        metavar="N",
+        help="parallel episode processes (default: %(default)s)",
+    )
+    p.add_argument(
+        "--n-boot",
+        type=int,
+        default=2000,
+        metavar="N",
+        help="bootstrap resamples per interval (default: %(default)s)",
+    )
+    p.add_argument(
+        "--seed", type=int, default=0, help="seed of the bootstrap (default: %(default)s)"
+    )
+    p.add_argument(
+        "--out",
+        type=Path,
+        required=True,
+        metavar="DIR",
+        help="output directory, refused when it holds files (required)",
+    )
+    p.add_argument(
+        "--overwrite", action="store_true", help="write into a non-empty --out all the same"
+    )
+    return p
+
+
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     """The command line (see the module docstring)."""
-    p = argparse.ArgumentParser(
-        prog="python -m eval.generalise", description=__doc__.split("\n")[0]
-    )
-    p.add_argument("--model", type=Path, required=True, help="the learned model (.zip)")
-    p.add_argument("--policies", default="ac,lc-noap,lc,lc-em-end", help="analytic policies")
-    p.add_argument("--split", default=None, help="a config with 'worlds' (default: the model's)")
-    p.add_argument("--role", choices=("validation", "test"), default="validation")
-    p.add_argument("--users", type=int, default=24, help="users per exercise")
-    p.add_argument("--no-perturb", action="store_true", help="the plain synthetic population")
-    p.add_argument("--workers", type=int, default=2)
-    p.add_argument("--n-boot", type=int, default=2000)
-    p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap")
-    p.add_argument("--out", type=Path, required=True)
-    p.add_argument("--overwrite", action="store_true")
+    p = build_parser()
     return p.parse_args(argv)
 
 

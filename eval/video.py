@@ -44,7 +44,9 @@ __all__ = [
     "SceneReplay",
     "SessionFrames",
     "TracePanel",
+    "build_parser",
     "main",
+    "parse_args",
     "session_audio",
     "write_video",
 ]
@@ -514,24 +516,42 @@ def _mux_audio(box: Any, stream: Any, track: np.ndarray, sr: int) -> None:
         box.mux(packet)
 
 
-def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
-    """Parse ``python -m eval.video`` arguments."""
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``langctrl video`` (``python -m eval.video``)."""
     p = argparse.ArgumentParser(
-        prog="python -m eval.video",
-        description="Render a session video (MP4, H.264 + AAC) from an episode log.",
+        prog="langctrl video",
+        description="Render a session video (MP4, H.264 + AAC) from an episode log. Also run as "
+        "python -m eval.video.",
     )
-    p.add_argument("log", type=Path, help="episode log (.npz) written by eval.compare")
-    p.add_argument("--out", type=Path, required=True, help="the .mp4 to write")
     p.add_argument(
-        "--fps", type=int, default=DEFAULT_FPS, help=f"frame rate (default {DEFAULT_FPS})"
+        "log", type=Path, metavar="LOG.npz", help="episode log (.npz) written by langctrl compare"
+    )
+    p.add_argument("--out", type=Path, required=True, help="the .mp4 to write (required)")
+    p.add_argument(
+        "--fps",
+        type=int,
+        default=DEFAULT_FPS,
+        help="frame rate, frames/s (default: %(default)s)",
     )
     p.add_argument(
         "--phrase-graph",
         default=None,
-        help="the phrase graph spoken, if the log's is not at hand (a shipped key or a YAML)",
+        metavar="GRAPH",
+        help="the phrase graph spoken, a shipped key or a YAML (default: the one the log names)",
     )
-    p.add_argument("--model-path", type=Path, default=None, help="the arm's MJCF (default: UR5)")
-    return p.parse_args(argv)
+    p.add_argument(
+        "--model-path",
+        type=Path,
+        default=None,
+        metavar="MJCF",
+        help="the arm's MJCF (default: the shipped UR5)",
+    )
+    return p
+
+
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    """Parse ``langctrl video`` arguments."""
+    return build_parser().parse_args(argv)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

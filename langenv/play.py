@@ -37,21 +37,31 @@ from typing import Any
 
 from langenv.errors import LangEnvError
 
-__all__ = ["main", "parse_args"]
+__all__ = ["build_parser", "main", "parse_args"]
 
 
-def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
-    """Parse the command line."""
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``langctrl play`` (``python -m langenv.play``)."""
+    from langenv.live.registry import registered_policies
+
     p = argparse.ArgumentParser(
-        prog="python -m langenv.play",
-        description="Run LangCtrl live: you drag the handle, the robot talks you through it.",
+        prog="langctrl play",
+        description="Run LangCtrl live: you drag the handle, the robot talks you through it. Also "
+        "run as python -m langenv.play.",
     )
-    p.add_argument("--policy", default="lc", help="lc (default), ac, lc-noap, lc-em, ppo:PATH...")
+    p.add_argument(
+        "--policy",
+        default="lc",
+        metavar="NAME",
+        help=f"policy by name: {', '.join(registered_policies())} (ppo:PATH: a learned model) "
+        "(default: %(default)s)",
+    )
     p.add_argument(
         "--graph",
         "--phrase-graph",
         dest="phrase_graph",
         default=None,
+        metavar="GRAPH",
         help="phrase graph for a policy that chooses phrases (lc, ppo...): a YAML file or a "
         "shipped graph such as 'study' (default: the exercise's script; AC and LC-noAP always "
         "say its one wording)",
@@ -59,35 +69,68 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     p.add_argument(
         "--exercise",
         default=None,
-        help="exercise: a shipped name (python -m langenv.exercise list) or a YAML path, checked "
+        metavar="NAME|FILE",
+        help="exercise: a shipped name (langctrl exercise list) or a YAML path, checked "
         "before anything moves (default: the study's external_rotation)",
     )
     p.add_argument(
         "--user",
         default=None,
-        help="drag (you, in the viewer; the default there), synthetic (headless default) or "
-        "replay:CSV",
+        help="the person: drag (you, in the viewer), synthetic or replay:CSV (default: drag in "
+        "the viewer, synthetic headless)",
     )
-    p.add_argument("--seed", type=int, default=0, help="seed of the first session")
+    p.add_argument(
+        "--seed", type=int, default=0, help="seed of the first session (default: %(default)s)"
+    )
     p.add_argument("--headless", action="store_true", help="no window, no sound card")
-    p.add_argument("--seconds", type=float, default=None, help="stop after N s (headless: needed)")
-    p.add_argument("--audio-out", type=Path, default=None, help="write the audio to this WAV")
-    p.add_argument("--device", default=None, help="sound card (name or index; default: system's)")
+    p.add_argument(
+        "--seconds",
+        type=float,
+        default=None,
+        help="stop after this many seconds, > 0 (default: run until closed; headless: required)",
+    )
+    p.add_argument(
+        "--audio-out",
+        type=Path,
+        default=None,
+        metavar="WAV",
+        help="write the audio to this WAV instead of the sound card (default: the sound card; "
+        "headless: required)",
+    )
+    p.add_argument(
+        "--device",
+        default=None,
+        help="sound card, by name or index (default: the system's)",
+    )
     p.add_argument(
         "--trace-out",
         type=Path,
         default=None,
-        help="write one CSV row per step: session, t, p, a, cooperation, em, force, phrase",
+        metavar="CSV",
+        help="write one CSV row per step: session, t (s), p, a, cooperation, em (s), the force "
+        "fx, fy, fz (N), "
+        "phrase (default: none)",
     )
     p.add_argument(
         "--robot",
         default=None,
+        metavar="BACKEND",
         help="run one session through the robot-IO seam on a simulated robot: mujoco or "
-        "ur-fake (headless; a real UR: python -m langenv.robot.ur)",
+        "ur-fake, headless (default: none; a real UR: langctrl robot)",
     )
     p.add_argument(
-        "--log-out", type=Path, default=None, help="with --robot: write the session CSV here"
+        "--log-out",
+        type=Path,
+        default=None,
+        metavar="CSV",
+        help="with --robot: write the session CSV here (default: none)",
     )
+    return p
+
+
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    """Parse the command line."""
+    p = build_parser()
     ns = p.parse_args(argv)
     if ns.robot is not None:
         if ns.robot not in ("mujoco", "ur-fake"):

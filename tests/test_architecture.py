@@ -1,12 +1,13 @@
 """The project's layering, checked on its real import graph (grimp: every import statement,
 including those inside functions and under ``TYPE_CHECKING``).
 
-    langenv  <-  policies  <-  train, eval  <-  bench
+    langenv  <-  policies  <-  train, eval  <-  bench  <-  langctrl
 
 The env package ``langenv`` stands alone (it finds policies by name through entry points, never
 by import); ``policies`` needs only ``langenv``; ``train`` and ``eval`` need ``policies`` and
-``langenv`` but not each other; ``bench`` may use them all. No module imports itself back through
-any chain of imports. Print the graph's summary with::
+``langenv`` but not each other; ``bench`` may use them all; ``langctrl`` (the command) runs any
+job, by its module's name, and nothing imports it. No module imports itself back through any
+chain of imports. Print the graph's summary with::
 
     PYTHONPATH=. python -m tests.test_architecture
 """
@@ -21,14 +22,15 @@ from pathlib import Path
 import grimp
 import pytest
 
-PACKAGES = ("langenv", "policies", "train", "eval", "bench")
+PACKAGES = ("langenv", "policies", "train", "eval", "bench", "langctrl")
 
 #: package -> the project's packages it must not import, even indirectly
 FORBIDDEN: dict[str, tuple[str, ...]] = {
-    "langenv": ("policies", "train", "eval", "bench"),
-    "policies": ("train", "eval", "bench"),
-    "train": ("eval", "bench"),
-    "eval": ("train", "bench"),
+    "langenv": ("policies", "train", "eval", "bench", "langctrl"),
+    "policies": ("train", "eval", "bench", "langctrl"),
+    "train": ("eval", "bench", "langctrl"),
+    "eval": ("train", "bench", "langctrl"),
+    "bench": ("langctrl",),
 }
 
 

@@ -19,7 +19,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["EnsembleArgs", "main", "parse_args"]
+__all__ = ["EnsembleArgs", "build_parser", "main", "parse_args"]
 
 
 @dataclass(frozen=True)
@@ -37,12 +37,29 @@ class EnsembleArgs:
     overwrite: bool = False
 
 
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``langctrl ensemble`` (``python -m train.ensemble``)."""
+    p = argparse.ArgumentParser(
+        prog="langctrl ensemble",
+        description=__doc__.split("\n")[0] + " Also run as python -m train.ensemble.",
+    )
+    p.add_argument(
+        "models",
+        type=Path,
+        nargs="+",
+        metavar="MODEL.zip",
+        help="member model zips (langctrl export), in the manifest's folder",
+    )
+    p.add_argument(
+        "--out", type=Path, required=True, help="the manifest to write (.yaml; required)"
+    )
+    p.add_argument("--overwrite", action="store_true", help="replace an existing manifest")
+    return p
+
+
 def parse_args(argv: Sequence[str] | None = None) -> EnsembleArgs:
     """Parse the command line into :class:`EnsembleArgs`."""
-    p = argparse.ArgumentParser(prog="python -m train.ensemble", description=__doc__.split("\n")[0])
-    p.add_argument("models", type=Path, nargs="+", help="member model zips (train.export)")
-    p.add_argument("--out", type=Path, required=True, help="the manifest to write (.yaml)")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing manifest")
+    p = build_parser()
     ns = p.parse_args(argv)
     if ns.out.suffix not in (".yaml", ".yml"):
         p.error(f"--out must end in .yaml, got {ns.out}")

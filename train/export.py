@@ -39,7 +39,16 @@ from typing import Any
 
 import yaml
 
-__all__ = ["EvalScore", "ExportArgs", "best_steps", "eval_scores", "export", "main", "parse_args"]
+__all__ = [
+    "EvalScore",
+    "ExportArgs",
+    "best_steps",
+    "build_parser",
+    "eval_scores",
+    "export",
+    "main",
+    "parse_args",
+]
 
 
 @dataclass(frozen=True)
@@ -65,18 +74,30 @@ class ExportArgs:
     overwrite: bool = False
 
 
-def parse_args(argv: Sequence[str] | None = None) -> ExportArgs:
-    """Parse the command line into :class:`ExportArgs`."""
-    p = argparse.ArgumentParser(prog="python -m train.export", description=__doc__.split("\n")[0])
-    p.add_argument("run", type=Path, help="output directory of a python -m train.ppo run")
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``langctrl export`` (``python -m train.export``)."""
+    p = argparse.ArgumentParser(
+        prog="langctrl export",
+        description=__doc__.split("\n")[0] + " Also run as python -m train.export.",
+    )
+    p.add_argument("run", type=Path, metavar="RUN", help="the run directory of a langctrl train")
     which = p.add_mutually_exclusive_group(required=True)
-    which.add_argument("--steps", type=int, help="step count of the checkpoint")
+    which.add_argument(
+        "--steps", type=int, help="step count of the checkpoint (this or --best is required)"
+    )
     which.add_argument(
         "--best",
         action="store_true",
         help="the checkpoint with the lowest held-out mean |AM| + mean |EM| (periodic evaluation)",
     )
-    p.add_argument("--out", type=Path, required=True, help="stem of the exported model")
+    p.add_argument(
+        "--out",
+        type=Path,
+        required=True,
+        metavar="STEM",
+        help="stem of the exported model: STEM.zip, STEM_vecnormalize.pkl, STEM_config.yaml "
+        "(required)",
+    )
     p.add_argument(
         "--name", default=None, help="the run's model name (default: train.name of its config)"
     )
@@ -86,6 +107,12 @@ def parse_args(argv: Sequence[str] | None = None) -> ExportArgs:
         help="keep only the phrase-choice correction (the paces stay the base controller's)",
     )
     p.add_argument("--overwrite", action="store_true", help="replace existing OUT.* files")
+    return p
+
+
+def parse_args(argv: Sequence[str] | None = None) -> ExportArgs:
+    """Parse the command line into :class:`ExportArgs`."""
+    p = build_parser()
     ns = p.parse_args(argv)
     return ExportArgs(
         run=ns.run,

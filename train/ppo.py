@@ -83,6 +83,7 @@ from langenv.errors import ConfigError
 
 __all__ = [
     "TrainArgs",
+    "build_parser",
     "checkpoint_files",
     "code_version",
     "init_files",
@@ -178,30 +179,152 @@ class TrainArgs:
             raise ConfigError(f"TrainArgs.name must be a plain file stem, got {self.name!r}")
 
 
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``langctrl train`` (``python -m train.ppo``).
+
+    Every option but ``--config`` defaults to None, so that :func:`parse_args` can tell which were
+    given: the config's ``train`` section sets those not given, :class:`TrainArgs` the rest.
+    """
+
+    def default(name: str, shown: object = None) -> str:
+        value = getattr(TrainArgs, name) if shown is None else shown
+        return f"(default: the config's train.{name}, else {value})"
+
+    p = argparse.ArgumentParser(
+        prog="langctrl train",
+        description="Train the learned aligner (SB3 PPO) from a zoo-style config; the config's "
+        "'train' section sets these options, the command line overrides it. Also run as "
+        "python -m train.ppo.",
+    )
+    p.add_argument(
+        "--config",
+        type=Path,
+        default=TrainArgs.config,
+        metavar="YAML",
+        help="zoo-style YAML of hyperparameters, keyed by the env id (default: %(default)s)",
+    )
+    p.add_argument(
+        "--env-id", default=None, metavar="ID", help=f"Gymnasium env id {default('env_id')}"
+    )
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help=f"run directory; a fresh run refuses one that holds files {default('out')}",
+    )
+    p.add_argument(
+        "--name", default=None, help=f"file stem of the saved model, NAME.zip {default('name')}"
+    )
+    p.add_argument(
+        "--total-timesteps",
+        type=int,
+        default=None,
+        metavar="STEPS",
+        help="training budget, env steps of all envs together "
+        f"{default('total_timesteps', 'its n_timesteps')}",
+    )
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=None,
+        help="seed of the first training env (env i: SEED + i) and of PPO; >= 1000000 keeps "
+        f"training users apart from evaluation users {default('seed')}",
+    )
+    p.add_argument(
+        "--eval-seed",
+        type=int,
+        default=None,
+        metavar="SEED",
+        help=f"seed of the first periodic-evaluation user {default('eval_seed')}",
+    )
+    p.add_argument(
+        "--n-eval-episodes",
+        type=int,
+        default=None,
+        metavar="N",
+        help=f"users per periodic evaluation, 0: none {default('n_eval_episodes')}",
+    )
+    p.add_argument(
+        "--eval-freq",
+        type=int,
+        default=None,
+        metavar="STEPS",
+        help=f"env steps (all envs) between periodic evaluations {default('eval_freq')}",
+    )
+    p.add_argument(
+        "--checkpoint-freq",
+        type=int,
+        default=None,
+        metavar="STEPS",
+        help=f"env steps (all envs) between checkpoints {default('checkpoint_freq')}",
+    )
+    p.add_argument(
+        "--n-envs",
+        type=int,
+        default=None,
+        metavar="N",
+        help=f"parallel training envs {default('n_envs', 'its n_envs')}",
+    )
+    p.add_argument(
+        "--vec-env",
+        choices=("subproc", "dummy", "auto"),
+        default=None,
+        help="envs in subprocesses, in this process, or auto: subprocesses only with more CPU "
+        f"cores than envs; the same run either way {default('vec_env')}",
+    )
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        default=None,
+        help="continue the run in --out from its resume point, with its saved settings",
+    )
+    p.add_argument(
+        "--init-from",
+        type=Path,
+        default=None,
+        metavar="ZIP",
+        help="fine-tune: start from this model's weights and normalisation statistics "
+        f"{default('init_from', 'random weights')}",
+    )
+    p.add_argument(
+        "--no-progress-bar",
+        dest="progress_bar",
+        action="store_false",
+        default=None,
+        help="hide SB3's progress bar (shown unless the config's train.progress_bar is false)",
+    )
+    p.add_argument(
+        "--no-tensorboard",
+        dest="tensorboard",
+        action="store_false",
+        default=None,
+        help="write no TensorBoard logs to OUT/tb (written unless the config's "
+        "train.tensorboard is false)",
+    )
+    p.add_argument(
+        "--device", default=None, help=f"torch device of the learner {default('device')}"
+    )
+    p.add_argument(
+        "--torch-threads",
+        type=int,
+        default=None,
+        metavar="N",
+        help=f"torch threads of the learner process {default('torch_threads')}",
+    )
+    p.add_argument(
+        "--verbose",
+        type=int,
+        default=None,
+        metavar="{0,1,2}",
+        help=f"SB3 verbosity, 0 (quiet) to 2 {default('verbose')}",
+    )
+    return p
+
+
 def parse_args(argv: Sequence[str] | None = None) -> tuple[TrainArgs, set[str]]:
     """Parse the command line; returns the arguments and the names given explicitly."""
-    p = argparse.ArgumentParser(
-        prog="python -m train.ppo", description="Train the learned aligner (SB3 PPO)."
-    )
-    p.add_argument("--config", type=Path, default=TrainArgs.config)
-    p.add_argument("--env-id", default=None)
-    p.add_argument("--out", type=Path, default=None)
-    p.add_argument("--name", default=None)
-    p.add_argument("--total-timesteps", type=int, default=None)
-    p.add_argument("--seed", type=int, default=None)
-    p.add_argument("--eval-seed", type=int, default=None)
-    p.add_argument("--n-eval-episodes", type=int, default=None)
-    p.add_argument("--eval-freq", type=int, default=None)
-    p.add_argument("--checkpoint-freq", type=int, default=None)
-    p.add_argument("--n-envs", type=int, default=None)
-    p.add_argument("--vec-env", choices=("subproc", "dummy", "auto"), default=None)
-    p.add_argument("--resume", action="store_true", default=None)
-    p.add_argument("--init-from", type=Path, default=None)
-    p.add_argument("--no-progress-bar", dest="progress_bar", action="store_false", default=None)
-    p.add_argument("--no-tensorboard", dest="tensorboard", action="store_false", default=None)
-    p.add_argument("--device", default=None)
-    p.add_argument("--torch-threads", type=int, default=None)
-    p.add_argument("--verbose", type=int, default=None)
+    p = build_parser()
     ns = vars(p.parse_args(argv))
     given = {k for k, v in ns.items() if v is not None and k != "config"}
     kwargs = {k: v for k, v in ns.items() if v is not None}

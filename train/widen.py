@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-__all__ = ["main", "widen"]
+__all__ = ["build_parser", "main", "parse_args", "widen"]
 
 _FIRST_LAYERS = ("mlp_extractor.policy_net.0.weight", "mlp_extractor.value_net.0.weight")
 
@@ -133,13 +133,33 @@ def _widen_normalizer(src: Path, space: Any, actions: Any, at: int, n: int) -> A
     return norm
 
 
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``langctrl widen`` (``python -m train.widen``)."""
+    p = argparse.ArgumentParser(
+        prog="langctrl widen",
+        description=__doc__.split("\n")[0] + " Also run as python -m train.widen.",
+    )
+    p.add_argument("model", type=Path, metavar="MODEL.zip", help="the model zip to widen")
+    p.add_argument(
+        "--max-children",
+        type=int,
+        required=True,
+        metavar="N",
+        help="the new number of choices: the largest out-degree of the graphs to read (required)",
+    )
+    p.add_argument(
+        "--out",
+        type=Path,
+        required=True,
+        metavar="STEM",
+        help="stem of the widened model (required)",
+    )
+    return p
+
+
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     """The command line (see the module docstring)."""
-    p = argparse.ArgumentParser(prog="python -m train.widen", description=__doc__.split("\n")[0])
-    p.add_argument("model", type=Path, help="the model zip to widen")
-    p.add_argument("--max-children", type=int, required=True, help="the new number of choices")
-    p.add_argument("--out", type=Path, required=True, help="stem of the widened model")
-    return p.parse_args(argv)
+    return build_parser().parse_args(argv)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

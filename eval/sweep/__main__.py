@@ -36,23 +36,26 @@ from eval.sweep.errors import SweepError
 from eval.sweep.grid import SweepSession, expand
 from eval.sweep.spec import COORDINATES, SweepSpec, load_spec
 
-__all__ = ["batch_size", "main", "parse_args"]
+__all__ = ["batch_size", "build_parser", "main", "parse_args"]
 
 #: Sessions per batch at most when the size is chosen: a batch takes a few seconds, so Ray's
 #: few milliseconds per task stay far under 5 % of it, and a kill loses little work.
 MAX_BATCH = 16
 
 
-def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
-    """The command line."""
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``langctrl sweep`` (``python -m eval.sweep``)."""
     from eval.compare import usable_cores
 
     p = argparse.ArgumentParser(
-        prog="python -m eval.sweep",
-        description="Run a sweep (a grid or sample of sessions) resumably; summarise it.",
+        prog="langctrl sweep",
+        description="Run a sweep (a grid or sample of sessions) resumably; summarise it. Also run "
+        "as python -m eval.sweep.",
     )
-    p.add_argument("spec", type=Path, help="the sweep file (YAML)")
-    p.add_argument("--out", type=Path, required=True, help="the sweep's directory")
+    p.add_argument("spec", type=Path, metavar="SWEEP.yaml", help="the sweep file (YAML)")
+    p.add_argument(
+        "--out", type=Path, required=True, metavar="DIR", help="the sweep's directory (required)"
+    )
     p.add_argument(
         "--resume", action="store_true", help="finish the sweep in --out (sessions with a row stay)"
     )
@@ -60,7 +63,11 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
         "--retry-failed", action="store_true", help="run the failed sessions of --out again"
     )
     p.add_argument(
-        "--only", action="append", default=[], metavar="SESSION_ID", help="run just this session"
+        "--only",
+        action="append",
+        default=[],
+        metavar="SESSION_ID",
+        help="run just this session; repeat for more (default: every session)",
     )
     p.add_argument(
         "--backend",
@@ -71,11 +78,32 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     p.add_argument(
         "--address",
         default="local",
-        help="Ray: local (start Ray here), auto (the cluster this machine is in) or ray://HOST:PORT",
+        help="Ray's address: local (start Ray here), auto (the cluster this process runs in) or "
+        "ray://HOST:PORT (default: %(default)s)",
     )
-    p.add_argument("--workers", type=int, default=usable_cores(), help="local workers")
-    p.add_argument("--batch-size", type=int, default=None, help="sessions per task")
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=usable_cores(),
+        metavar="N",
+        help="local worker processes, or the CPUs of a local Ray (a cluster's own CPUs decide "
+        "there), >= 1 (default: one per usable CPU core)",
+    )
+    p.add_argument(
+        "--batch-size",
+        type=int,
+        default=None,
+        metavar="N",
+        help="sessions per task (default: the sweep file's batch_size, else 8 batches per "
+        f"worker of at most {MAX_BATCH} sessions)",
+    )
     p.add_argument("--no-summary", action="store_true", help="skip the summary and plots")
+    return p
+
+
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    """The command line."""
+    p = build_parser()
     ns = p.parse_args(argv)
     if ns.workers < 1:
         p.error(f"--workers must be >= 1, got {ns.workers}")

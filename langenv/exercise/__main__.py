@@ -21,25 +21,33 @@ from langenv.errors import ConfigError, ExerciseError, LangEnvError
 from langenv.exercise.registry import SHIPPED_EXERCISES, exercise_path, resolve_exercise
 from langenv.exercise.spec import Exercise
 
-__all__ = ["main"]
+__all__ = ["build_parser", "main"]
 
 
-def _parser() -> argparse.ArgumentParser:
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``langctrl exercise`` (``python -m langenv.exercise``)."""
     p = argparse.ArgumentParser(
-        prog="python -m langenv.exercise",
-        description="List, check and draw LangCtrl therapy exercises (exercise YAML files).",
+        prog="langctrl exercise",
+        description="List, check and draw LangCtrl therapy exercises (exercise YAML files). Also "
+        "run as python -m langenv.exercise.",
         epilog="NAME is a shipped exercise (" + ", ".join(SHIPPED_EXERCISES) + ") and FILE an "
         "exercise YAML (format: langenv/exercise/spec.py, docs/exercises.md).",
     )
     sub = p.add_subparsers(dest="command", required=True, metavar="{list,check,render}")
     sub.add_parser("list", help="the shipped exercises, one a line")
     c = sub.add_parser("check", help="load, validate and check exercises before any motion")
-    c.add_argument("exercises", nargs="+", metavar="NAME|FILE")
+    c.add_argument(
+        "exercises", nargs="+", metavar="NAME|FILE", help="shipped exercise names or YAML files"
+    )
     r = sub.add_parser("render", help="draw an exercise's path over the arm (PNG)")
-    r.add_argument("exercise", metavar="NAME|FILE")
-    r.add_argument("--out", type=Path, required=True, help="PNG file to write")
-    r.add_argument("--width", type=int, default=960)
-    r.add_argument("--height", type=int, default=720)
+    r.add_argument("exercise", metavar="NAME|FILE", help="a shipped exercise name or a YAML file")
+    r.add_argument("--out", type=Path, required=True, help="PNG file to write (required)")
+    r.add_argument(
+        "--width", type=int, default=960, help="image width, pixels (default: %(default)s)"
+    )
+    r.add_argument(
+        "--height", type=int, default=720, help="image height, pixels (default: %(default)s)"
+    )
     return p
 
 
@@ -91,7 +99,7 @@ def _render(spec: str, out: Path, width: int, height: int) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
-    args = _parser().parse_args(argv)
+    args = build_parser().parse_args(argv)
     try:
         names = args.exercises if args.command == "check" else [getattr(args, "exercise", "")]
         for spec in names if args.command != "list" else []:

@@ -34,10 +34,12 @@ _PROGRESS_AFTER = 5.0  # s of trace: longer renders show a progress bar (on a te
 _FORMATS = {".wav": ("WAV", "PCM_16"), ".flac": ("FLAC", "PCM_16")}
 
 
-def _parser() -> argparse.ArgumentParser:
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``langctrl speech`` (``python -m langenv.speech``)."""
     p = argparse.ArgumentParser(
-        prog="python -m langenv.speech",
-        description="Check LangCtrl phrase graphs and render speech at a varying audio pace.",
+        prog="langctrl speech",
+        description="Check LangCtrl phrase graphs, write one from a plain-text script, and render "
+        "speech at a varying audio pace. Also run as python -m langenv.speech.",
         epilog="GRAPH is a phrase-graph YAML file (see docs/speech.md) or the name of a shipped "
         f"graph ({', '.join(sorted(SHIPPED_GRAPHS))}).",
     )
@@ -311,7 +313,7 @@ def _render(args: argparse.Namespace) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
-    args = _parser().parse_args(argv)
+    args = build_parser().parse_args(argv)
     try:
         commands = {"check": _check, "author": _author, "render": _render}
         return commands[args.command](args)

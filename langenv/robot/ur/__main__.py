@@ -30,31 +30,74 @@ from typing import Any
 
 from langenv.errors import LangEnvError
 
-__all__ = ["main", "parse_args"]
+__all__ = ["build_parser", "main", "parse_args"]
 
 
-def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
-    """Parse the command line."""
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``langctrl robot`` (``python -m langenv.robot.ur``)."""
+    from langenv.live.registry import registered_policies
+
     p = argparse.ArgumentParser(
-        prog="python -m langenv.robot.ur", description="Run LangCtrl on a UR through ur-rtde."
+        prog="langctrl robot",
+        description="Run LangCtrl on a UR (or URSim) through ur-rtde: connect, check, then one "
+        "guided session. Also run as python -m langenv.robot.ur.",
     )
-    p.add_argument("--host", default=None, help="the robot's (or URSim's) address")
-    p.add_argument("--config", type=Path, default=None, help="UR set-up YAML (configs/ur.yaml)")
+    p.add_argument(
+        "--host",
+        default=None,
+        help="the robot's (or URSim's) address; overrides the --config file's (default: that "
+        "file's host; give --host, --config or both)",
+    )
+    p.add_argument(
+        "--config",
+        type=Path,
+        default=None,
+        metavar="YAML",
+        help="UR set-up YAML in m, kg, deg and s, such as configs/ur.yaml (every key and its "
+        "default: langenv/robot/ur/config.py; default: those defaults with --host)",
+    )
     p.add_argument("--dry-run", action="store_true", help="connect, check, plan; move nothing")
     p.add_argument(
         "--exercise",
         default=None,
-        help="exercise: a shipped name (python -m langenv.exercise list) or a YAML path, "
-        "checked before anything connects or moves (default: the study's)",
+        metavar="NAME|FILE",
+        help="exercise: a shipped name (langctrl exercise list) or a YAML path, "
+        "checked before anything connects or moves (default: the study's external_rotation)",
     )
-    p.add_argument("--policy", default="lc", help="policy by name (lc, ac, lc-noap, ppo:PATH...)")
-    p.add_argument("--log-out", type=Path, default=None, help="write the session CSV here")
-    p.add_argument("--audio-out", type=Path, default=None, help="speech to a WAV, not the card")
-    p.add_argument("--device", default=None, help="sound card (name or index)")
+    p.add_argument(
+        "--policy",
+        default="lc",
+        metavar="NAME",
+        help=f"policy by name: {', '.join(registered_policies())} (ppo:PATH: a learned model) "
+        "(default: %(default)s)",
+    )
+    p.add_argument(
+        "--log-out",
+        type=Path,
+        default=None,
+        metavar="CSV",
+        help="write the session CSV here (default: none)",
+    )
+    p.add_argument(
+        "--audio-out",
+        type=Path,
+        default=None,
+        metavar="WAV",
+        help="write the speech to this WAV instead of the sound card (default: the sound card)",
+    )
+    p.add_argument(
+        "--device", default=None, help="sound card, by name or index (default: the system's)"
+    )
     p.add_argument("--yes", action="store_true", help="confirm the move to the start (no prompt)")
     p.add_argument(
         "--fake", action="store_true", help="drive the built-in fake UR (a loopback host only)"
     )
+    return p
+
+
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    """Parse the command line."""
+    p = build_parser()
     ns = p.parse_args(argv)
     if ns.host is None and ns.config is None:
         p.error("give --host HOST or --config FILE")

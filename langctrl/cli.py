@@ -1,0 +1,124 @@
+"""The ``langctrl`` command: one entry point whose subcommands are LangCtrl's jobs.
+
+``langctrl JOB ARGS...`` imports the job's module and calls its ``main(ARGS)``; the module's
+``build_parser()`` is the job's one parser, also behind ``python -m MODULE``, and names its program
+``langctrl JOB``, so both ways print the same help, take the same options and exit with the
+same status::
+
+    langctrl compare --policies ac,lc-noap,lc --users synthetic:12 --seed 0 --out out/compare
+    python -m eval.compare --policies ac,lc-noap,lc --users synthetic:12 --seed 0 --out out/compare
+
+The table :data:`COMMANDS` is the one place the jobs are listed; ``langctrl --help`` reads it
+without importing any job.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import importlib.util
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+from importlib.metadata import PackageNotFoundError, version
+from types import MappingProxyType, ModuleType
+
+__all__ = ["COMMANDS", "Command", "build_parser", "load", "main"]
+
+
+@dataclass(frozen=True)
+class Command:
+    """One job of ``langctrl``.
+
+    Attributes:
+        module: What ``python -m`` runs (a module, or a package with a ``__main__``); it defines
+            ``build_parser()`` and ``main(argv) -> int``.
+        summary: One line for ``langctrl --help``.
+        group: ``"job"`` (a job of the toolkit) or ``"tool"`` (a helper of one).
+    """
+
+    module: str
+    summary: str
+    group: str = "job"
+
+
+#: The subcommands, in the order ``langctrl --help`` lists them.
+COMMANDS: MappingProxyType[str, Command] = MappingProxyType(
+    {
+        "compare": Command("eval.compare", "compare policies on simulated or recorded users"),
+        "exercises": Command("eval.exercises", "every shipped exercise under AC, LC-noAP and LC"),
+        "generalise": Command("eval.generalise", "a learned model on held-out exercises and users"),
+        "fidelity": Command("eval.fidelity", "the simulation against the recorded sessions"),
+        "train": Command("train.ppo", "train the learned aligner (SB3 PPO)"),
+        "sweep": Command("eval.sweep", "run a sweep of sessions from a YAML file, resumably"),
+        "play": Command("langenv.play", "live mode: drag the handle, the robot talks you through"),
+        "exercise": Command("langenv.exercise", "list, check and draw exercises"),
+        "speech": Command("langenv.speech", "check, write and render phrase graphs"),
+        "robot": Command("langenv.robot.ur", "run on a UR (or URSim) through ur-rtde"),
+        "bench": Command("bench", "speed and accuracy figures"),
+        "export": Command("train.export", "a training checkpoint as a model (ppo:PATH)", "tool"),
+        "ensemble": Command("train.ensemble", "several models acting as one", "tool"),
+        "widen": Command("train.widen", "a model for graphs with more choices", "tool"),
+        "video": Command("eval.video", "a session video (MP4) from an episode log", "tool"),
+        "report": Command("eval.report", "summary.md from a sessions.csv", "tool"),
+        "calibrate": Command("eval.calibrate", "fit the synthetic users to recordings", "tool"),
+    }
+)
+
+
+def _listing() -> str:
+    lines = []
+    for group, title in (("job", "jobs"), ("tool", "tools")):
+        lines.append(f"{title}:")
+        for name, cmd in COMMANDS.items():
+            if cmd.group == group:
+                lines.append(f"  {name:11s} {'python -m ' + cmd.module:27s} {cmd.summary}")
+    lines.append("")
+    lines.append("langctrl JOB --help: the job's options, the same as python -m MODULE --help.")
+    return "\n".join(lines)
+
+
+def _version() -> str:
+    try:
+        return version("langctrl")
+    except PackageNotFoundError:  # a source tree that was never installed
+        return "unknown"
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The top-level parser: ``--help``, ``--version`` and the job's name (its arguments are the
+    job's own, parsed by the job's parser)."""
+    p = argparse.ArgumentParser(
+        prog="langctrl",
+        usage="%(prog)s [-h] [--version] JOB [ARGS...]",
+        description="LangCtrl: a robot arm that moves and speaks in step with a person. One "
+        "command for its jobs.",
+        epilog=_listing(),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    p.add_argument(
+        "job",
+        metavar="JOB",
+        choices=tuple(COMMANDS),
+        help="the job to run (below), followed by its own arguments",
+    )
+    return p
+
+
+def load(name: str) -> ModuleType:
+    """The module of job ``name``: what ``python -m`` runs for it (a package's ``__main__``)."""
+    module = COMMANDS[name].module
+    spec = importlib.util.find_spec(module)
+    if spec is not None and spec.submodule_search_locations is not None:
+        module += ".__main__"
+    return importlib.import_module(module)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``langctrl``; returns the exit status (the job's own, 2 for bad usage)."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    if args and args[0] in COMMANDS:
+        return int(load(args[0]).main(args[1:]) or 0)
+    build_parser().parse_args(args)  # --help, --version or a usage error: exits
+    return 2  # unreachable: the parser needs a JOB, and a known one is run above

@@ -1,0 +1,180 @@
+"""Every command the README shows runs as written, with a tiny budget.
+
+The README's ``bash`` blocks are its commands, run block by block (a block's commands in order,
+each block in a fresh directory holding links to the checkout's ``configs``, ``langenv`` and
+``models``) with the interpreter's ``bin`` first on ``PATH``, so ``langctrl`` and ``python`` are
+the installed ones. :data:`BUDGET` names every command line of the README: how the test shrinks
+it (each replacement must apply), or why it does not run it. A README edit that adds or changes a
+command fails :func:`test_every_readme_command_has_a_budget` until the command is given one, so
+no command goes untested by accident. The ``python`` blocks run as written.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+README = REPO / "README.md"
+FENCE = re.compile(r"^```(\w+)\n(.*?)^```$", re.MULTILINE | re.DOTALL)
+TIMEOUT = 600  # s per block
+
+
+@dataclass(frozen=True)
+class Shrink:
+    """Run the command with these ``(old, new)`` replacements (each must occur in it)."""
+
+    replace: tuple[tuple[str, str], ...] = ()
+    slow: bool = False
+
+
+@dataclass(frozen=True)
+class Skip:
+    """Do not run the command, for this reason."""
+
+    reason: str
+
+
+TRAIN_BUDGET = (
+    "--total-timesteps 2048 --n-envs 2 --eval-freq 2048 --checkpoint-freq 2048 "
+    "--n-eval-episodes 1 --no-progress-bar --no-tensorboard"
+)
+FAKE_UR = "--host 127.0.0.1 --fake"
+
+#: Every command line of the README -> how the test runs it.
+BUDGET: dict[str, Shrink | Skip] = {
+    'pip install -c constraints.txt -e ".[dev,sweep,docs]"': Skip(
+        "the set-up line: CI (.ci/run) runs it on a fresh clone before this suite"
+    ),
+    "python -m pytest -q -n 2": Skip("the suite itself: CI (.ci/run) runs it"),
+    "langctrl compare --policies ac,lc-noap,lc --users synthetic:12 --seed 0 --out out/compare": (
+        Shrink((("synthetic:12", "synthetic:1"),))
+    ),
+    "langctrl train --config configs/ppo.yaml --seed 3000000 --out runs/ppo": Shrink(
+        (("--out runs/ppo", f"--out runs/ppo {TRAIN_BUDGET}"),), slow=True
+    ),
+    "langctrl export runs/ppo --best --out runs/ppo/ppo_aligner": Shrink(slow=True),
+    "langctrl compare --policies lc,lc-em-end,ppo:runs/ppo/ppo_aligner.zip --users synthetic:48 "
+    "--seed 900000 --stat mean --out out/val": Shrink(
+        (("synthetic:48", "synthetic:1"), ("--out", "--no-audio --no-figures --out")), slow=True
+    ),
+    "langctrl exercise list": Shrink(),
+    "cp -r langenv/assets/exercises my_exercises": Shrink(),
+    "langctrl exercise check my_exercises/hand_to_mouth.yaml": Shrink(),
+    "langctrl speech author my_exercises/scripts/hand_to_mouth_lc.txt --out my_script.yaml": (
+        Shrink()
+    ),
+    "langctrl speech check my_script.yaml --coverage": Shrink(),
+    "langctrl compare --policies ac,lc-noap,lc --exercise my_exercises/hand_to_mouth.yaml "
+    "--graph my_script.yaml --users synthetic:12 --out out/mine": Shrink(
+        (("synthetic:12", "synthetic:1"), ("--out", "--no-audio --no-figures --out"))
+    ),
+    "langctrl play": Shrink((("play", "play --headless --seconds 1 --audio-out viewer.wav"),)),
+    "langctrl play --headless --seconds 10 --audio-out live.wav": Shrink(
+        (("--seconds 10", "--seconds 1"),)
+    ),
+    'pip install -c constraints.txt -e ".[ur]"': Skip(
+        "installs ur-rtde; the bridge's tests run against its fake"
+    ),
+    "langctrl robot --host 127.0.0.1 --fake --dry-run": Shrink(),
+    "langctrl robot --config configs/ur.yaml --dry-run": Shrink(
+        (("--dry-run", f"{FAKE_UR} --dry-run"),)
+    ),
+    "langctrl robot --config configs/ur.yaml --log-out session.csv": Shrink(
+        (("--log-out", f"{FAKE_UR} --yes --audio-out session.wav --log-out"),)
+    ),
+}
+
+
+def readme_blocks(text: str) -> list[tuple[str, list[str]]]:
+    """The README's code blocks to run: ``(language, commands)`` for ``bash`` (one command per
+    line, comments and continuations handled) and ``(python, [source])``."""
+    blocks = []
+    for match in FENCE.finditer(text):
+        lang, body = match[1], match[2]
+        if lang == "bash":
+            lines = body.replace("\\\n", " ").splitlines()
+            commands = [re.sub(r"\s+", " ", line).strip() for line in lines]
+            blocks.append((lang, [c for c in commands if c and not c.startswith("#")]))
+        elif lang == "python":
+            blocks.append((lang, [body]))
+    return blocks
+
+
+def _blocks() -> list[tuple[str, list[str]]]:
+    return readme_blocks(README.read_text(encoding="utf-8"))
+
+
+def test_every_readme_command_has_a_budget() -> None:
+    shown = [c for lang, commands in _blocks() if lang == "bash" for c in commands]
+    unknown = [c for c in shown if c not in BUDGET]
+    assert unknown == [], f"README commands without a budget in tests/test_readme.py: {unknown}"
+    stale = sorted(set(BUDGET) - set(shown))
+    assert stale == [], f"budgets for commands the README no longer shows: {stale}"
+
+
+def test_the_parser_reads_commands_and_comments() -> None:
+    text = "x\n```bash\n# a comment\nlangctrl a \\\n  --b 1\n\nlangctrl c\n```\n```text\nno\n```\n"
+    assert readme_blocks(text) == [("bash", ["langctrl a --b 1", "langctrl c"])]
+
+
+def _command(shown: str) -> str | None:
+    rule = BUDGET[shown]
+    if isinstance(rule, Skip):
+        return None
+    command = shown
+    for old, new in rule.replace:
+        assert old in command, f"budget rule {old!r} does not apply to {shown!r}"
+        command = command.replace(old, new, 1)
+    return command
+
+
+def _workdir(tmp_path: Path) -> Path:
+    for name in ("configs", "langenv", "models"):
+        (tmp_path / name).symlink_to(REPO / name, target_is_directory=True)
+    return tmp_path
+
+
+def _params() -> list[Any]:
+    params = []
+    for i, (lang, commands) in enumerate(_blocks()):
+        slow = lang == "bash" and any(
+            isinstance(r := BUDGET.get(c), Shrink) and r.slow for c in commands
+        )
+        marks = [pytest.mark.slow] if slow else []
+        params.append(pytest.param(i, marks=marks, id=f"{i}-{lang}-{commands[0][:40]}"))
+    return params
+
+
+@pytest.mark.parametrize("index", _params())
+def test_readme_block_runs(index: int, tmp_path: Path) -> None:
+    lang, commands = _blocks()[index]
+    cwd = _workdir(tmp_path)
+    env = dict(os.environ)
+    env["PATH"] = str(Path(sys.executable).parent) + os.pathsep + env.get("PATH", "")
+    if lang == "python":
+        script = cwd / "readme_block.py"
+        script.write_text(commands[0], encoding="utf-8")
+        runs = [f"{sys.executable} {script.name}"]
+    else:
+        runs = [c for c in (_command(shown) for shown in commands) if c is not None]
+    if not runs:
+        pytest.skip("; ".join(r.reason for c in commands if isinstance(r := BUDGET[c], Skip)))
+    for command in runs:
+        res = subprocess.run(
+            ["bash", "-c", command],
+            cwd=cwd,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=TIMEOUT,
+            check=False,
+        )
+        assert res.returncode == 0, f"{command}\n{res.stdout[-2000:]}\n{res.stderr[-3000:]}"
