@@ -239,7 +239,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="[POLICY=]GRAPH",
         help="phrase graph for the policies that choose phrases (lc and its variants, ppo): a "
         "YAML file or a shipped graph ('study' is the study's graph); POLICY=GRAPH for one of "
-        "them only (repeatable). Default: the exercise's script (AC and LC-noAP always say its "
+        "them only (repeatable) (default: the exercise's script; AC and LC-noAP always say its "
         "one wording)",
     )
     p.add_argument(

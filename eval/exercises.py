@@ -2,7 +2,7 @@
 
 Run::
 
-    python -m eval.exercises --users synthetic:12 --out out/exercises
+    langctrl exercises --out out/exercises        # python -m eval.exercises, 48 users each
 
 runs ``python -m eval.compare --exercise NAME --policies ac,lc-noap,lc`` for each shipped exercise
 (into ``OUT/NAME``, figures and WAVs as usual), then reads the runs back and prints, per exercise
@@ -10,9 +10,11 @@ and controller, the medians of motion time, ``|AM|``, mean ``|EM|``, the share o
 ``|a - 1| <= 0.1`` and with the voice heard within 0.1 of its natural rate, the protective stops,
 and the hand's largest distance from the path (from the logged joint positions: the handle's
 position by forward kinematics, its distance to the nearest point of the exercise's path).
+Then the headline per exercise: over LC's sessions, the largest ``|AM|``, how many end within
+1 s, and the means of the silence share and of the share of the voice heard natural.
 ``--table-only`` reads existing runs without running anything. Exit status 1 when an episode ended
-in a protective stop or left the path by more than the safety's ``max_deviation``, or LC's median
-``|AM|`` is not below AC's."""
+in a protective stop or left the path by more than the safety's ``max_deviation``, LC's median
+``|AM|`` is not below AC's, or an LC session ends more than 1 s from its motion."""
 
 from __future__ import annotations
 
@@ -28,6 +30,8 @@ import numpy as np
 __all__ = ["build_parser", "exercise_rows", "main", "path_deviation"]
 
 POLICIES = ("ac", "lc-noap", "lc")
+HEADLINE_AM = 1.0
+"""The headline: LC's speech and motion end within this many seconds in every session (s)."""
 _LABEL = {"ac": "AC", "lc-noap": "LC-noAP", "lc": "LC"}
 _STRIDE = 5  # every 5th logged step (10 ms at 500 Hz)
 
@@ -92,6 +96,38 @@ def exercise_rows(run_dir: Path, name: str) -> list[dict[str, Any]]:
     return out
 
 
+def headline_row(run_dir: Path, name: str) -> dict[str, Any]:
+    """LC's headline on one exercise's run: every session's |AM| (max, share within 1 s), and the
+    means over sessions of the silence share and the share of the voice heard natural."""
+    from eval.report import read_sessions_csv
+
+    mine = [r for r in read_sessions_csv(run_dir / "sessions.csv") if r["policy"] == "lc"]
+    am = [float(r["abs_am"]) for r in mine]
+    return {
+        "exercise": name,
+        "sessions": len(mine),
+        "max_am": max(am, default=math.nan),
+        "within": sum(a <= HEADLINE_AM for a in am),
+        "silence": float(np.mean([float(r["pause_share"]) for r in mine])),
+        "voice": float(np.mean([float(r["voice_natural"]) for r in mine])),
+    }
+
+
+def headline_table(rows: list[dict[str, Any]]) -> str:
+    """The headline rows as a Markdown table."""
+    lines = [
+        "| exercise | LC sessions | max abs(AM) (s) | within 1 s | silence (mean) | voice natural "
+        "(mean) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['exercise']} | {r['sessions']} | {r['max_am']:.2f} | {r['within']}/"
+            f"{r['sessions']} | {100 * r['silence']:.1f} % | {100 * r['voice']:.1f} % |"
+        )
+    return "\n".join(lines)
+
+
 def table(rows: list[dict[str, Any]]) -> str:
     """The rows as a Markdown table."""
     lines = [
@@ -135,7 +171,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--users",
-        default="synthetic:12",
+        default="synthetic:48",
         metavar="synthetic:N",
         help="users per exercise and controller (default: %(default)s)",
     )
@@ -180,6 +216,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if unknown or not names:
         p.error(f"--exercises: unknown {unknown or 'none given'}; known: {list(SHIPPED_EXERCISES)}")
     rows: list[dict[str, Any]] = []
+    heads: list[dict[str, Any]] = []
     for name in names:
         run_dir = ns.out / name
         if not ns.table_only:
@@ -190,8 +227,17 @@ def main(argv: Sequence[str] | None = None) -> int:
             if compare([*args, "--overwrite"]) != 0:
                 return 1
         rows += exercise_rows(run_dir, name)
+        heads.append(headline_row(run_dir, name))
     print(table(rows))
-    bad = _verdict(rows)
+    print()
+    print("The headline per exercise: LC's speech and motion end within 1 s in every session")
+    print(headline_table(heads))
+    bad = _verdict(rows) + [
+        f"{h['exercise']} LC: {h['sessions'] - h['within']} of {h['sessions']} sessions end more "
+        f"than {HEADLINE_AM:g} s apart (max {h['max_am']:.2f} s)"
+        for h in heads
+        if h["within"] < h["sessions"]
+    ]
     for line in bad:
         print(f"FAIL {line}", file=sys.stderr)
     return 1 if bad else 0

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import gymnasium as gym
 import numpy as np
 
@@ -50,7 +52,24 @@ def test_lc_waits_in_pauses_that_make_the_speech_end_with_the_motion() -> None:
         assert lo - 1e-9 <= length <= hi + 1e-9
 
 
-def test_the_target_duration_action_lengthens_or_shortens_the_pauses() -> None:
-    longer = episode(0.5)[2].speech.pause_lengths  # type: ignore[attr-defined]
-    shorter = episode(-0.5)[2].speech.pause_lengths  # type: ignore[attr-defined]
-    assert sum(longer) > sum(shorter)
+def test_the_target_duration_action_lengthens_or_shortens_the_pauses(tmp_path: Path) -> None:
+    """On a graph without choices (its words fixed), the target-duration action sets the pause."""
+    graph = tmp_path / "g.yaml"
+    graph.write_text(
+        "start: a\npause: 0.3\nphrases:\n"
+        '  a: {text: "Move your hand away from your body.", next: [p]}\n'
+        "  p: {pause: [0.2, 10], next: [b]}\n"
+        '  b: {text: "And back again.", next: []}\n'
+    )
+
+    def pause(u_choice: float) -> float:
+        env = gym.make(langenv.ENV_ID, phrase_graph=str(graph), decision_hz=25)
+        policy = make_analytic("lc", decision_hz=25)
+        obs, _ = env.reset(seed=3)
+        while "p" not in env.unwrapped.speech.path:  # type: ignore[attr-defined]
+            action = policy.act(obs)
+            action[2] = u_choice
+            obs, *_ = env.step(action)
+        return float(env.unwrapped.speech.slot_length)  # type: ignore[attr-defined]
+
+    assert pause(0.5) > pause(0.0) > pause(-0.5)

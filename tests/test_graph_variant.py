@@ -23,7 +23,9 @@ def test_variant_keeps_the_number_of_choices_and_is_a_valid_graph(seed: int, whi
     v = vary_graph(graph, np.random.default_rng(seed), GraphVariation())
     assert v.max_children == graph.max_children
     assert v.start == graph.start
-    assert set(v.phrases) <= set(graph.phrases) | {f"{u}~alt" for u in graph.phrases}
+    added = {f"{u}~alt" for u in graph.phrases} | {f"{u}~alt#wait" for u in graph.phrases}
+    assert set(v.phrases) <= set(graph.phrases) | added
+    assert v.final_wait == graph.final_wait and set(v.repeats) <= set(graph.repeats)
     assert 0.0 < v.t_min(v.start) <= v.t_max(v.start)
     for u in v.pauses:
         lo, hi = v.phrases[u].bounds  # type: ignore[misc]

@@ -125,6 +125,40 @@ def test_headless_loop_keeps_real_time_and_streams_the_offline_rendering(tmp_pat
     env.close()
 
 
+def test_live_mode_says_repeats_and_waits_as_the_offline_rendering_does(tmp_path: Path) -> None:
+    """A graph whose repeat starts at once and whose last phrase waits: the live stream says the
+    sayings and the silences of the wait sample for sample as the offline rendering."""
+    from langenv.speech.author import author
+    from policies.analytic import make_analytic
+
+    script = tmp_path / "s.txt"
+    script.write_text(
+        "@voice natural\n@pause 0.2\nGo.\nKeep going. (repeat 4, gap 0.2-0.4)\nDone.\n"
+    )
+    graph = author(script, tmp_path / "s.yaml")
+    policy = make_analytic("lc", decision_hz=25)
+    env = gym.make(langenv.ENV_ID, phrase_graph=str(graph.path), decision_hz=25)
+    wav = tmp_path / "live.wav"
+    loop = RealTimeLoop(env, policy, lambda ring, sr: WavSink(ring, wav, sr), prefill=0.5)
+    report = loop.run(SECONDS + 1.0)
+    assert report.underruns == 0 and report.starved == 0
+    base = env.unwrapped
+    said = base.speech.path  # type: ignore[attr-defined]
+    assert "keep_going#2" in said and "again_4#gap1" in said  # a repeat, said live
+    live, _sr = sf.read(wav, dtype="float32")
+    t, a = loop.stream.trace()
+    offline = render_history(
+        base.graph,
+        base.clips,
+        said,
+        t,
+        a,
+        pause_lengths=base.speech.pause_lengths,  # type: ignore[attr-defined]
+    )
+    np.testing.assert_allclose(live, offline[: live.size], atol=2.0 / 32768)
+    env.close()
+
+
 def test_play_headless_prints_one_summary_line(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -68,9 +68,8 @@ BUDGET: dict[str, Shrink | Skip] = {
     "langctrl exercise list": Shrink(),
     "cp -r langenv/assets/exercises my_exercises": Shrink(),
     "langctrl exercise check my_exercises/hand_to_mouth.yaml": Shrink(),
-    "langctrl speech author my_exercises/scripts/hand_to_mouth_lc.txt --out my_script.yaml": (
-        Shrink()
-    ),
+    "langctrl speech author my_exercises/scripts/hand_to_mouth_lc.txt --out my_script.yaml "
+    "--exercise my_exercises/hand_to_mouth.yaml": Shrink(),
     "langctrl speech check my_script.yaml --coverage": Shrink(),
     "langctrl compare --policies ac,lc-noap,lc --exercise my_exercises/hand_to_mouth.yaml "
     "--graph my_script.yaml --users synthetic:12 --out out/mine": Shrink(

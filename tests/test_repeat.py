@@ -20,7 +20,7 @@ from langenv.speech.audio import ClipLibrary
 from langenv.speech.author import parse_script
 from langenv.speech.coverage import speech_lengths
 from langenv.speech.graph import Phrase, PhraseGraph
-from langenv.speech.repeat import MAX_REPEAT, SEP, WAIT_LEAD, WAIT_PLAN, Repeat, is_gap
+from langenv.speech.repeat import MAX_REPEAT, SEP, WAIT_PLAN, Repeat, is_gap
 from langenv.speech.timeline import SpeechTimeline
 
 
@@ -62,17 +62,17 @@ def test_a_repeat_unrolls_into_sayings_and_gaps() -> None:
 
 def test_a_plan_says_a_repeat_once_and_the_coverage_counts_every_saying() -> None:
     g = encourage(times=4)
-    lead = WAIT_LEAD * 0.8
-    assert g.plan_range("done#wait") == pytest.approx((lead, lead + WAIT_PLAN))
+    assert g.plan_range("done#wait") == (0.0, WAIT_PLAN)
+    assert g.slot_range("done#wait")[0] == 0.0
     # intro's plan: intro (2.3) + one saying (1.3 or 1.5) + the planned wait + done (0.8)
-    assert g.t_min("intro") == pytest.approx(2.3 + 0.8 + lead)  # straight to the end
-    assert g.t_max("intro") == pytest.approx(2.3 + 1.5 + lead + WAIT_PLAN + 0.8)
+    assert g.t_min("intro") == pytest.approx(2.3 + 0.8)  # straight to the end
+    assert g.t_max("intro") == pytest.approx(2.3 + 1.5 + WAIT_PLAN + 0.8)
     # the words' longest speech: four sayings of the longer wording with the longest gaps
-    longest = 2.3 + 4 * 1.5 + 3 * 2.0 + lead + WAIT_PLAN + 0.8
+    longest = 2.3 + 4 * 1.5 + 3 * 2.0 + WAIT_PLAN + 0.8
     assert speech_lengths(g)[-1][1] == pytest.approx(longest)
     # a gap's plan: the gap, one more saying and the end
-    assert g.t_min("again#gap1") == pytest.approx(1.0 + 1.3 + lead + 0.8)
-    assert g.t_max("again#gap1") == pytest.approx(2.0 + 1.5 + lead + WAIT_PLAN + 0.8)
+    assert g.t_min("again#gap1") == pytest.approx(1.0 + 1.3 + 0.8)
+    assert g.t_max("again#gap1") == pytest.approx(2.0 + 1.5 + WAIT_PLAN + 0.8)
 
 
 def test_the_rule_says_another_round_when_the_motion_s_time_to_go_is_nearer_it() -> None:
@@ -97,7 +97,7 @@ def test_the_longer_the_motion_the_more_sayings_and_never_more_than_times() -> N
     assert said == sorted(said) and said[0] <= 1 and said[-1] == 4
 
 
-def test_the_last_phrase_starts_when_the_motion_s_time_to_go_is_its_length_and_lead() -> None:
+def test_the_last_phrase_starts_when_the_motion_s_time_to_go_is_its_length() -> None:
     g = encourage(times=2)
     tl = SpeechTimeline(g)
     t, motion, start = 0.0, 20.0, None
@@ -107,7 +107,7 @@ def test_the_last_phrase_starts_when_the_motion_s_time_to_go_is_its_length_and_l
         if tl.phrase == "done" and start is None:
             start = t
     assert start is not None
-    assert motion - start == pytest.approx(0.8 * (1 + WAIT_LEAD), abs=0.005)
+    assert motion - start == pytest.approx(0.8, abs=0.005)
     wait = next(u for u in tl.utterances() if u.phrase == "done#wait")
     assert wait.length is not None and wait.length > 5.0  # far past any pause bound
 
@@ -134,7 +134,7 @@ def test_a_pause_before_the_last_phrase_becomes_its_wait() -> None:
     assert g.opened == {"p"} and "b#wait" not in g.phrases
     assert g.plan_range("p") == (0.2, 1.0)  # the plan keeps its bounds
     assert g.slot_range("p")[1] > 100.0  # it may last as long as the motion needs
-    assert g.pause_length("p", 10.0) == pytest.approx(10.0 - 0.5 - WAIT_LEAD * 0.5)
+    assert g.pause_length("p", 10.0) == pytest.approx(10.0 - 0.5)
 
 
 # ------------------------------------------------------------------ random graphs, compiled
@@ -195,9 +195,9 @@ def test_plans_span_the_paths_that_take_no_further_round(g: PhraseGraph) -> None
 def test_the_speech_never_runs_out_before_a_motion_it_can_follow(
     g: PhraseGraph, motion: float
 ) -> None:
-    """At pace 1 with ``t_x`` counting down, the speech never runs out: it ends no earlier than
-    the last phrase's lead before the motion whenever its shortest speech fits, and later by at
-    most what one choice of the rule can overshoot (a step's longest slot; the pace law's job)."""
+    """At pace 1 with ``t_x`` counting down, the speech never runs out: it ends with the motion
+    whenever its shortest speech fits, or later by at most what one choice of the rule can
+    overshoot (a step's longest slot; the pace law's job)."""
     if g.t_min(g.start) > motion:
         return
     tl = SpeechTimeline(g)
@@ -206,9 +206,8 @@ def test_the_speech_never_runs_out_before_a_motion_it_can_follow(
         tl.step(0.01, 1.0, t_x=max(0.0, motion - t))
         t += 0.01
     assert tl.done and tl.t_end is not None
-    lead = WAIT_LEAD * g.duration["end"]
     longest = max(g.plan_range(u)[1] for u in g.phrases)
-    assert motion - lead - 0.02 <= tl.t_end <= motion + longest + 0.02
+    assert motion - 0.02 <= tl.t_end <= motion + longest + 0.02
 
 
 # ------------------------------------------------------------------ files and their errors

@@ -113,6 +113,7 @@ FINDINGLESS = Stdout(stop=r"^study's findings")  # runs without AC and LC-noAP: 
 DIFF_ROWS = ("|AM| (s)", "mean |EM| (s)", "mean |a-1|", "voice natural (%)", "t_motion (s)")
 PPO = "ppo:models/ppo_aligner.zip"
 QUICK = "--no-audio --no-figures"
+EXERCISES = "langctrl exercises --out out/exercises"  # 48 people per exercise and controller
 
 #: The results, by key (a key may appear in several pages; its commands run once).
 SECTIONS: dict[str, Section] = {
@@ -145,8 +146,14 @@ SECTIONS: dict[str, Section] = {
         (Stdout(0, stop=r"^files:"), Stdout(1, stop=r"^study's findings")),
     ),
     "exercises": Section(
-        ("langctrl exercises --users synthetic:12 --out out/exercises",),
-        (Stdout(start=r"^\| exercise", markdown=True),),
+        (EXERCISES,),
+        (
+            Stdout(start=r"^\| exercise \| controller", stop=r"^$", markdown=True),
+            Stdout(start=r"^\| exercise \| LC sessions", markdown=True),
+        ),
+    ),
+    "headline": Section(
+        (EXERCISES,), (Stdout(start=r"^\| exercise \| LC sessions", markdown=True),)
     ),
     "learned-test": Section(
         (

@@ -41,15 +41,12 @@ R_DONE, R_PYTHON, R_CONTROL, R_STOP, R_OVER = 0, 1, 2, 3, 4
 
 
 def pack_graph(graph: Any, order: tuple[str, ...]) -> tuple[np.ndarray, ...]:
-    """A phrase graph as arrays for :func:`eta`: ``mid`` (n), ``slot`` (n, 4: the nominal slot,
-    its minimum and maximum, which differ for a pause only, and a wait's lead), by index in
-    ``order``, the children's offsets ``kid_ptr`` (n + 1) and indexes ``kids``, in the graph's
-    order."""
+    """A phrase graph as arrays for :func:`eta`: ``mid`` (n), ``slot`` (n, 3: the nominal slot,
+    its minimum and maximum, which differ for a pause only), by index in ``order``, the
+    children's offsets ``kid_ptr`` (n + 1) and indexes ``kids``, in the graph's order."""
     index = {u: i for i, u in enumerate(order)}
     mid = np.array([graph._mid[u] for u in order])
-    slot = np.array([(graph.slot(u), *graph.slot_range(u), graph._lead[u]) for u in order]).reshape(
-        -1, 4
-    )
+    slot = np.array([(graph.slot(u), *graph.slot_range(u)) for u in order]).reshape(-1, 3)
     kids = [index[v] for u in order for v in graph.children(u)]
     counts = [len(graph.children(u)) for u in order]
     kid_ptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
@@ -84,7 +81,7 @@ def _fill(
         rest += slot[w, 0]
         y -= slot[w, 0]
         lo, hi = kid_ptr[w], kid_ptr[w + 1]
-    length = left - rest - slot[v, 3]
+    length = left - rest
     s_lo, s_hi = slot[v, 1], slot[v, 2]
     return s_lo if length < s_lo else (s_hi if length > s_hi else length)
 

@@ -318,17 +318,14 @@ class PhraseGraph:
         self.final_wait: bool = final_wait
         """Whether the last phrase waits for the motion."""
         own = {pid: float(duration[pid]) for pid, ph in table.items() if not ph.is_pause}
-        table, clip_len, waits = expand(table, own, reps, final_wait, Phrase)
+        table, clip_len, opened = expand(table, own, reps, final_wait, Phrase)
         self.phrases: Mapping[str, Phrase] = MappingProxyType(table)
         """Every vertex the speech may say, repeats and waits unrolled, by id."""
         self.duration: Mapping[str, float] = MappingProxyType(
             {pid: 0.0 if ph.is_pause else clip_len[pid] for pid, ph in table.items()}
         )
-        self.opened: frozenset[str] = frozenset(waits)
+        self.opened: frozenset[str] = opened
         """The pauses open above their bounds: the silences before the last phrase."""
-        self._lead: dict[str, float] = {u: waits.get(u, 0.0) for u in table}
-        # the waits LangCtrl adds are planned as their lead but may last from 0 s
-        self._lead_only = frozenset(u for u in waits if u.endswith(f"{SEP}wait"))
         self._build_tables(table)
 
     def _build_tables(self, table: Mapping[str, Phrase]) -> None:
@@ -344,7 +341,7 @@ class PhraseGraph:
                 d = self.duration[pid] + (self.pause if ph.next else 0.0)
                 self._plan[pid] = (d, d)
         # what a pause may last (an opened one: up to WAIT_MAX), and what plans count with
-        self._lo = {p: 0.0 if p in self._lead_only else lo for p, (lo, _) in self._plan.items()}
+        self._lo = {pid: lo for pid, (lo, _) in self._plan.items()}
         self._hi = {
             pid: WAIT_MAX if pid in self.opened else hi for pid, (_, hi) in self._plan.items()
         }
@@ -620,7 +617,7 @@ class PhraseGraph:
             rest += slot[w]
             y -= slot[w]
             kids = children[w]
-        length = left - rest - self._lead[v]
+        length = left - rest
         lo, hi = self._lo[v], self._hi[v]
         return lo if length < lo else (hi if length > hi else length)
 

@@ -19,13 +19,12 @@ off for the study's). Every final phrase ``T`` is preceded by an open silence: t
 ``T#wait`` between each non-pause parent and ``T``, and a pause parent's own maximum opened up.
 Its length is planned like any pause's (:meth:`PhraseGraph.pause_length
 <langenv.speech.graph.PhraseGraph.pause_length>`: what makes the speech end at the motion's
-end) less a *lead* of :data:`WAIT_LEAD` times the last phrase's length, and replanned at every
-step while it lasts, without the pause's upper bound (at most :data:`WAIT_MAX`): the last phrase
-starts when the motion's time to go is its length plus the lead. For the choice rule it counts as
-its *planned* bounds (the lead up to the lead and :data:`WAIT_PLAN` for ``T#wait``, as written
-for a pause), so the choices, ``t_min``/``t_max`` and the rule's mids are those of the words, the
-lead and a short planned silence: only the silence before the last phrase stretches beyond
-that. A script needs no line for it.
+end) and replanned at every step while it lasts, without the pause's upper bound (at most
+:data:`WAIT_MAX`): the last phrase starts when the motion's time to go is its length. For the
+choice rule it counts as its *planned* bounds (0 to :data:`WAIT_PLAN` for ``T#wait``, as written
+for a pause), so the choices, ``t_min``/``t_max`` and the rule's mids are those of the words and
+a short planned silence: only the silence before the last phrase stretches beyond that. A
+script needs no line for it.
 
 A plan says a repeat once: ``t_min``/``t_max`` of a vertex (and so the choice rule's mids) leave
 out its gap children, so a repeat whose ``times`` is large does not make every earlier wording
@@ -48,7 +47,6 @@ __all__ = [
     "DEFAULT_GAP",
     "MAX_REPEAT",
     "SEP",
-    "WAIT_LEAD",
     "WAIT_MAX",
     "WAIT_PLAN",
     "Repeat",
@@ -65,13 +63,9 @@ DEFAULT_GAP = (1.0, 3.0)
 the graph's ``pause``)."""
 WAIT_MAX = 3600.0
 """Longest silence before the last phrase (s at a = 1): the wait is open-ended in practice."""
-WAIT_LEAD = 0.0
-"""The last phrase starts when the motion's time to go is its length times ``1 + WAIT_LEAD``:
-the lead lets the pace law stretch it to end with the motion, and leaves room for a person who
-resists while it is said (the paper's law slows the voice then, down to ``a_min``)."""
-WAIT_PLAN = 1.0
-"""How long a plan counts the wait before the last phrase beyond its lead (s at a = 1): the
-choice rule aims the words about half of it before the motion's end. Overshooting costs more
+WAIT_PLAN = 1.5
+"""How long a plan counts the wait before the last phrase, at most (s at a = 1): the choice rule
+aims the words about half of it before the motion's end. Overshooting costs more
 than stopping short: a wait fills a short speech, while the paper's law slows the voice, never
 speeds it, when the person resists as the motion ends."""
 SEP = "#"
@@ -223,7 +217,7 @@ def expand(
     repeats: Mapping[str, Repeat],
     final_wait: bool,
     make: Any,
-) -> tuple[dict[str, Any], dict[str, float], dict[str, float]]:
+) -> tuple[dict[str, Any], dict[str, float], frozenset[str]]:
     """The unrolled vertices (module docstring).
 
     Args:
@@ -234,9 +228,9 @@ def expand(
         make: The vertex constructor (``Phrase``: id, text, audio, next, kind, bounds).
 
     Returns:
-        ``(vertices, durations, waits)``: the unrolled vertices by id in a stable order, the clip
+        ``(vertices, durations, open)``: the unrolled vertices by id in a stable order, the clip
         length of each phrase and filler, and the pauses whose length is open above their
-        bounds (the waits before the last phrase), each with its lead (s).
+        bounds (the waits before the last phrase).
     """
     nxt = {u: list(ph.next) for u, ph in phrases.items()}
     dur = {u: float(d) for u, d in duration.items()}
@@ -261,8 +255,8 @@ def expand(
         for u, ph in phrases.items()
     }
     table.update(extra)
-    waits = _add_waits(table, dur, make) if final_wait else {}
-    return table, {u: d for u, d in dur.items() if u in table}, waits
+    opened = _add_waits(table, make) if final_wait else set()
+    return table, {u: d for u, d in dur.items() if u in table}, frozenset(opened)
 
 
 def is_gap(vertex: str) -> bool:
@@ -271,22 +265,21 @@ def is_gap(vertex: str) -> bool:
     return bool(sep) and bool(head) and tail.startswith("gap") and tail[3:].isdigit()
 
 
-def _add_waits(table: dict[str, Any], dur: Mapping[str, float], make: Any) -> dict[str, float]:
-    """Open silences before every final phrase (in place); returns each wait's lead."""
+def _add_waits(table: dict[str, Any], make: Any) -> set[str]:
+    """Open silences before every final phrase (in place); returns the opened pauses."""
     finals = [u for u, ph in table.items() if not ph.next and not ph.is_pause]
-    waits: dict[str, float] = {}
+    opened: set[str] = set()
     for t in finals:
-        lead = WAIT_LEAD * dur[t]
         wait = f"{t}{SEP}wait"
         parents = [u for u, ph in table.items() if t in ph.next]
         redirect = [u for u in parents if not table[u].is_pause]
-        waits.update((u, lead) for u in parents if table[u].is_pause)
+        opened.update(u for u in parents if table[u].is_pause)
         if not redirect:
             continue
         for u in redirect:
             ph = table[u]
             kids = tuple(wait if v == t else v for v in ph.next)
             table[u] = make(u, ph.text, ph.audio, kids, ph.kind, ph.bounds)
-        table[wait] = make(wait, None, None, (t,), "pause", (lead, lead + WAIT_PLAN))
-        waits[wait] = lead
-    return waits
+        table[wait] = make(wait, None, None, (t,), "pause", (0.0, WAIT_PLAN))
+        opened.add(wait)
+    return opened
