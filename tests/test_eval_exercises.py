@@ -17,13 +17,20 @@ def test_the_exercise_table_runs_and_reads_back(
     assert main([*args, "--workers", "1", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "| share abs(a - 1) <= 0.1 | voice natural |" in out
-    rows = [line for line in out.splitlines() if line.startswith("| external_rotation")]
+    medians, headline = out.split("\n\n")[:2]
+    rows = [line for line in medians.splitlines() if line.startswith("| external_rotation")]
     assert [r.split(" | ")[1] for r in rows] == ["AC", "LC-noAP", "LC"]
-    assert len([line for line in out.splitlines() if line.startswith("| shoulder_flexion")]) == 3
+    assert (
+        len([line for line in medians.splitlines() if line.startswith("| shoulder_flexion")]) == 3
+    )
+    # the headline: one row per exercise, LC's one session within 1 s of its motion
+    heads = [line.split(" | ") for line in headline.splitlines() if line.startswith("| ")]
+    assert [h[0] for h in heads[1:]] == ["| external_rotation", "| shoulder_flexion"]
+    assert all(h[1] == "1" and h[3] == "1/1" for h in heads[1:])
     # read back without running: the same table
     assert main([*args, "--out", str(tmp_path), "--table-only"]) == 0
     table = [line for line in out.splitlines() if line.startswith("|")]
-    assert capsys.readouterr().out.splitlines() == table
+    assert [line for line in capsys.readouterr().out.splitlines() if line.startswith("|")] == table
 
 
 def test_unknown_exercises_are_refused_before_anything_runs(
