@@ -104,7 +104,7 @@ class ESpeakEngine:
 
     def __init__(self) -> None:
         self.lock = threading.Lock()
-        self._proc: subprocess.Popen[bytes] | None = None
+        self._proc: subprocess.Popen[bytes] | None = None  # a worker in step with this client
         self._pid = -1
         self.sr, self.version, self._one_shot = self._start()
 
@@ -126,15 +126,23 @@ class ESpeakEngine:
             ) from exc
         from langenv.speech import espeak_worker
 
-        self._proc = subprocess.Popen(
+        self._proc = None
+        proc = subprocess.Popen(
             [sys.executable, espeak_worker.__file__],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
         )
-        self._pid = os.getpid()
-        atexit.register(self._stop, self._proc)
-        hello = self._hello()
-        return int(hello["sr"]), str(hello["version"]), bool(hello["one_shot"])
+        atexit.register(self._stop, proc)
+        try:  # the worker is used only once its greeting is read (an interrupt ends it)
+            hello = self._read_header(proc)
+            if "error" in hello:
+                raise AudioError(str(hello["error"]))
+            info = int(hello["sr"]), str(hello["version"]), bool(hello["one_shot"])
+        except BaseException:
+            self._end(proc)
+            raise
+        self._proc, self._pid = proc, os.getpid()
+        return info
 
     @staticmethod
     def _stop(proc: subprocess.Popen[bytes]) -> None:
@@ -146,55 +154,92 @@ class ESpeakEngine:
             except (OSError, subprocess.TimeoutExpired):
                 proc.kill()
 
-    def _read_header(self) -> dict[str, Any]:
+    @staticmethod
+    def _end(proc: subprocess.Popen[bytes]) -> None:
+        """End a worker whose pipes may be out of step (an exchange that did not finish): kill
+        it and reap it, so that nothing it wrote is ever read as another text's answer."""
+        try:
+            proc.kill()
+            proc.wait(timeout=5)
+        except (OSError, subprocess.TimeoutExpired):  # pragma: no cover - already gone
+            pass
+        for pipe in (proc.stdin, proc.stdout):
+            try:
+                if pipe is not None:
+                    pipe.close()
+            except OSError:  # pragma: no cover - a broken pipe's unflushed request
+                pass
+
+    @staticmethod
+    def _read_header(proc: subprocess.Popen[bytes]) -> dict[str, Any]:
         """The worker's next header line (``{"error": ...}`` included).
 
         Raises:
-            AudioError: when the worker has ended.
+            AudioError: when the worker has ended or its line is not a header.
         """
-        assert self._proc is not None and self._proc.stdout is not None
-        raw = self._proc.stdout.readline()
+        assert proc.stdout is not None
+        raw = proc.stdout.readline()
         if not raw:
-            code = self._proc.wait()
-            self._proc = None
+            code = proc.wait()
             raise AudioError(f"the eSpeak NG worker ended unexpectedly (exit status {code})")
-        header: dict[str, Any] = json.loads(raw)
+        try:
+            header = json.loads(raw)
+        except ValueError:
+            header = None
+        if not isinstance(header, dict):
+            raise AudioError(f"the eSpeak NG worker wrote {raw[:80]!r}, not a header line")
         return header
-
-    def _hello(self) -> dict[str, Any]:
-        hello = self._read_header()
-        if "error" in hello:
-            self._proc = None
-            raise AudioError(str(hello["error"]))
-        return hello
 
     def synthesize(self, text: str, voice: str, rate: int, pitch: int) -> np.ndarray:
         """``text`` spoken at ``rate`` wpm: int16 samples at :attr:`sr`.
+
+        An exchange that does not finish (an error, a worker that ends, an interrupt such as
+        Ctrl-C) ends the worker, so the next request, to a new one, cannot read its answer.
 
         Raises:
             AudioError: naming the text, when the worker reports an error or ends.
         """
         request = json.dumps({"text": text, "voice": voice, "rate": rate, "pitch": pitch})
         with self.lock:
-            if self._proc is None or self._proc.poll() is not None:
+            if self._proc is None or self._pid != os.getpid() or self._proc.poll() is not None:
                 self._start()
             proc = self._proc
             assert proc is not None and proc.stdin is not None and proc.stdout is not None
+            self._proc = None  # back only once the exchange is complete
             try:
                 proc.stdin.write(request.encode() + b"\n")
                 proc.stdin.flush()
-                header = self._read_header()
-                data = proc.stdout.read(2 * int(header.get("n", 0)))
-            except (OSError, ValueError) as exc:  # a broken pipe or a garbled answer
-                self._proc = None
-                proc.kill()
-                raise AudioError(f"eSpeak NG failed to synthesise {text!r}: {exc}") from exc
+                header = self._read_header(proc)
+                size = 2 * int(header.get("n", 0))
+                data = proc.stdout.read(size)
+                if len(data) != size:
+                    raise AudioError(
+                        f"the eSpeak NG worker's answer was cut short ({len(data)} of {size} bytes)"
+                    )
+            except BaseException as exc:
+                self._end(proc)
+                if isinstance(exc, AudioError | OSError | ValueError | TypeError):
+                    raise AudioError(f"eSpeak NG failed to synthesise {text!r}: {exc}") from exc
+                raise
             if self._one_shot:
                 proc.wait()
-                self._proc = None
+                for pipe in (proc.stdin, proc.stdout):
+                    pipe.close()
+            else:
+                self._proc = proc
         if "error" in header:
             raise AudioError(str(header["error"]))
         return np.frombuffer(data, dtype=np.int16).copy()
+
+    @classmethod
+    def _after_fork_in_child(cls) -> None:
+        """A forked process gets a class lock of its own: one that a thread of the parent held
+        at the fork (inside :meth:`get`) would never be released in the child."""
+        cls._create_lock = threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=ESpeakEngine._after_fork_in_child)
 
 
 def trim_silence(y: np.ndarray, sr: int, top_db: float = 40.0) -> np.ndarray:
