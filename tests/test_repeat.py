@@ -313,3 +313,66 @@ def test_the_cli_names_a_bad_repeat_without_a_traceback(
     assert main(["check", str(path), "--cache-dir", str(tmp_path / "c")]) == 1
     err = capsys.readouterr().err
     assert "Traceback" not in err and "g.yaml: repeat 'cheer': a repeat needs a bound" in err
+
+
+# ------------------------------------------------------- the wait next to pauses and fillers
+def _said(g: PhraseGraph, motion: float) -> list[tuple[str, float, float]]:
+    tl = SpeechTimeline(g)
+    t = 0.0
+    while not tl.done:
+        tl.step(0.002, 1.0, t_x=max(0.0, motion - t))
+        t += 0.002
+    return [(u.phrase, u.t_start, u.t_end) for u in tl.utterances()]
+
+
+def _compiled_agrees(g: PhraseGraph) -> None:
+    order = tuple(g.phrases)
+    mid, slot, kid_ptr, kids = pack_graph(g, order)
+    for t_x in (0.0, 2.0, 7.5, 30.0):
+        for i, u in enumerate(order):
+            remaining = 0.5 * g.slot(u)
+            assert compiled_eta(i, remaining, t_x, mid, slot, kid_ptr, kids) == g.eta(
+                u, remaining, t_x
+            )
+
+
+def test_a_pause_that_may_also_lead_elsewhere_keeps_its_bounds() -> None:
+    """``(pause) [Almost there.] Done.``: the pause may lead to the optional line or to the last
+    phrase. The silence that stretches is the one before the last phrase, not the pause before
+    "Almost there." (which had been opened: 14 s of silence, then "Almost there.")."""
+    phrases = [
+        Phrase("a", "Go.", None, ("q",)),
+        Phrase("q", None, None, ("r", "t"), "pause", (0.2, 1.0)),
+        Phrase("r", "Almost there.", None, ("t",)),
+        Phrase("t", "Done.", None, ()),
+    ]
+    g = PhraseGraph(phrases, "a", {"a": 1.0, "r": 1.0, "t": 0.5}, pause=0.3, final_wait=True)
+    assert "q" not in g.opened and g.slot_range("q") == (0.2, 1.0)
+    assert g.children("q") == ("r", "t#wait") and g.children("r") == ("t#wait",)
+    said = _said(g, 20.0)
+    assert [u for u, *_ in said] == ["a", "q", "r", "t#wait", "t"]
+    (q_len,) = [end - start for u, start, end in said if u == "q"]
+    assert q_len <= 1.0 + 1e-9
+    assert said[-1][2] == pytest.approx(20.0, abs=0.01)
+    _compiled_agrees(g)
+
+
+def test_a_filler_before_the_last_phrase_is_said_after_the_wait() -> None:
+    """``{okay|so} And you're done.``: the filler leads into the last phrase; the wait comes
+    before it ("Okay." then 15 s of silence then "And you're done." had been the speech)."""
+    phrases = [
+        Phrase("a", "Go.", None, ("okay", "so", "t")),
+        Phrase("okay", "Okay.", None, ("t",), "filler"),
+        Phrase("so", "So.", None, ("t",), "filler"),
+        Phrase("t", "And you're done.", None, ()),
+    ]
+    g = PhraseGraph(
+        phrases, "a", {"a": 1.0, "okay": 0.5, "so": 0.4, "t": 0.9}, pause=0.3, final_wait=True
+    )
+    assert g.children("okay") == ("t",) and g.children("a") == ("okay#wait", "so#wait", "t#wait")
+    for motion in (6.0, 20.0):
+        said = _said(g, motion)
+        assert said[-1][0] == "t" and said[-1][2] == pytest.approx(motion, abs=0.01)
+        if said[-2][0] in ("okay", "so"):  # the filler, then the clip pause, then the last phrase
+            assert said[-1][1] - said[-2][2] == pytest.approx(0.3, abs=0.01)
+    _compiled_agrees(g)

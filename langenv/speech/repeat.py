@@ -16,7 +16,10 @@ rule takes another round exactly when the motion's time to go is nearer the long
 
 **The last phrase waits for the motion** (the graph's ``final_wait``, on for the product's graphs,
 off for the study's). Every final phrase ``T`` is preceded by an open silence: the pause vertex
-``T#wait`` between each non-pause parent and ``T``, and a pause parent's own maximum opened up.
+``T#wait`` between each parent and ``T``, except a pause that leads only to the end, whose own
+maximum is opened up instead (a pause that may also lead to other words keeps its bounds and is
+followed by ``T#wait``). A filler that leads only to the end (``{okay|so} And you're done.``) is
+said after the silence, with its phrase: the wait ``F#wait`` goes before the filler ``F``.
 Its length is planned like any pause's (:meth:`PhraseGraph.pause_length
 <langenv.speech.graph.PhraseGraph.pause_length>`: what makes the speech end at the motion's
 end) and replanned at every step while it lasts, without the pause's upper bound (at most
@@ -266,14 +269,29 @@ def is_gap(vertex: str) -> bool:
 
 
 def _add_waits(table: dict[str, Any], make: Any) -> set[str]:
-    """Open silences before every final phrase (in place); returns the opened pauses."""
-    finals = [u for u, ph in table.items() if not ph.next and not ph.is_pause]
-    opened: set[str] = set()
-    for t in finals:
+    """Open silences before every final phrase (in place); returns the opened pauses.
+
+    The silence goes before the words that end the speech: a final phrase, or a filler that
+    leads only to them (``{okay|so} And you're done.`` is said as one piece after the wait, not
+    "Okay", a silence, "And you're done."). A pause all of whose children end the speech is
+    opened itself; a pause that may also lead elsewhere keeps its bounds (its silence is not the
+    last one on those other ways) and is followed by the wait on its way to the end."""
+    ending = {u for u, ph in table.items() if not ph.next and not ph.is_pause}
+    grew = True
+    while grew:  # fillers that lead only to the end (chains of fillers included)
+        more = {
+            u
+            for u, ph in table.items()
+            if ph.kind == "filler" and ph.next and u not in ending and set(ph.next) <= ending
+        }
+        ending |= more
+        grew = bool(more)
+    last_pauses = {u for u, ph in table.items() if ph.is_pause and set(ph.next) <= ending}
+    opened: set[str] = set(last_pauses)
+    for t in [u for u in table if u in ending]:
         wait = f"{t}{SEP}wait"
         parents = [u for u, ph in table.items() if t in ph.next]
-        redirect = [u for u in parents if not table[u].is_pause]
-        opened.update(u for u in parents if table[u].is_pause)
+        redirect = [u for u in parents if u not in ending and u not in last_pauses]
         if not redirect:
             continue
         for u in redirect:
