@@ -376,3 +376,17 @@ def test_a_filler_before_the_last_phrase_is_said_after_the_wait() -> None:
         if said[-2][0] in ("okay", "so"):  # the filler, then the clip pause, then the last phrase
             assert said[-1][1] - said[-2][2] == pytest.approx(0.3, abs=0.01)
     _compiled_agrees(g)
+
+
+def test_members_of_a_repeat_that_lead_to_one_another_are_named(
+    tmp_path: Path, clips: ClipLibrary
+) -> None:
+    """``b -> x -> c`` with ``b`` and ``c`` in one repeat: unrolled, ``c -> gap -> b#2 -> x -> c``
+    goes round for ever. It was a bare KeyError from the graph's tables."""
+    text = (
+        GOOD.replace('b: {text: "Keep going.", next: [d]}', 'b: {text: "Keep going.", next: [x]}')
+        + '  x: {text: "And further.", next: [c, d]}\n'
+    )
+    with pytest.raises(PhraseGraphError, match=r"g\.yaml: repeat 'cheer'") as info:
+        PhraseGraph.load(write(tmp_path, text), clips)
+    assert "'b' leads to 'c'" in str(info.value)

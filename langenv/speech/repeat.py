@@ -175,7 +175,7 @@ def repeat_problems(
 ) -> list[str]:
     """What makes ``repeats`` impossible on these (source) vertices, one line each: an unknown
     phrase, a pause or filler, a phrase in two repeats, a final phrase, members that follow one
-    another, or a repeat that can never be left."""
+    another (directly or through other vertices), or a repeat that can never be left."""
     problems: list[str] = []
     owner: dict[str, str] = {}
     for rep in repeats.values():
@@ -208,10 +208,35 @@ def repeat_problems(
                     f"{where}: can never be left: after its last saying phrase {pid!r} has "
                     "nowhere to go (give it a next outside the repeat)"
                 )
+            elif not inside:
+                later = _first_reached(phrases, ph.next, members)
+                if later is not None:
+                    problems.append(
+                        f"{where}: phrase {pid!r} leads to {later!r} of the same repeat; another "
+                        "saying after it would go round for ever (the members of a repeat are "
+                        "alternatives of one step)"
+                    )
         for pid in rep.phrases:
             if SEP in pid:
                 problems.append(f"{where}: phrase id {pid!r} contains {SEP!r}")
     return problems
+
+
+def _first_reached(
+    phrases: Mapping[str, Any], start: tuple[str, ...], targets: set[str]
+) -> str | None:
+    """A vertex of ``targets`` that some path from ``start`` reaches (``start`` included)."""
+    seen: set[str] = set()
+    stack = list(start)
+    while stack:
+        u = stack.pop()
+        if u in targets:
+            return u
+        if u in seen or u not in phrases:
+            continue
+        seen.add(u)
+        stack.extend(phrases[u].next)
+    return None
 
 
 def expand(
