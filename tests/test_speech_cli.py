@@ -74,6 +74,20 @@ def test_check_accepts_shipped_names_and_lists_paths(capsys: pytest.CaptureFixtu
     assert out[0].split()[-1] == "done" and "1 path," in out[1]
 
 
+def test_check_lists_the_paths_of_a_graph_with_repeats(capsys: pytest.CaptureFixture[str]) -> None:
+    """The docs' ``speech check lc --paths`` on the shipped default graph: its repeat (6
+    sayings of 4 wordings) makes millions of paths, so it failed with 'exceed limit=10000'. The
+    paths listed say each repeat once (the plan's paths), and the line after them says so."""
+    assert main(["check", "lc", "--paths"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    graph = PhraseGraph.load(default_graph_path("default"))
+    listed = [line for line in out if " > " in line]
+    assert len(listed) == graph.count_paths(once=True) < graph.count_paths()
+    assert not any("#gap" in line for line in listed)
+    assert all(line.split()[-1] == "done" for line in listed)
+    assert any("each repeat said once" in line for line in out)
+
+
 @pytest.mark.parametrize("case", sorted(BAD))
 def test_bad_graph_fails_naming_file_and_phrase_and_writes_nothing(
     case: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]

@@ -73,7 +73,11 @@ def build_parser() -> argparse.ArgumentParser:
         "problem on stderr when it is invalid.",
     )
     c.add_argument("graph", metavar="GRAPH", help="phrase graph YAML file or shipped graph name")
-    c.add_argument("--paths", action="store_true", help="also list every path with its length")
+    c.add_argument(
+        "--paths",
+        action="store_true",
+        help="also list every path with its length (each repeat said once)",
+    )
     c.add_argument(
         "--coverage",
         action="store_true",
@@ -206,10 +210,16 @@ def _clips(args: argparse.Namespace) -> ClipLibrary:
 def _check(args: argparse.Namespace) -> int:
     graph = PhraseGraph.load(_graph_path(args.graph), _clips(args))
     if args.paths:
-        for path in graph.paths(limit=10_000):
+        once = bool(graph.repeats)  # every saying of every repeat: millions of paths
+        for path in graph.paths(limit=100_000, once=once):
             lo, hi = graph.path_range(path)
             span = f"{lo:6.2f} s" if lo == hi else f"{lo:6.2f}-{hi:.2f} s"
             print(f"{span}  {' > '.join(path)}")
+        if once:
+            print(
+                f"{_n(graph.count_paths(once=True), 'path')} with each repeat said once "
+                f"({graph.count_paths()} with every saying of every repeat)"
+            )
     print(_summary(graph))
     if args.coverage:
         print(format_coverage(coverage(graph)))

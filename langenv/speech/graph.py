@@ -662,34 +662,44 @@ class PhraseGraph:
         hi = sum(self._plan[u][1] for u in ids[:-1]) + end_hi
         return lo, hi
 
-    def count_paths(self, u: str | None = None) -> int:
-        """Number of distinct paths from ``u`` (default: start) to a terminal."""
+    def count_paths(self, u: str | None = None, *, once: bool = False) -> int:
+        """Number of distinct paths from ``u`` (default: start) to a terminal; ``once``: with
+        each repeat said once (a repeat's gaps left out, as a plan counts)."""
         counts: dict[str, int] = {}
         for pid in reversed(self.order):
-            kids = self._children[pid]
+            kids = self._path_children(pid, once)
             counts[pid] = sum(counts[v] for v in kids) if kids else 1
         return counts[self.start if u is None else u]
 
-    def paths(self, u: str | None = None, *, limit: int = 100_000) -> list[tuple[str, ...]]:
-        """Every path from ``u`` (default: start) to a terminal, depth first, children in order.
+    def paths(
+        self, u: str | None = None, *, limit: int = 100_000, once: bool = False
+    ) -> list[tuple[str, ...]]:
+        """Every path from ``u`` (default: start) to a terminal, depth first, children in order;
+        ``once``: the paths that say each repeat once (no gap: the paths a plan counts).
 
         Raises:
             ConfigError: if there are more than ``limit`` paths (use :meth:`count_paths`).
         """
         root = self.start if u is None else u
-        n = self.count_paths(root)
+        n = self.count_paths(root, once=once)
         if n > limit:
             raise ConfigError(f"paths: {n} paths from {root!r} exceed limit={limit}")
         out: list[tuple[str, ...]] = []
         stack: list[tuple[str, ...]] = [(root,)]
         while stack:
             p = stack.pop()
-            kids = self._children[p[-1]]
+            kids = self._path_children(p[-1], once)
             if not kids:
                 out.append(p)
             for v in reversed(kids):
                 stack.append((*p, v))
         return out
+
+    def _path_children(self, u: str, once: bool) -> tuple[str, ...]:
+        kids = self._children[u]
+        if not once:
+            return kids
+        return tuple(v for v in kids if not is_gap(v)) or kids
 
     def reachable(self) -> frozenset[str]:
         """Phrases that some speech from ``start`` can say."""
