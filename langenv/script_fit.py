@@ -6,8 +6,8 @@ against the exercise's motion times over the people who will do it. :func:`motio
 them: the guided motion at cooperation 1 (nobody resists) and the motion of the synthetic
 population (``users`` seeded people, seeds ``0 .. users-1``, at physical pace 1, as AC moves), its
 5-95 % range. They are cached on disk beside the ETC tables (``$LANGCTRL_ETC_CACHE``), keyed by
-the exercise, the users' model, the package version and the source of ``langenv``, so a check
-costs the simulation once per machine.
+the exercise, the users' model, the robot's MuJoCo model, the package version and the source
+of ``langenv``, so a check costs the simulation once per machine.
 
 :func:`fit_warnings` compares the two and says what would close each gap, one line each, every
 line beginning ``warning:``. ``python -m langenv.exercise check`` prints them for an exercise's
@@ -179,7 +179,8 @@ def _key(exercise: Exercise, users: int) -> str:
 
     root = Path(langenv.__file__).resolve().parent
     h = hashlib.sha256(f"{_FORMAT}|{langenv.__version__}|{users}|{exercise!r}".encode())
-    for f in sorted([*root.rglob("*.py"), *(root / "assets" / "users").glob("*.yaml")]):
+    data = [*(root / "assets" / "users").glob("*.yaml"), *(root / "robot").glob("*.xml")]
+    for f in sorted([*root.rglob("*.py"), *data]):  # the code, the people, the robot's model
         h.update(f.relative_to(root).as_posix().encode())
         h.update(f.read_bytes())
     return h.hexdigest()[:32]

@@ -93,3 +93,21 @@ def test_exercise_check_reports_the_script_against_the_people(
     out = capsys.readouterr().out
     assert "48 synthetic people at pace 1" in out and "words of shoulder_flexion_lc.yaml" in out
     assert "warning:" not in out  # the shipped script covers its exercise
+
+
+def test_the_cache_key_follows_the_robot_model(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The population's motion times are simulated on the MuJoCo model (langenv/robot/ur5.xml):
+    an edit of it must not be answered from the cache with the times of the old model."""
+    import langenv.script_fit as fit
+    from langenv.robot.arm import UR5_XML
+
+    exercise = resolve_exercise("shoulder_flexion")
+    before = fit._key(exercise, 48)
+    real = Path.read_bytes
+
+    def edited(self: Path) -> bytes:
+        data = real(self)
+        return data + b"<!-- damping changed -->" if self.resolve() == UR5_XML.resolve() else data
+
+    monkeypatch.setattr(Path, "read_bytes", edited)
+    assert fit._key(exercise, 48) != before
