@@ -111,6 +111,18 @@ def test_a_graph_error_the_script_makes_names_its_line(tmp_path: Path) -> None:
     assert not (tmp_path / "g.yaml").exists()
 
 
+def test_ids_that_yaml_reads_as_other_things_are_written_quoted(tmp_path: Path) -> None:
+    """The line "Yes." makes the id ``yes``, which YAML reads as true (and ``no``, ``on``, ``off``,
+    ``null`` as other things than strings): the graph the script made failed to load with
+    "'next' must be a list of phrase ids, got [True, False]"."""
+    script = tmp_path / "s.txt"
+    script.write_text("Go now.\n{yes|okay} Keep going. | No. | Null. (repeat 3)\nOn.\n")
+    g = author(script, tmp_path / "g.yaml", ClipLibrary(cache_dir=tmp_path / "tts"))
+    assert {"yes", "no", "null", "on"} <= set(g.source_phrases)
+    assert set(g.repeats["again_2"].phrases) == {"keep_going", "no", "null"}
+    assert g.children("yes") == ("keep_going",)
+
+
 def test_author_writes_a_valid_graph_and_prints_its_coverage(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

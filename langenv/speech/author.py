@@ -51,6 +51,8 @@ import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import yaml
+
 from langenv.errors import PhraseGraphError, ScriptError
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.graph import _MAX_PAUSE, DEFAULT_PAUSE, PhraseGraph
@@ -473,12 +475,22 @@ def _num(x: float) -> str:
     return f"{x:g}"
 
 
+def _id(vid: str) -> str:
+    """A vertex id as YAML reads it back: quoted when YAML would read it as something else
+    (``yes``, ``no``, ``on``, ``off``, ``null``, a number)."""
+    return vid if yaml.safe_load(vid) == vid else json.dumps(vid)
+
+
+def _ids(vids: list[str] | tuple[str, ...]) -> str:
+    return ", ".join(_id(v) for v in vids)
+
+
 def graph_yaml(script: Script, source_name: str) -> str:
     """The phrase graph YAML (SPEC §4) of a parsed script, the same bytes for the same script."""
     out = [
         f"# Written by `python -m langenv.speech author {source_name}` from its plain-text script:",
         "# edit the script and run the command again rather than editing this file.",
-        f"start: {script.start}",
+        f"start: {_id(script.start)}",
         f"pause: {_num(script.pause)}   # s of silence after each clip at a = 1",
     ]
     if script.voice != "stretch":
@@ -491,14 +503,14 @@ def graph_yaml(script: Script, source_name: str) -> str:
         out.append("repeats:   # lines the speech may say again while the motion lasts")
         for r in script.repeats:
             out.append(
-                f"  {r.name}: {{phrases: [{', '.join(r.phrases)}], times: {r.times}, "
+                f"  {r.name}: {{phrases: [{_ids(r.phrases)}], times: {r.times}, "
                 f"gap: [{_num(r.gap[0])}, {_num(r.gap[1])}]}}   # line {r.line}"
             )
     out += [
         "phrases:",
     ]
     for v in script.vertices.values():
-        out.append(f"  {v.id}:   # line {v.line}")
+        out.append(f"  {_id(v.id)}:   # line {v.line}")
         if v.kind == "pause":
             assert v.bounds is not None
             out.append(f"    pause: [{_num(v.bounds[0])}, {_num(v.bounds[1])}]")
@@ -506,7 +518,7 @@ def graph_yaml(script: Script, source_name: str) -> str:
             if v.kind == "filler":
                 out.append("    filler: true")
             out.append(f"    text: {json.dumps(v.text, ensure_ascii=False)}")
-        out.append(f"    next: [{', '.join(v.next)}]")
+        out.append(f"    next: [{_ids(v.next)}]")
     return "\n".join(out) + "\n"
 
 
