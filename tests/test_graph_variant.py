@@ -89,3 +89,28 @@ def test_env_speaks_a_variant_from_the_next_reset() -> None:
     assert info["speech_done"] and set(env.speech.path) <= set(v.phrases)
     with pytest.raises(ConfigError, match="choices"):
         env.use_phrase_graph(DEFAULT)
+
+
+def test_long_pauses_and_gaps_scaled_up_stay_within_the_longest_pause() -> None:
+    """A pause or a repeat's gap whose minimum times the drawn scale passes 10 s (the longest
+    pause) had its maximum clipped to 10 s but not its minimum: min > max, and vary_graph
+    raised PhraseGraphError instead of returning a variant."""
+    from langenv.speech.graph import Phrase
+    from langenv.speech.repeat import Repeat
+
+    phrases = [
+        Phrase("a", "Go.", None, ("p",)),
+        Phrase("p", None, None, ("k", "t"), "pause", (8.0, 9.0)),
+        Phrase("k", "Keep going.", None, ("t",)),
+        Phrase("t", "Done.", None, ()),
+    ]
+    g = PhraseGraph(
+        phrases,
+        "a",
+        {"a": 1.0, "k": 1.0, "t": 0.5},
+        repeats=[Repeat("r", ("k",), 3, (8.0, 9.0))],
+        final_wait=True,
+    )
+    v = vary_graph(g, np.random.default_rng(0), GraphVariation(pause_scale=(1.3, 1.5)))
+    assert v.slot_range("p") == (10.0, 10.0)
+    assert v.repeats["r"].gap == (10.0, 10.0)

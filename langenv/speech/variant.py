@@ -111,6 +111,12 @@ def vary_graph(
     return _variant(graph, own, rng, variation, rate, scale, structural=False)
 
 
+def _scaled(bounds: tuple[float, float], scale: float) -> tuple[float, float]:
+    """A pause's (or gap's) bounds times ``scale``, both at most the longest pause."""
+    lo, hi = bounds
+    return min(lo * scale, _MAX_PAUSE), min(hi * scale, _MAX_PAUSE)
+
+
 def _variant(
     graph: PhraseGraph,
     own: PhraseGraph,
@@ -127,9 +133,7 @@ def _variant(
     for u, ph in own.phrases.items():
         if ph.is_pause:
             lo, hi = ph.bounds  # type: ignore[misc]
-            phrases[u] = Phrase(
-                u, None, None, (), "pause", (lo * scale, min(hi * scale, _MAX_PAUSE))
-            )
+            phrases[u] = Phrase(u, None, None, (), "pause", _scaled((lo, hi), scale))
         else:
             phrases[u] = ph
             d = graph.duration[u] / rate
@@ -148,7 +152,7 @@ def _variant(
         if u in live
     }
     repeats = [
-        Repeat(r.name, kept, r.times, (r.gap[0] * scale, min(r.gap[1] * scale, _MAX_PAUSE)))
+        Repeat(r.name, kept, r.times, _scaled(r.gap, scale))
         for r in graph.repeats.values()
         if (kept := tuple(m for m in r.phrases if m in live))
     ]
