@@ -75,6 +75,17 @@ def test_a_plan_says_a_repeat_once_and_the_coverage_counts_every_saying() -> Non
     assert g.t_max("again#gap1") == pytest.approx(2.0 + 1.5 + WAIT_PLAN + 0.8)
 
 
+def test_the_extreme_paths_are_the_plan_s_and_last_t_min_and_t_max() -> None:
+    """``longest_path`` had taken every gap (a gap's ``t_max`` counts one more saying), giving a
+    path of 16.6 s for a ``t_max`` of 6.1 s."""
+    g = encourage(times=4)
+    for u in g.order:
+        if g.is_terminal(u):
+            continue
+        assert g.path_range(g.longest_path(u))[1] == pytest.approx(g.t_max(u))
+        assert g.path_range(g.shortest_path(u))[0] == pytest.approx(g.t_min(u))
+
+
 def test_the_rule_says_another_round_when_the_motion_s_time_to_go_is_nearer_it() -> None:
     g = encourage(times=4)
     assert g.choose("keep", 1.0) == "done#wait"

@@ -730,7 +730,7 @@ class PhraseGraph:
     def _extreme_path(self, u: str, table: dict[str, float], pick: Any) -> tuple[str, ...]:
         self.children(u)  # validates u
         path = [u]
-        while kids := self._children[path[-1]]:
+        while kids := self._path_children(path[-1], True):  # as t_min/t_max: a repeat once
             best = pick(table[v] for v in kids)
             path.append(next(v for v in kids if table[v] == best))
         return tuple(path)
