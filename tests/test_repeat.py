@@ -14,6 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from langenv.errors import PhraseGraphError, ScriptError
+from langenv.kernels.steps import _fill as compiled_fill
 from langenv.kernels.steps import eta as compiled_eta
 from langenv.kernels.steps import pack_graph
 from langenv.speech.audio import ClipLibrary
@@ -401,3 +402,85 @@ def test_members_of_a_repeat_that_lead_to_one_another_are_named(
     with pytest.raises(PhraseGraphError, match=r"g\.yaml: repeat 'cheer'") as info:
         PhraseGraph.load(write(tmp_path, text), clips)
     assert "'b' leads to 'c'" in str(info.value)
+
+
+# ------------------------------------------------ random scripts: the wait and the compiled ETC
+_WORDS = ("Go on", "Keep going", "Nice and slow", "Almost there", "Good job", "Lift it")
+_ENDINGS = ("Done.", "{okay|good} Done.", "Done. | All done.", "[Nearly.]\nDone.")
+
+
+@st.composite
+def script_graphs(draw: st.DrawFn) -> PhraseGraph:
+    """The graph of a random script (steps with alternatives, optional lines, pauses, fillers,
+    repeats, endings with fillers or optional lines before them), clips of random lengths."""
+    lines = ["Start here."]
+    for i in range(draw(st.integers(1, 5))):
+        kind = draw(st.sampled_from(["plain", "optional", "pause", "filler", "repeat"]))
+        alts = [f"{draw(st.sampled_from(_WORDS))} {i}{j}." for j in range(draw(st.integers(1, 3)))]
+        if kind == "optional" or (kind == "repeat" and draw(st.booleans())):
+            alts = [f"[{a}]" for a in alts]
+        line = " | ".join(alts)
+        if kind == "pause":
+            line = f"(pause {draw(st.sampled_from(['0.2-1', '0-2', '0.5']))})"
+        elif kind == "filler":
+            line = "{okay|so} " + line
+        elif kind == "repeat":
+            line += f" (repeat {draw(st.integers(2, 4))}, gap 0.3-1)"
+        lines.append(line)
+    lines.append(draw(st.sampled_from(_ENDINGS)))
+    try:
+        script = parse_script("\n".join(lines) + "\n")
+    except ScriptError:  # two pauses that can follow each other: refused, rightly
+        return draw(repeat_graphs())
+    lengths = st.floats(0.4, 3.0)
+    dur = {
+        v.id: draw(st.floats(0.2, 0.5) if v.kind == "filler" else lengths)
+        for v in script.vertices.values()
+        if v.kind != "pause"
+    }
+    phrases = [
+        Phrase(v.id, v.text, None, tuple(v.next), v.kind, v.bounds)
+        for v in script.vertices.values()
+    ]
+    reps = [Repeat(r.name, r.phrases, r.times, r.gap) for r in script.repeats]
+    return PhraseGraph(phrases, script.start, dur, pause=0.25, repeats=reps, final_wait=True)
+
+
+@settings(max_examples=60, deadline=None)
+@given(script_graphs(), st.floats(3.0, 60.0))
+def test_only_the_silence_before_the_ending_words_outlasts_its_plan(
+    g: PhraseGraph, motion: float
+) -> None:
+    """On any script's graph: the compiled ETC and pause rule equal the graph's bit for bit; an
+    opened pause leads only to words that end the speech; at pace 1 a pause outlasts its
+    planned maximum only when nothing but the ending words (fillers, the last phrase) follows,
+    and never right after a filler. Fails before the wait went before the ending words (a pause
+    before an optional line was opened; a filler was followed by the wait)."""
+    order = tuple(g.phrases)
+    mid, slot, kid_ptr, kids = pack_graph(g, order)
+    for i, u in enumerate(order):
+        for t_x in (0.0, motion / 3, motion):
+            remaining = 0.3 * g.slot(u)
+            assert compiled_eta(i, remaining, t_x, mid, slot, kid_ptr, kids) == g.eta(
+                u, remaining, t_x
+            )
+            if u in g.pauses:
+                assert compiled_fill(i, t_x, mid, slot, kid_ptr, kids) == g.pause_length(u, t_x)
+    for u in g.opened:
+        assert all(g.kind(v) != "pause" for v in g.children(u))
+    if g.t_min(g.start) > motion:
+        return
+    tl = SpeechTimeline(g)
+    t = 0.0
+    while not tl.done and t < motion + 60.0:
+        tl.step(0.01, 1.0, t_x=max(0.0, motion - t))
+        t += 0.01
+    assert tl.done
+    said = list(tl.utterances())
+    for k, utt in enumerate(said):
+        if utt.length is not None and utt.length > g.plan_range(utt.phrase)[1] + 1e-6:
+            after = [w.phrase for w in said[k + 1 :] if w.phrase not in g.pauses]
+            assert all(g.kind(w) == "filler" or g.is_terminal(w) for w in after), (utt, after)
+            # a filler leads into its phrase: never followed by the long silence (the fillers
+            # of these scripts lead into one step's words)
+            assert k == 0 or g.kind(said[k - 1].phrase) != "filler", (said[k - 1], utt)
