@@ -503,8 +503,8 @@ class PhraseGraph:
 
     def plan_range(self, u: str) -> tuple[float, float]:
         """The slot range ``t_min``/``t_max`` and the choice rule count with (s at a = 1): the
-        pause's bounds as written (0 for a wait before the last phrase), else ``slot(u)``
-        twice."""
+        pause's bounds as written (0 to ``WAIT_PLAN`` for a wait before the last phrase), else
+        ``slot(u)`` twice."""
         try:
             return self._plan[u]
         except KeyError:
