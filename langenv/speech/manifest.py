@@ -121,7 +121,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"error: {exc}", file=sys.stderr)
             return 1
     if args.write:
-        MANIFEST_PATH.write_text(json.dumps(made, indent=1, ensure_ascii=False) + "\n")
+        MANIFEST_PATH.write_text(
+            json.dumps(made, indent=1, ensure_ascii=False) + "\n", encoding="utf-8"
+        )
         print(f"wrote {MANIFEST_PATH} ({len(made['clips'])} clips)")
         return 0
     problems = compare(made, load())
