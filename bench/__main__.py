@@ -253,11 +253,11 @@ def measure_robot(sessions: int = 3) -> dict[str, float]:
     """The UR bridge's loop compute time per period, against the fake ur-rtde."""
     from langenv.live.registry import load_registered_policy
     from langenv.live.robot_loop import RobotLoop
+    from langenv.live.ur_exercise import exercise_trajectory
+    from langenv.live.ur_preflight import move_to_start
     from langenv.robot.ur import fake_rtde
     from langenv.robot.ur.bridge import URRobot
     from langenv.robot.ur.config import URConfig
-    from langenv.robot.ur.exercise import exercise_trajectory
-    from langenv.robot.ur.preflight import move_to_start
 
     cfg = URConfig(host="127.0.0.1")  # the fake's loopback host: nothing goes on the network
     times: list[float] = []

@@ -14,12 +14,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from langenv.errors import PhraseGraphError, ScriptError
-from langenv.kernels.steps import eta as compiled_eta
-from langenv.kernels.steps import pack_graph
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.author import parse_script
 from langenv.speech.coverage import speech_lengths
 from langenv.speech.graph import Phrase, PhraseGraph
+from langenv.speech.graph_kernels import eta as compiled_eta
 from langenv.speech.repeat import MAX_REPEAT, SEP, WAIT_PLAN, Repeat, is_gap
 from langenv.speech.timeline import SpeechTimeline
 
@@ -173,7 +172,7 @@ def test_compiled_eta_equals_the_graph_s_bit_for_bit(
     g: PhraseGraph, frac: float, t_x: float
 ) -> None:
     order = tuple(g.phrases)
-    mid, slot, kid_ptr, kids = pack_graph(g, order)
+    mid, slot, kid_ptr, kids = g.packed(order)
     for i, u in enumerate(order):
         remaining = frac * g.slot(u)
         assert compiled_eta(i, remaining, t_x, mid, slot, kid_ptr, kids) == g.eta(u, remaining, t_x)

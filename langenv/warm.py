@@ -8,7 +8,7 @@ cache can be left corrupted (numba issue 10128, for gufuncs). :func:`warm_up` ca
 family the env, the pace laws and the vocoder use, so that the processes started after it load
 compiled code (inherited when forked, from the disk cache otherwise) instead of compiling it.
 
-``python -m langenv.kernels.warm`` does the same in a process of its own (the test suite's
+``python -m langenv.warm`` does the same in a process of its own (the test suite's
 controller runs it before its workers start).
 """
 
