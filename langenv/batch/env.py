@@ -160,7 +160,9 @@ class LangCtrlVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         cores = _cpu_cores()
         self.threads = max(1, min(int(threads) if threads else cores, cores))
         self._pool = (
-            ThreadPoolExecutor(self.threads) if parallel == "pool" and self.threads > 1 else None
+            ThreadPoolExecutor(self.threads - 1)
+            if parallel == "pool" and self.threads > 1
+            else None
         )
         self._ticks = first.ticks_per_step
         self._sessions = np.zeros((n, bk.SESSION.size), np.int64)
@@ -330,8 +332,14 @@ class LangCtrlVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
             bk.run_parallel(sessions, ctl)
         elif self._pool is not None:
             active = np.flatnonzero(ctl[:, _C.active] != 0.0)
+            if active.size < 2:  # nothing to share
+                bk.run_serial(sessions, ctl, active)
+                return
             parts = [active[j :: self.threads] for j in range(self.threads)]
-            futures = [self._pool.submit(bk.run_serial, sessions, ctl, p) for p in parts if p.size]
+            futures = [
+                self._pool.submit(bk.run_serial, sessions, ctl, p) for p in parts[1:] if p.size
+            ]
+            bk.run_serial(sessions, ctl, parts[0])  # a share in this thread: one hand-off less
             for f in futures:
                 f.result()
         else:

@@ -98,23 +98,27 @@ def _cache_dirs(directory: Path) -> list[Path]:
     return dirs
 
 
-def clear_stale_cache(root: Path, sources: Sequence[str], compiled: Sequence[str]) -> bool:
+def clear_stale_cache(
+    root: Path, sources: Sequence[str], compiled: Sequence[str], stamp: str = "kernels"
+) -> bool:
     """Delete numba's cache files of the modules ``compiled`` (paths relative to ``root``) unless
-    the files ``sources`` are those they were compiled from (a digest kept in ``root/kernels``'s
-    cache); returns whether any was deleted.
+    the files ``sources`` (relative to ``root``, or absolute) are those they were compiled from
+    (a digest kept in the cache of ``root/stamp``); returns whether any was deleted. Other
+    packages whose kernels read langenv's declarations call it too
+    (:mod:`policies.residual_kernels`).
 
     Fails quietly where the cache cannot be written (a read-only install: its sources do not
     change, and numba then caches elsewhere, per file).
     """
-    stamp_dir = root / "kernels" / "__pycache__"
-    stamp = stamp_dir / _STAMP
+    stamp_dir = root / stamp / "__pycache__"
+    stamp_file = stamp_dir / _STAMP
     try:
         digest = hashlib.sha256()
         for name in sorted(sources):
             path = root / name
             data = path.read_bytes() if path.is_file() else b"(none)"
             digest.update(name.encode() + b"\0" + data)
-        if stamp.is_file() and stamp.read_text() == digest.hexdigest():
+        if stamp_file.is_file() and stamp_file.read_text() == digest.hexdigest():
             return False
         stale: list[Path] = []
         for name in compiled:
@@ -127,7 +131,7 @@ def clear_stale_cache(root: Path, sources: Sequence[str], compiled: Sequence[str
         fd, tmp = tempfile.mkstemp(prefix=f".{_STAMP}.", dir=stamp_dir)
         with os.fdopen(fd, "w") as fh:
             fh.write(digest.hexdigest())
-        os.replace(tmp, stamp)
+        os.replace(tmp, stamp_file)
         return bool(stale)
     except OSError:
         return False
