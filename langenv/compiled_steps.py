@@ -16,8 +16,9 @@ TABULATED_USERS = (SyntheticUser, PerturbedUser, ReplayUser)
 """The users whose force the compiled ticks compute (a table against the motion)."""
 
 _E = ek.ENV_STEPS.at
-_TIMES = ek.ENV_STEPS.span("p", "max_speed")  # p, a, p_dot, time, t_a, em_int, pace_int, max_speed
-_TIMELINE = ek.ENV_STEPS.span("speech_pos", "in_pause")
+_LOADED = ek.ENV_STEPS.span("p", "pause_factor")
+"""The state loaded from the env's Python objects in one slice: the paces, the env's times, the
+timeline's state, the cooperation count, the user's table step, the pause factor."""
 
 
 class CompiledSteps:
@@ -42,6 +43,8 @@ class CompiledSteps:
         self.order: tuple[str, ...] = tuple(graph.phrases)
         self.index = {u: i for i, u in enumerate(self.order)}
         self.mid, self.slot, self.kid_ptr, self.kids = graph.packed(self.order)
+        self._graph = (self.mid, self.slot, self.kid_ptr, self.kids)
+        self._head: tuple[np.ndarray, ...] | None = None
         self.es = es if es is not None else ek.ENV_STEPS.zeros()
         ek.ENV_STEPS.pack(self.es, {**env.paces.limits.settings(), "dt": env.dt})
 
@@ -83,39 +86,39 @@ class CompiledSteps:
     def arrays(self) -> tuple[np.ndarray, ...]:
         """The arrays :func:`~langenv.env_kernels.run` takes first (``ws`` ... ``kids``), in
         order; ``es`` as it is (see :meth:`load`)."""
-        env = self.env
-        table, _ = env.user.force_table()
-        return (
-            *env.motion.compiled_tick.arrays(), self.es, env.coop_history, table, self.mid,
-            self.slot, self.kid_ptr, self.kids,
-        )  # fmt: skip
+        return self._arrays(self.env.user.force_table()[0])
+
+    def _arrays(self, table: np.ndarray) -> tuple[np.ndarray, ...]:
+        head = self._head
+        if head is None:  # the tick's arrays and es: fixed for the env's life
+            head = self._head = (*self.env.motion.compiled_tick.arrays(), self.es)
+        return (*head, self.env.coop_history, table, *self._graph)
 
     def load(self, em_int: float, pace_int: float) -> tuple[np.ndarray, ...]:
         """The env's state into ``es`` (before compiled ticks); returns :meth:`arrays`."""
-        env, es = self.env, self.es
+        env = self.env
         paces, speech = env.paces, env.speech
-        _, step = env.user.force_table()
+        table, step = env.user.force_table()
         u = speech.phrase
-        es[_TIMES] = (
-            paces.p, paces.a, paces.p_dot, env.time, env.t_a, em_int, pace_int, env.max_speed,
-        )  # fmt: skip
         pos, t, a, mark, slot, in_pause = speech.state_values()
-        es[_TIMELINE] = (pos, t, a, mark, -1.0 if u is None else self.index[u], slot, in_pause)
-        es[_E.coop_i] = env.coop_index
-        es[_E.user_step] = step
-        es[_E.pause_factor] = env.pause_factor
-        return self.arrays()
+        self.es[_LOADED] = (
+            paces.p, paces.a, paces.p_dot, env.time, env.t_a, em_int, pace_int, env.max_speed,
+            pos, t, a, mark, -1.0 if u is None else self.index[u], slot, in_pause,
+            env.coop_index, step, env.pause_factor,
+        )  # fmt: skip
+        return self._arrays(table)
 
     def store(self) -> tuple[float, float]:
         """``es`` back into the env's state (after compiled ticks); returns the reward
         integrals."""
         env, es = self.env, self.es
         paces, motion = env.paces, env.motion
-        p, a, p_dot, time, t_a, em_int, pace_int, max_speed = es[_TIMES].tolist()
-        paces.p, paces.a, paces.p_dot = p, a, p_dot
-        pos, t, sa, mark, _, slot, _ = es[_TIMELINE].tolist()
+        (
+            paces.p, paces.a, paces.p_dot, time, t_a, em_int, pace_int, max_speed,
+            pos, t, sa, mark, _, slot, _, coop_i, _, _,
+        ) = es[_LOADED].tolist()  # fmt: skip
         env.speech.take_state(pos, t, sa, mark, slot)
-        env.take_times(time, t_a, max_speed, int(es[_E.coop_i]))
+        env.take_times(time, t_a, max_speed, int(coop_i))
         motion.f_user = es[_E.f_user : _E.f_user + 3].copy()
         motion.compiled_tick.sync()
         return em_int, pace_int

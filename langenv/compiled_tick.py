@@ -67,14 +67,15 @@ class CompiledTick:
         self.full_dofs: bool = arm.full_dofs
         self.ptr = mjc.pointers(arm.model, arm.data, views["jacp"], views["jacr"], arm.site_id)
         self._hv: np.ndarray | None = None
+        self._arrays: tuple[np.ndarray, ...] = (
+            self.ws, self.path, self.aw, self.ai, self.jac, self.xpos, self.xmat, self.qpos,
+            self.qvel, self.ctrl, self.qfrc, self.prm, self.tab, self.ptr,
+        )  # fmt: skip
 
     def arrays(self) -> tuple[np.ndarray, ...]:
         """The arrays :func:`~langenv.motion_kernels.tick` takes first, in its order (``ws`` ...
         ``ptr``)."""
-        return (
-            self.ws, self.path, self.aw, self.ai, self.jac, self.xpos, self.xmat, self.qpos,
-            self.qvel, self.ctrl, self.qfrc, self.prm, self.tab, self.ptr,
-        )  # fmt: skip
+        return self._arrays
 
     # ------------------------------------------------------------------ state
     def load(self) -> None:

@@ -58,9 +58,9 @@ ENV_TIMES = (
 )
 ENV_STATE = (
     Field("coop_i", kind="int", doc="cooperation samples taken (the history's write index)"),
-    Field("f_user", 3, doc="the person's force in the last tick (N)"),
     Field("user_step", doc="the user's force table's step (s)"),
     Field("pause_factor", doc="the pause rule's target over t_x (the target action's factor)"),
+    Field("f_user", 3, doc="the person's force in the last tick (N)"),
 )
 """The env's own state in its compiled ticks (with :data:`ENV_TIMES`)."""
 ENV_SETTINGS = (Field("dt", doc="the tick (s)"),)

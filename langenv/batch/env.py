@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 from collections.abc import Sequence
@@ -499,7 +500,13 @@ def _max_children(kwargs: dict[str, Any]) -> int:
             graph = resolve_exercise(None).graph
         else:
             graph = resolve_exercise(kwargs.get("exercise")).graph
-    return max(1, PhraseGraph.load(graph_path(graph)).max_children)
+    return _graph_children(str(graph_path(graph)))
+
+
+@functools.lru_cache(maxsize=64)
+def _graph_children(path: str) -> int:
+    """A graph file's largest out-degree (files read once per process: sessions share them)."""
+    return max(1, PhraseGraph.load(path).max_children)
 
 
 def _checked_actions(actions: Any, shape: tuple[int, ...]) -> np.ndarray:
@@ -556,57 +563,38 @@ def _empty(key: str, value: Any, n: int) -> np.ndarray:
     return np.full(n, math.nan)
 
 
+_FLOAT_KEYS = (
+    "time", "t_x", "t_a", "em", "p", "a", "cooperation", "hand_speed", "progress",
+    "path_deviation", "max_hand_speed", "reward_em", "reward_pace",
+)  # fmt: skip
+
+
 def _add_rows(
     infos: dict[str, Any], rows: np.ndarray, which: np.ndarray, names: list[tuple[str, ...]], n: int
 ) -> None:
-    """The compiled info rows of the sessions ``which`` into the batch's arrays."""
+    """The compiled info rows into the batch's arrays, for every session (those that stepped in
+    Python or were reset then replace theirs): one column each."""
     cols = _INFO_COL
-    for key in (
-        "time",
-        "t_x",
-        "t_a",
-        "em",
-        "p",
-        "a",
-        "cooperation",
-        "hand_speed",
-        "progress",
-        "t_motion",
-        "t_speech",
-        "path_deviation",
-    ):
-        arr = infos.setdefault(key, np.full(n, math.nan))
-        mask = infos.setdefault(f"_{key}", np.zeros(n, bool))
-        values = rows[which, cols[key]]
-        arr[which] = values
-        mask[which] = ~np.isnan(values) if key in ("t_motion", "t_speech") else True
+    every = np.ones(n, bool)
+    for key in _FLOAT_KEYS:
+        infos[key], infos[f"_{key}"] = rows[:, cols[key]].copy(), every.copy()
+    for key in ("t_motion", "t_speech"):
+        values = rows[:, cols[key]].copy()
+        infos[key], infos[f"_{key}"] = values, ~np.isnan(values)
     for key in _FLAGS:
-        arr = infos.setdefault(key, np.zeros(n, bool))
-        infos.setdefault(f"_{key}", np.zeros(n, bool))[which] = True
-        arr[which] = rows[which, cols[key]] != 0.0
-    am = infos.setdefault("am", np.full(n, math.nan))
-    infos.setdefault("_am", np.zeros(n, bool))[which] = False
-    am[which] = math.nan
-    speed = infos.setdefault("max_hand_speed", np.full(n, math.nan))
-    speed[which] = rows[which, cols["max_hand_speed"]]
-    infos.setdefault("_max_hand_speed", np.zeros(n, bool))[which] = True
-    for key in ("reward_em", "reward_pace"):
-        arr = infos.setdefault(key, np.full(n, math.nan))
-        arr[which] = rows[which, cols[key]]
-        infos.setdefault(f"_{key}", np.zeros(n, bool))[which] = True
-    ram = infos.setdefault("reward_am", np.full(n, math.nan))
-    ram[which] = 0.0
-    infos.setdefault("_reward_am", np.zeros(n, bool))[which] = True
-    phrase = infos.setdefault("phrase", np.full(n, None, dtype=object))
-    stop = infos.setdefault("safety_stop", np.full(n, None, dtype=object))
-    message = infos.setdefault("safety_message", np.full(n, None, dtype=object))
+        infos[key], infos[f"_{key}"] = rows[:, cols[key]] != 0.0, every.copy()
+    infos["am"], infos["_am"] = np.full(n, math.nan), np.zeros(n, bool)
+    infos["reward_am"], infos["_reward_am"] = np.zeros(n), every.copy()
+    phrase = np.full(n, None, dtype=object)
+    index = rows[:, cols["phrase"]].astype(np.int64).tolist()
     for i in which.tolist():
-        u = int(rows[i, cols["phrase"]])
+        u = index[i]
         phrase[i] = names[i][u] if u >= 0 else None
-        stop[i] = None
-        message[i] = ""
-    for key in ("phrase", "safety_stop", "safety_message"):
-        infos.setdefault(f"_{key}", np.zeros(n, bool))[which] = True
+    infos["phrase"], infos["_phrase"] = phrase, every.copy()
+    infos["safety_stop"], infos["_safety_stop"] = np.full(n, None, dtype=object), every.copy()
+    message = np.empty(n, dtype=object)
+    message[:] = ""
+    infos["safety_message"], infos["_safety_message"] = message, every.copy()
 
 
 def _session_info(infos: dict[str, Any], i: int) -> dict[str, Any]:
