@@ -17,7 +17,7 @@ Figures (all measured here, on this machine, in this process):
 | ``env_steps_per_s`` | ``1e6 / env_step_us``: env steps per second on one core |
 | ``env_step_ratio`` | ``env_step_us / (20 mj_step_us)``, with ``mj_step_us`` measured again in rounds alternating with the episodes (target <= 1.5) |
 | ``single_steps_per_s``, ``batched_steps_per_s``, ``batched_ratio`` | the single env and the batched env (``langenv.batch``: 32 sessions, every core) measured alternating in one run (``bench/batched.py``): steps per second (all sessions together) and the median of the rounds' ratios; with ``batched_sessions``, ``batched_threads`` and ``load_1min`` (the machine's load average: other programs share the cores) |
-| ``train_steps_per_s`` | PPO with the shipped recipe (``configs/ppo.yaml``: 32 envs stepped as one batched env, ``--vec-env auto``, the residual LC wrappers on the batch) for 8192 steps: env steps per second of ``model.learn`` (rollouts and updates; building the envs not counted) |
+| ``train_steps_per_s`` | PPO with the shipped recipe (``configs/ppo.yaml``: 32 envs stepped as one batched env, ``--vec-env auto``, the residual LC wrappers on the batch) for 16384 steps: env steps per second of ``model.learn`` (rollouts and updates; building the envs not counted) |
 | ``audio_rtf`` | seconds of speech rendered by the variable-rate phase vocoder per second of wall time |
 | ``robot_compute_median_ms``, ``robot_compute_p999_ms``, ``robot_compute_max_ms`` | the UR bridge's loop against the fake ur-rtde (virtual clock, no audio): compute time per 2 ms period, wall clock (read, control, speech, LC policy, log, ``speedL``) over 3 whole sessions (targets: median < 0.5 ms, p99.9 < 1.5 ms); preemption by other processes included |
 | ``robot_cpu_median_ms``, ``robot_cpu_p999_ms`` | the same periods in the thread's CPU time: what the loop's code costs |
@@ -190,7 +190,7 @@ def measure_batched() -> dict[str, float]:
     return batched()
 
 
-def measure_train(total: int = 8192) -> dict[str, float]:
+def measure_train(total: int = 16384) -> dict[str, float]:
     """PPO with the shipped config for ``total`` steps: env steps per second of learning."""
     import contextlib
     import io

@@ -1438,7 +1438,7 @@ def _learn(
         )
         raise
     wall = time.perf_counter() - t0
-    config["wall_time_s"] = round(wall, 1)
+    config["wall_time_s"] = round(wall, 3)
     _save_triple(model, None, final, config)
     print(f"wrote {final}.zip ({model.num_timesteps} steps, {wall:.0f} s)", file=sys.stderr)
     return final.with_suffix(".zip")

@@ -31,6 +31,10 @@ PARALLEL_MODES = ("pool", "prange", "serial")
 
 _PER_SESSION = ("exercise", "phrase_graph", "users", "session")
 _C = bk.CONTROL.at
+CHUNK = 2
+"""Sessions per share of a round in the thread pool: the threads take the next share as they
+come free, so a thread the OS pauses (other programs on the cores) leaves its work to the
+others instead of holding the round up."""
 _INFO_COL = {name: j for j, name in enumerate(bk.INFO)}
 _FLAGS = ("in_pause", "motion_done", "speech_done")
 
@@ -333,14 +337,18 @@ class LangCtrlVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
             bk.run_parallel(sessions, ctl)
         elif self._pool is not None:
             active = np.flatnonzero(ctl[:, _C.active] != 0.0)
-            if active.size < 2:  # nothing to share
+            if active.size <= CHUNK:  # nothing to share
                 bk.run_serial(sessions, ctl, active)
                 return
-            parts = [active[j :: self.threads] for j in range(self.threads)]
-            futures = [
-                self._pool.submit(bk.run_serial, sessions, ctl, p) for p in parts[1:] if p.size
-            ]
-            bk.run_serial(sessions, ctl, parts[0])  # a share in this thread: one hand-off less
+            chunks = [active[k : k + CHUNK] for k in range(0, active.size, CHUNK)]
+            taken = iter(range(len(chunks)))  # next() under the GIL: each chunk taken once
+
+            def drain() -> None:
+                for k in taken:
+                    bk.run_serial(sessions, ctl, chunks[k])  # without the GIL
+
+            futures = [self._pool.submit(drain) for _ in range(self.threads - 1)]
+            drain()  # this thread takes chunks too: whichever thread is running takes the next
             for f in futures:
                 f.result()
         else:
