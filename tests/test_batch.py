@@ -177,3 +177,26 @@ def test_every_parallel_mode_gives_the_same_steps(parallel: str) -> None:
             assert np.array_equal(x, y)
     ref.close()
     venv.close()
+
+
+def test_a_protective_stop_and_the_end_in_the_batch() -> None:
+    """A person strong enough to trip the force limit in one session, ordinary ones in the
+    others: the stop (Python's part of a compiled tick) and the other sessions as alone."""
+    from langenv.users import SyntheticUser
+    from langenv.users.synthetic import LogNormal, SyntheticUserParams
+
+    params = SyntheticUserParams.calibrated(
+        count_pmf=(0.0, 1.0), p_start_resisting=1.0, max_excess=400.0,
+        magnitude=LogNormal(300.0, 0.01), rise=LogNormal(0.5, 0.01),
+    )  # fmt: skip
+    kwargs = [{"users": SyntheticUser(params)}, {}, {}]
+    venv = LangCtrlVectorEnv(3, autoreset_mode="SameStep", session_kwargs=kwargs)
+    singles = [
+        gym.make(langenv.ENV_ID, users=SyntheticUser(params)),
+        gym.make(langenv.ENV_ID),
+        gym.make(langenv.ENV_ID),
+    ]
+    _compare(venv, singles, 21, 1500)
+    stop = singles[0].unwrapped.motion.safety_stop  # type: ignore[attr-defined]
+    assert stop is not None and stop.limit == "force"
+    venv.close()
