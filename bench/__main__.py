@@ -16,7 +16,8 @@ Figures (all measured here, on this machine, in this process):
 | ``env_step_us`` | one ``LangCtrl-v0`` step at 25 Hz (20 ticks: user, pacing, speech, the tick) with a fixed action, default env, over whole episodes with their reset (µs) |
 | ``env_steps_per_s`` | ``1e6 / env_step_us``: env steps per second on one core |
 | ``env_step_ratio`` | ``env_step_us / (20 mj_step_us)``, with ``mj_step_us`` measured again in rounds alternating with the episodes (target <= 1.5) |
-| ``train_steps_per_s`` | PPO with the shipped config (``configs/ppo.yaml``: 2 envs, in subprocesses where the machine has more cores than envs (``--vec-env auto``), the residual LC wrappers) for 4096 steps: env steps per second of ``model.learn`` (rollouts and updates; building the envs not counted) |
+| ``single_steps_per_s``, ``batched_steps_per_s``, ``batched_ratio`` | the single env and the batched env (``langenv.batch``: 32 sessions, every core) measured alternating in one run (``bench/batched.py``): steps per second (all sessions together) and the median of the rounds' ratios; with ``batched_sessions``, ``batched_threads`` and ``load_1min`` (the machine's load average: other programs share the cores) |
+| ``train_steps_per_s`` | PPO with the shipped recipe (``configs/ppo.yaml``: 32 envs stepped as one batched env, ``--vec-env auto``, the residual LC wrappers on the batch) for 16384 steps: env steps per second of ``model.learn`` (rollouts and updates; building the envs not counted) |
 | ``audio_rtf`` | seconds of speech rendered by the variable-rate phase vocoder per second of wall time |
 | ``robot_compute_median_ms``, ``robot_compute_p999_ms``, ``robot_compute_max_ms`` | the UR bridge's loop against the fake ur-rtde (virtual clock, no audio): compute time per 2 ms period, wall clock (read, control, speech, LC policy, log, ``speedL``) over 3 whole sessions (targets: median < 0.5 ms, p99.9 < 1.5 ms); preemption by other processes included |
 | ``robot_cpu_median_ms``, ``robot_cpu_p999_ms`` | the same periods in the thread's CPU time: what the loop's code costs |
@@ -182,7 +183,14 @@ def measure_env(rounds: int = 9, n_bare: int = 4000) -> dict[str, float]:
     }
 
 
-def measure_train(total: int = 4096) -> dict[str, float]:
+def measure_batched() -> dict[str, float]:
+    """The batched env's steps per second against the single env's, alternating."""
+    from bench.batched import measure_batched as batched
+
+    return batched()
+
+
+def measure_train(total: int = 16384) -> dict[str, float]:
     """PPO with the shipped config for ``total`` steps: env steps per second of learning."""
     import contextlib
     import io
@@ -253,11 +261,11 @@ def measure_robot(sessions: int = 3) -> dict[str, float]:
     """The UR bridge's loop compute time per period, against the fake ur-rtde."""
     from langenv.live.registry import load_registered_policy
     from langenv.live.robot_loop import RobotLoop
+    from langenv.live.ur_exercise import exercise_trajectory
+    from langenv.live.ur_preflight import move_to_start
     from langenv.robot.ur import fake_rtde
     from langenv.robot.ur.bridge import URRobot
     from langenv.robot.ur.config import URConfig
-    from langenv.robot.ur.exercise import exercise_trajectory
-    from langenv.robot.ur.preflight import move_to_start
 
     cfg = URConfig(host="127.0.0.1")  # the fake's loopback host: nothing goes on the network
     times: list[float] = []
@@ -288,6 +296,7 @@ SECTIONS: dict[str, Callable[[], dict[str, float]]] = {
     "nominal": measure_nominal,
     "etc": measure_etc,
     "env": measure_env,
+    "batched": measure_batched,
     "train": measure_train,
     "audio": measure_audio,
     "compare": measure_compare,

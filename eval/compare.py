@@ -760,7 +760,7 @@ def run_jobs(jobs: list[Job], workers: int) -> list[dict[str, Any]]:
             context = multiprocessing.get_context()
             if context.get_start_method() == "fork":
                 _preload()
-            from langenv.kernels.warm import warm_up
+            from langenv.warm import warm_up
 
             warm_up()  # compiled once here: the workers inherit it or load it, never compile it
             with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:

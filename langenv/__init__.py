@@ -31,5 +31,6 @@ if ENV_ID not in registry:
     register(
         id=ENV_ID,
         entry_point="langenv.env:make_env",
+        vector_entry_point="langenv.batch:make_vector_env",
         max_episode_steps=1500,  # 60 s at the default decision_hz=25
     )

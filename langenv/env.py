@@ -13,16 +13,17 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from langenv import env_kernels as ek
+from langenv import reward
+from langenv.compiled_steps import CompiledSteps
 from langenv.control.admittance import AdmittanceParams
 from langenv.control.cooperation import CooperationFilter
 from langenv.control.trajectory import Trajectory
 from langenv.errors import ActionError, ConfigError
 from langenv.exercise import Exercise, resolve_exercise
-from langenv.kernels import pacer, steps
-from langenv.kernels.steps import CompiledSteps
 from langenv.motion import GuidedArm
 from langenv.observation import T_SCALE, TREND_WINDOW, ObservationEncoder, observation_size
-from langenv.pacing import COMMAND_MIN, PaceActuator, PaceLaw, PaceLimits, command_from_action
+from langenv.pacing import PaceActuator, PaceLaw, PaceLimits, command_from_action
 from langenv.robot.arm import Arm
 from langenv.robot.force_sensor import ForceSensor
 from langenv.robot.io import RobotIO
@@ -377,23 +378,35 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         lim = self.paces.limits
         p_cmd = command_from_action(values[0], lim.p_max)
         a_cmd = command_from_action(values[1], lim.a_max)
-        self._choice_u = values[2:]
+        self.take_choice(values[2:])
+        self._max_speed = 0.0
+        em_int, pace_int = self.run_ticks(p_cmd, a_cmd, self.ticks_per_step, 0.0, 0.0)
+        return self._step_result(em_int, pace_int)
+
+    def take_choice(self, values: list[float]) -> None:
+        """The step's next-phrase values (the action's ``[2:]``, already checked): for a
+        boundary (:meth:`_choose`) and the pause rule's target."""
+        self._choice_u = values
         self._pause_factor = (
-            2.0 ** (CHOICE_OCTAVES * float(values[2])) if self.choice_mode == "target" else 1.0
+            2.0 ** (CHOICE_OCTAVES * float(values[0])) if self.choice_mode == "target" else 1.0
         )
 
-        em_int = pace_int = 0.0
-        self._max_speed = 0.0
-        left = self.ticks_per_step
+    def run_ticks(
+        self, p_cmd: float, a_cmd: float, left: int, em_int: float, pace_int: float
+    ) -> tuple[float, float]:
+        """The step's ``left`` remaining ticks (compiled where they may be, in Python where
+        not), stopping early at the episode's end; returns the reward integrals with theirs
+        added. What :meth:`step` runs, and a batch (:mod:`langenv.batch`) for a session that
+        needs Python."""
         while left > 0 and not self._terminated:
             if self._steps is not None and self._steps.usable():  # the compiled ticks
                 done, answer, code, em_int, pace_int = self._steps.run(
                     p_cmd, a_cmd, left, em_int, pace_int
                 )
                 left -= done
-                if answer == steps.R_DONE:
+                if answer == ek.R_DONE:
                     continue
-                if answer != steps.R_PYTHON:
+                if answer != ek.R_PYTHON:
                     em, pace = self._after_compiled(answer, code)
                     em_int += em * self.dt
                     pace_int += pace * self.dt
@@ -403,8 +416,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             pace_int += pace * self.dt
             self._max_speed = max(self._max_speed, self.motion.hand_speed)
             left -= 1
-
-        return self._step_result(em_int, pace_int)
+        return em_int, pace_int
 
     def run_law(self, law: PaceLaw, max_steps: int) -> LawSteps:
         """Take up to ``max_steps`` steps whose actions are ``law``'s, in compiled code.
@@ -443,23 +455,95 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         arm = self.motion.arm
         n_q = arm.data.qpos.shape[0] if isinstance(arm, Arm) else 0
         n = min(int(max_steps), LAW_CHUNK) if self.runs_compiled else 0
-        rows = np.zeros((n, len(pacer.ROW_FIELDS) + n_q + 3))
+        rows = np.zeros((n, len(ek.ROW_FIELDS) + n_q + 3))
         rewards = np.zeros(n)
         phrase, in_pause = self.speech.phrase, self.speech.in_pause
         done, last = 0, None
         if n and self._steps is not None:
             self._choice_u = [0.0] * len(self._choice_u)  # the law's phrase rule
             self._pause_factor = 1.0
-            done, answer, code, em_int, pace_int = pacer.run(
-                self._steps, self._law_array(law), rows, rewards
+            done, answer, code, em_int, pace_int = self._steps.run_law(
+                self._law_array(law), rows, rewards
             )
-            if answer not in (steps.R_DONE, steps.R_PYTHON):  # a tick ended as only Python can
+            if answer not in (ek.R_DONE, ek.R_PYTHON):  # a tick ended as only Python can
                 em, pace = self._after_compiled(answer, code)
                 last = self._step_result(em_int + em * self.dt, pace_int + pace * self.dt)
-        k = len(pacer.ROW_FIELDS)
-        info = {name: rows[:done, j] for j, name in enumerate(pacer.ROW_FIELDS)}
+        k = len(ek.ROW_FIELDS)
+        info = {name: rows[:done, j] for j, name in enumerate(ek.ROW_FIELDS)}
         info["qpos"], info["f_user"] = rows[:done, k : k + n_q], rows[:done, k + n_q :]
         return LawSteps(done, info, rewards[:done], phrase, in_pause, last)
+
+    # ------------------------------------------------------------------ a batch's hooks
+    @property
+    def compiled_steps(self) -> CompiledSteps | None:
+        """The env's compiled ticks (:class:`~langenv.compiled_steps.CompiledSteps`), or None
+        where the arm's tick is not compiled."""
+        return self._steps
+
+    @property
+    def terminated(self) -> bool:
+        """Whether the episode has ended (both over, or a protective stop)."""
+        return self._terminated
+
+    @property
+    def t_speech(self) -> float | None:
+        """When the speech ended (s), None while it goes on (``info["t_speech"]``)."""
+        return self.t_speech_end
+
+    def finish_event(
+        self, answer: int, code: int, p_cmd: float, a_cmd: float
+    ) -> tuple[float, float, int]:
+        """Python's part where compiled ticks stopped with ``answer`` (and ``code``,
+        :func:`langenv.env_kernels.run`'s): a whole tick in Python before
+        :data:`~langenv.env_kernels.R_PYTHON`, the rest of the last tick otherwise. Returns its
+        reward integrands and the ticks it took (1 or 0). The env's state must be in its Python
+        objects (:meth:`CompiledSteps.store <langenv.compiled_steps.CompiledSteps.store>`)."""
+        if answer == ek.R_PYTHON:
+            em, pace = self._tick(p_cmd, a_cmd)
+            self._max_speed = max(self._max_speed, self.motion.hand_speed)
+            return em, pace, 1
+        em, pace = self._after_compiled(answer, code)
+        return em, pace, 0
+
+    def observation_tails(self, order: tuple[str, ...]) -> np.ndarray:
+        """The observation's child blocks of each vertex of ``order`` and of the speech's end,
+        as :meth:`ObservationEncoder.tail_table
+        <langenv.observation.ObservationEncoder.tail_table>` gives them for this env's graph."""
+        graph = self.speech.graph
+        return self._encoder.tail_table(order, {u: graph.children(u) for u in order})
+
+    def step_result(
+        self, em_int: float, pace_int: float
+    ) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """The step's return value from its reward integrals (what :meth:`step` returns)."""
+        return self._step_result(em_int, pace_int)
+
+    # ------------------------------------------------------------------ the compiled steps' state
+    @property
+    def coop_history(self) -> np.ndarray:
+        """The cooperation samples of the last :data:`~langenv.observation.TREND_WINDOW`
+        (a ring, written at :attr:`coop_index` modulo its size; the compiled ticks write it)."""
+        return self._coop_hist
+
+    @property
+    def coop_index(self) -> int:
+        """Cooperation samples taken since the reset."""
+        return self._coop_i
+
+    @property
+    def max_speed(self) -> float:
+        """The highest hand speed of the step so far (m/s; ``info["max_hand_speed"]``)."""
+        return self._max_speed
+
+    @property
+    def pause_factor(self) -> float:
+        """The pause rule's target over ``t_x`` for this step (the target action's factor)."""
+        return self._pause_factor
+
+    def take_times(self, time: float, t_a: float, max_speed: float, coop_index: int) -> None:
+        """Take the env's time, ``t_a``, the step's highest hand speed and the cooperation
+        samples' count back after compiled ticks (:class:`~langenv.compiled_steps.CompiledSteps`)."""
+        self.time, self.t_a, self._max_speed, self._coop_i = time, t_a, max_speed, coop_index
 
     @property
     def runs_compiled(self) -> bool:
@@ -478,28 +562,22 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     ) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """The step's return value: its reward terms from the integrals, the info, the
         observation."""
-        r_em = -self.w_em * em_int / T_SCALE
-        r_pace = -self.w_pace * pace_int
+        r_em, r_pace = reward.step_terms(em_int, pace_int, self.w_em, self.w_pace)
         r_am = 0.0
         if self._terminated and not self._am_paid:
             if not self.motion.stopped:
-                r_am = -self.w_am * abs(self.am)
+                r_am = reward.am_term(self.am, self.w_am)
             self._am_paid = True
-        reward = r_em + r_pace + r_am
+        total = reward.total(r_em, r_pace, r_am)
         info = self._info()
         info.update(reward_em=r_em, reward_pace=r_pace, reward_am=r_am)
-        return self._observation(), float(reward), self._terminated, False, info
+        return self._observation(), float(total), self._terminated, False, info
 
     def _law_array(self, law: PaceLaw) -> np.ndarray:
-        """``law`` and the reward weights as :func:`langenv.kernels.pacer.run_law` reads them."""
-        lim = law.limits
-        values = [0.0] * pacer.N_LAW
-        values[pacer.L_KCA] = law.k_c / law.k_a
-        values[pacer.L_KEM], values[pacer.L_EMCLIP] = law.k_em, law.em_clip
-        values[pacer.L_PMAX], values[pacer.L_AMAX] = lim.p_max, lim.a_max
-        values[pacer.L_WEM], values[pacer.L_WPACE] = self.w_em, self.w_pace
-        values[pacer.L_TSCALE], values[pacer.L_CMIN] = T_SCALE, COMMAND_MIN
-        return np.array(values)
+        """``law`` and the reward weights as :func:`langenv.env_kernels.run_law` reads them
+        (:data:`~langenv.env_kernels.LAW`)."""
+        weights = {"w_em": self.w_em, "w_pace": self.w_pace, "t_scale": T_SCALE}
+        return ek.LAW.pack_all(ek.LAW.zeros(), law.values(), weights)
 
     def render(self) -> np.ndarray | None:
         arm = self.motion.arm
@@ -582,8 +660,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             end = speech.t_end
             self.t_speech_end = end if end is not None else self.time
         motion_on, speech_on = not motion.motion_done, not speech.done
-        em = abs(self.t_a / a - motion.t_x / p) if (motion_on or speech_on) else 0.0
-        pace = ((p - 1.0) ** 2 if motion_on else 0.0) + ((a - 1.0) ** 2 if speech_on else 0.0)
+        em, pace = reward.integrands(self.t_a, a, motion.t_x, p, motion_on, speech_on)
         if not motion_on and not speech_on:
             self._end_episode()
         return em, pace
@@ -597,21 +674,21 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self.am = t_speech - t_motion
 
     def _after_compiled(self, answer: int, code: int) -> tuple[float, float]:
-        """Python's part of the compiled ticks' last tick (:mod:`langenv.kernels.steps`)."""
-        tick = self.motion._compiled
+        """Python's part of the compiled ticks' last tick (:mod:`langenv.env_kernels`)."""
+        tick = self.motion.compiled_tick
         assert tick is not None
         f_user = self.motion.f_user
-        if answer == steps.R_CONTROL:  # joint-limit avoidance or bad input, then the rest
+        if answer == ek.R_CONTROL:  # joint-limit avoidance or bad input, then the rest
             p, p_dot = self.paces.p, self.paces.p_dot
-            tick._rare(code, f_user, p, p_dot)
+            tick.finish_rare(code, f_user, p, p_dot)
             tick.finish(*f_user.tolist())
             em, pace = self._after_motion()
             self._max_speed = max(self._max_speed, self.motion.hand_speed)
             return em, pace
-        if answer == steps.R_STOP:
-            tick._stop(*f_user.tolist())
+        if answer == ek.R_STOP:
+            tick.stop(*f_user.tolist())
             self._terminated = True
-        elif answer == steps.R_OVER:
+        elif answer == ek.R_OVER:
             self._end_episode()
         return 0.0, 0.0
 

@@ -27,10 +27,12 @@ The paces ``p`` (and its rate) come from outside: they are the aligner's busines
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
 from langenv import vec
+from langenv.compiled_tick import CompiledTick
 from langenv.control.admittance import AdmittanceParams, VariableAdmittance
 from langenv.control.command import cap_speed, follow
 from langenv.control.cooperation import CooperationFilter
@@ -38,14 +40,18 @@ from langenv.control.guide import Guide, GuideState
 from langenv.control.motion_etc import FastETC
 from langenv.control.trajectory import Trajectory
 from langenv.kernels import mjc
-from langenv.kernels.runner import CompiledTick
-from langenv.kernels.tick import S_FMEAS, S_VCMD, S_VREF
+from langenv.motion_kernels import TICK
 from langenv.robot.arm import Arm
 from langenv.robot.force_sensor import ForceSensor
 from langenv.robot.io_arm import IOArm
 from langenv.safety import SafetyLimits, SafetyMonitor, SafetyStop, limit_velocity
 
 __all__ = ["GuidedArm"]
+
+_T = TICK.at
+_GUIDE = TICK.span("s", "done")
+_FILTER_TO_END = TICK.span("r", "t_end")  # r, c, t_x, time, t_end
+_HAND = TICK.span("hand_speed", "path_deviation")
 
 
 class GuidedArm:
@@ -112,6 +118,72 @@ class GuidedArm:
         if self._compiled is not None:
             self._compiled.load()
 
+    # ------------------------------------------------------------------ compiled state
+    @property
+    def compiled_tick(self) -> CompiledTick | None:
+        """The compiled tick (:class:`~langenv.compiled_tick.CompiledTick`), or None where the
+        Python parts tick (see ``compiled``)."""
+        return self._compiled
+
+    def tick_state(self) -> dict[str, Any]:
+        """The state of the guided arm and its parts by the names of
+        :data:`~langenv.motion_kernels.TICK` (what the compiled tick starts from)."""
+        st = self.state
+        return {
+            "s": st.s, "leg": st.leg, "done": st.done, "v_ref": self._v_ref,
+            "v_cmd": self._v_cmd, "was_moving": bool(self._v_cmd.any()),
+            "f_measured": self._f_measured, "r": self.coop.r, "c": self.coop.c, "t_x": self.t_x,
+            "time": self.time,
+            "t_end": math.nan if self.t_motion_end is None else self.t_motion_end,
+            "path_point": self._path_point, "hand_velocity": self._hand_velocity,
+            "hand_speed": self._hand_speed, "path_deviation": self.path_deviation,
+            "countdown": self.monitor.countdown,
+            "tangent": self.guide.tangent(st, self.arm.hand_position()),
+        }  # fmt: skip
+
+    def tick_settings(self) -> dict[str, Any]:
+        """The settings of the guided arm and its parts by the names of
+        :data:`~langenv.motion_kernels.TICK`."""
+        return {
+            **self.guide.settings(),
+            **self.admittance.settings(),
+            **self.coop.settings(self.dt),
+            **self.monitor.settings(),
+            "max_acc": self.params.max_acceleration,
+            "dv_max": self._dv_max,
+            "deadband": self.sensor.deadband,
+            "dt": self.dt,
+        }
+
+    def take_tick_state(self, ws: np.ndarray) -> None:
+        """Take the state the Python objects expose from the compiled tick's ``ws`` (after
+        compiled ticks): guide state, cooperation, ``t_x``, time, the motion's end, hand speed
+        and path deviation."""
+        s, leg, done = ws[_GUIDE].tolist()
+        st = self.state
+        st.s, st.leg, st.done = s, int(leg), done != 0.0
+        r, c, t_x, time, t_end = ws[_FILTER_TO_END].tolist()
+        self.coop.r, self.coop.c = r, c
+        self.t_x, self.time = t_x, time
+        if t_end == t_end:  # not NaN
+            self.t_motion_end = t_end
+        self._hand_speed, self.path_deviation = ws[_HAND].tolist()
+
+    def store_tick_state(self, ws: np.ndarray) -> None:
+        """Take the rest of the state from ``ws`` (before a Python tick): the velocities, the
+        sensor's reading, the path point, the hand's velocity and the monitor's countdown."""
+        self._v_ref = ws[_T.v_ref : _T.v_ref + 3].copy()
+        self._v_cmd = ws[_T.v_cmd : _T.v_cmd + 3].copy()
+        self._f_measured = ws[_T.f_measured : _T.f_measured + 3].copy()
+        self._path_point = ws[_T.path_point : _T.path_point + 3].tolist()
+        fast = self._compiled
+        self._hand_velocity = (
+            fast.hand_velocity()
+            if fast is not None
+            else ws[_T.hand_velocity : _T.hand_velocity + 3].copy()
+        )
+        self.monitor.countdown = int(ws[_T.countdown])
+
     # ------------------------------------------------------------------ state
     @property
     def _fast(self) -> CompiledTick | None:
@@ -127,19 +199,19 @@ class GuidedArm:
     def v_ref(self) -> np.ndarray:
         """The admittance's reference velocity after the last tick, shape (3,), m/s."""
         fast = self._fast
-        return self._v_ref if fast is None else fast.vector(S_VREF)
+        return self._v_ref if fast is None else fast.vector(_T.v_ref)
 
     @property
     def v_cmd(self) -> np.ndarray:
         """The velocity command sent to the arm in the last tick, shape (3,), m/s."""
         fast = self._fast
-        return self._v_cmd if fast is None else fast.vector(S_VCMD)
+        return self._v_cmd if fast is None else fast.vector(_T.v_cmd)
 
     @property
     def f_measured(self) -> np.ndarray:
         """The force sensor's reading in the last tick, shape (3,), N."""
         fast = self._fast
-        return self._f_measured if fast is None else fast.vector(S_FMEAS)
+        return self._f_measured if fast is None else fast.vector(_T.f_measured)
 
     @property
     def hand_position(self) -> np.ndarray:

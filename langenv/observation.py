@@ -291,6 +291,15 @@ class ObservationEncoder:
         out[FIRST_CHILD:] = self._tail(children)
         return out
 
+    def tail_table(self, order: Sequence[str], children: Mapping[str, Sequence[str]]) -> np.ndarray:
+        """The child blocks of each vertex of ``order`` (given its ``children``), one row each,
+        then a row for the end of the speech (no children), float32, shape ``(len(order) + 1,
+        CHILD_FIELDS * max_children)``: what the compiled encoder copies
+        (:func:`langenv.observation_kernels.encode`)."""
+        rows = [self._tail(children[u]) for u in order]
+        rows.append(self._tail(()))
+        return np.array(rows, dtype=np.float32).reshape(len(rows), -1)
+
 
 def _clip(v: float) -> float:
     """``v`` clipped to [-1, 1] (NaN stays NaN, as with ``np.clip``)."""

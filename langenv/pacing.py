@@ -16,11 +16,16 @@ from __future__ import annotations
 
 import math
 import numbers
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 from langenv.errors import ConfigError
+from langenv.layout import Field
 
 __all__ = [
+    "COMMAND_MIN",
+    "PACE_LAW",
+    "PACE_SETTINGS",
+    "PACE_STATE",
     "PaceActuator",
     "PaceLaw",
     "PaceLimits",
@@ -30,6 +35,31 @@ __all__ = [
 
 #: Pace command at u = -1 (lowest value the paper's law can ask for).
 COMMAND_MIN = -1.5
+
+PACE_STATE = (
+    Field("p", doc="physical pace"),
+    Field("a", doc="audio pace"),
+    Field("p_dot", doc="the physical pace's rate in the last tick (1/s)"),
+)
+"""The pace actuator's state (:class:`PaceActuator`), declared for the compiled ticks."""
+PACE_SETTINGS = (
+    Field("k_p", doc="physical pace gain (1/s)"),
+    Field("k_a", doc="audio pace gain (1/s)"),
+    Field("p_min", doc="lower bound of p"),
+    Field("p_max", doc="upper bound of p"),
+    Field("a_min", doc="lower bound of a"),
+    Field("a_max", doc="upper bound of a"),
+)
+"""The pace laws' settings (a :class:`PaceLimits`, :meth:`PaceLimits.settings`)."""
+PACE_LAW = (
+    Field("k_ca", doc="k_c / k_a of the audio command"),
+    Field("k_em", doc="the misalignment feedback on p (1/s)"),
+    Field("em_clip", doc="its bound (pace units)"),
+    Field("law_p_max", doc="the policy's upper bound of p (its action map)"),
+    Field("law_a_max", doc="the policy's upper bound of a"),
+    Field("c_min", doc="the pace command at u = -1 (:data:`COMMAND_MIN`)"),
+)
+"""A :class:`PaceLaw` as its compiled form reads it (:meth:`PaceLaw.values`)."""
 
 
 @dataclass(frozen=True)
@@ -51,6 +81,10 @@ class PaceLimits:
     a_max: float = 1.4
     k_p: float = 6.0
     k_a: float = 7.0
+
+    def settings(self) -> dict[str, float]:
+        """The bounds and gains by the names of :data:`PACE_SETTINGS`."""
+        return asdict(self)
 
     def __post_init__(self) -> None:
         for name in ("p_min", "p_max", "a_min", "a_max", "k_p", "k_a"):
@@ -106,6 +140,14 @@ class PaceLaw:
             raise ConfigError(f"PaceLaw.k_a must be > 0, got {self.k_a!r}")
         if not isinstance(self.limits, PaceLimits):
             raise ConfigError(f"PaceLaw.limits must be PaceLimits, got {self.limits!r}")
+
+    def values(self) -> dict[str, float]:
+        """The law by the names of :data:`PACE_LAW`."""
+        return {
+            "k_ca": self.k_c / self.k_a, "k_em": self.k_em, "em_clip": self.em_clip,
+            "law_p_max": self.limits.p_max, "law_a_max": self.limits.a_max,
+            "c_min": COMMAND_MIN,
+        }  # fmt: skip
 
 
 def command_from_action(u: float, upper: float) -> float:

@@ -33,13 +33,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from langenv.errors import ConfigError
+from langenv.layout import Field
 
 __all__ = [
     "DEFAULT_MAX_SPEED",
     "HOLD_TIME",
     "JOINT_CHECK_MAX",
     "JOINT_SPEED_BOUND",
+    "MONITOR_STATE",
     "ROBOT_STOPS",
+    "SAFETY_SETTINGS",
     "STOP_LIMITS",
     "SafetyLimits",
     "SafetyMonitor",
@@ -49,6 +52,20 @@ __all__ = [
 
 DEFAULT_MAX_SPEED = 0.5
 """Default TCP speed limit (m/s): the arm's velocity command limit."""
+
+MONITOR_STATE = (Field("countdown", kind="int", doc="ticks until the joints are checked again"),)
+"""The monitor's state (:attr:`SafetyMonitor.countdown`), declared for the compiled tick."""
+SAFETY_SETTINGS = (
+    Field("hold", doc="``hold_deviation``: no command away from the path beyond it (m)"),
+    Field("v_max", doc="``max_speed``: the command's speed limit (m/s)"),
+    Field("f_max", doc="the force limit (N)"),
+    Field("d_max", doc="the path deviation limit (m)"),
+    Field("v_trip", doc="the measured speed that trips a stop (m/s)"),
+    Field("per_tick", doc="the most a joint moves in a tick (rad)"),
+    Field("has_joint_limits", kind="bool", doc="whether any joint is limited"),
+    Field("n_joints", kind="int", doc="the joints watched (their bounds follow the legs)"),
+)
+"""The safety layer's settings (:meth:`SafetyMonitor.settings`)."""
 
 HOLD_TIME = 0.05
 """Time constant (s) of the taper of outward motion near ``hold_deviation``: the outward command
@@ -291,6 +308,29 @@ class SafetyMonitor:
     def reset(self) -> None:
         """Check the joints at the next tick."""
         self._countdown = 0
+
+    @property
+    def countdown(self) -> int:
+        """Ticks until the joints are checked again (:data:`MONITOR_STATE`)."""
+        return self._countdown
+
+    @countdown.setter
+    def countdown(self, value: int) -> None:
+        self._countdown = int(value)
+
+    def settings(self) -> dict[str, float]:
+        """The monitor's and the command limits' settings by the names of
+        :data:`SAFETY_SETTINGS`."""
+        lim = self.limits
+        return {
+            "hold": lim.hold_deviation, "v_max": lim.max_speed, "f_max": self._f_max,
+            "d_max": self._d_max, "v_trip": self._v_trip, "per_tick": self._per_tick,
+            "has_joint_limits": self._has_joint_limits, "n_joints": len(self._bounds),
+        }  # fmt: skip
+
+    def bounds(self) -> np.ndarray:
+        """Each joint's range less the margin, flat: ``lower_0, upper_0, lower_1, ...`` (rad)."""
+        return np.asarray(self._bounds, dtype=np.float64).reshape(-1)
 
     def check(
         self,

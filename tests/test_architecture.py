@@ -3,6 +3,14 @@ including those inside functions and under ``TYPE_CHECKING``).
 
     langenv  <-  policies  <-  train, eval  <-  bench  <-  langctrl
 
+Inside ``langenv`` its *parts* (its subpackages and top-level modules: ``control``, ``robot``,
+``speech``, ``users``, ``kernels``, ``motion``, ``env``, ...) are layered too: no two import each
+other, directly or through others (:func:`langenv_part_cycles`). A package's ``__main__`` is a
+job (the command ``langctrl NAME`` runs), above every part, as ``langctrl`` is above every
+package: it may import any part and nothing imports it; the package root ``langenv/__init__``
+(the registration and the version) is not a part either. Every module that compiles kernels or
+declares a layout is watched by the kernels' stale-cache check (``langenv.kernels.SOURCES``).
+
 The env package ``langenv`` stands alone (it finds policies by name through entry points, never
 by import); ``policies`` needs only ``langenv``; ``train`` and ``eval`` need ``policies`` and
 ``langenv`` but not each other; ``bench`` may use them all; ``langctrl`` (the command) runs any
@@ -99,6 +107,90 @@ def test_no_import_cycles() -> None:
     assert cycles == [], f"import cycles: {cycles}"
 
 
+def part_of(module: str) -> str | None:
+    """The part of ``langenv`` that ``module`` belongs to, or None for the package root and the
+    jobs (``__main__`` modules)."""
+    names = module.split(".")
+    if names[0] != "langenv" or len(names) < 2 or names[-1] == "__main__":
+        return None
+    return names[1]
+
+
+def part_graph(graph: grimp.ImportGraph) -> grimp.ImportGraph:
+    """``langenv``'s parts and which imports which (directly, by any of their modules)."""
+    parts = grimp.ImportGraph()
+    for module in graph.find_children("langenv") | graph.find_descendants("langenv"):
+        a = part_of(module)
+        if a is None:
+            continue
+        parts.add_module(a)
+        for target in graph.find_modules_directly_imported_by(module):
+            b = part_of(target)
+            if b is not None and b != a:
+                parts.add_import(importer=a, imported=b)
+    return parts
+
+
+def langenv_part_cycles(graph: grimp.ImportGraph) -> list[list[str]]:
+    """Groups of ``langenv``'s parts that import each other (directly or through others)."""
+    return import_cycles(part_graph(graph))
+
+
+def layers(parts: grimp.ImportGraph) -> list[list[str]]:
+    """The parts in layers: each imports only parts of the layers before it (the graph has no
+    cycle)."""
+    placed: dict[str, int] = {}
+
+    def depth(p: str) -> int:
+        if p not in placed:
+            below = parts.find_modules_directly_imported_by(p)
+            placed[p] = 1 + max((depth(q) for q in below), default=-1)
+        return placed[p]
+
+    for p in parts.modules:
+        depth(p)
+    out: list[list[str]] = [[] for _ in range(max(placed.values(), default=-1) + 1)]
+    for p, d in placed.items():
+        out[d].append(p)
+    return [sorted(layer) for layer in out]
+
+
+def test_langenv_parts_import_no_cycle() -> None:
+    cycles = langenv_part_cycles(_graph())
+    chains = []
+    graph = _graph()
+    for group in cycles:
+        for a, b in itertools.permutations(group, 2):
+            chain = graph.find_shortest_chain(
+                importer=f"langenv.{a}", imported=f"langenv.{b}", as_packages=True
+            )
+            chains.append(" -> ".join(chain or ()))
+    assert cycles == [], f"langenv's parts import each other: {cycles}; e.g. {chains[:4]}"
+
+
+def test_the_kernels_stale_cache_check_watches_every_compiled_module() -> None:
+    """Every module that compiles kernels (``@kernel``, ``@inline``, ``@jit``) or declares
+    state (``Field(``) is in ``langenv.kernels.SOURCES``, and those that compile in ``COMPILED``
+    (the vocoder's kernels, self-contained, apart)."""
+    from langenv.kernels import COMPILED, SOURCES
+
+    root = Path(__file__).resolve().parents[1] / "langenv"
+    compiling, declaring = set(), set()
+    for path in root.rglob("*.py"):
+        name = path.relative_to(root).as_posix()
+        text = path.read_text()
+        if any(f"\n@{d}\n" in text for d in ("kernel", "inline", "jit")):
+            compiling.add(name)
+        if "Field(" in text:
+            declaring.add(name)
+    compiling.discard("speech/vocoder_kernels.py")
+    assert sorted(compiling - set(COMPILED)) == []
+    assert sorted(declaring - set(SOURCES)) == []
+    assert set(COMPILED) <= set(SOURCES)
+    for name in SOURCES:
+        assert (root / name).is_file(), name
+
+
 def test_cycle_finder_finds_a_cycle() -> None:
     graph = grimp.ImportGraph()
     for a, b in (("p.a", "p.b"), ("p.b", "p.c"), ("p.c", "p.a"), ("p.c", "p.d")):
@@ -116,6 +208,9 @@ if __name__ == "__main__":
             chain = g.find_shortest_chain(importer=package, imported=other, as_packages=True)
             print(f"  {package} -> {other}: {'none' if chain is None else ' -> '.join(chain)}")
     print(f"import cycles: {import_cycles(g) or 'none'}")
+    print(f"cycles among langenv's parts: {langenv_part_cycles(g) or 'none'}")
+    for i, layer in enumerate(layers(part_graph(g))):
+        print(f"  langenv layer {i}: {', '.join(layer)}")
 
 
 def test_version_has_one_source() -> None:

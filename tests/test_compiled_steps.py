@@ -1,4 +1,4 @@
-"""The env's compiled ticks (langenv.kernels.steps) against its Python ticks: bit-identical."""
+"""The env's compiled ticks (langenv.env_kernels) against its Python ticks: bit-identical."""
 
 from __future__ import annotations
 
@@ -9,12 +9,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from langenv.compiled_steps import CompiledSteps
 from langenv.control.admittance import AdmittanceParams
 from langenv.control.cooperation import CooperationFilter
 from langenv.control.trajectory import default_exercise
 from langenv.env import LangCtrlEnv
 from langenv.kernels import mjc
-from langenv.kernels.steps import CompiledSteps
 from langenv.motion import GuidedArm
 from langenv.robot.arm import Arm
 from langenv.robot.force_sensor import ForceSensor

@@ -150,31 +150,40 @@ def test_compiled_leg_law_equals_the_numpy_one() -> None:
 
 
 def test_cached_kernels_are_dropped_when_any_kernel_source_changes(tmp_path: Path) -> None:
-    """Numba checks a cached kernel against its own file only; the package's digest covers all."""
+    """Numba checks a cached kernel against its own file only; the package's digest covers every
+    compiled module and every declaration they read."""
     from langenv.kernels import clear_stale_cache
 
-    src, cache = tmp_path / "kernels", tmp_path / "kernels" / "__pycache__"
-    src.mkdir()
-    (src / "tick.py").write_text("x = 1\n")
-    (src / "steps.py").write_text("y = 2\n")
+    root = tmp_path / "pkg"
+    (root / "kernels").mkdir(parents=True)
+    (root / "control").mkdir()
+    (root / "control" / "guide.py").write_text("x = 1\n")  # a declaration
+    (root / "motion_kernels.py").write_text("y = 2\n")
+    (root / "speech").mkdir()
+    cache = root / "__pycache__"
     cache.mkdir()
-    kept = cache / "steps.cpython-311.pyc"
+    kept = cache / "motion_kernels.cpython-311.pyc"
     kept.write_bytes(b"pyc")
+    other = root / "speech" / "__pycache__"
+    other.mkdir()
+    (other / "vocoder_kernels.pull-10.py311.nbi").write_bytes(b"numba")  # not listed: kept
+    sources, compiled_ = ("control/guide.py", "motion_kernels.py"), ("motion_kernels.py",)
 
     def compiled() -> list[Path]:
-        for name in ("steps.run-104.py311.nbi", "steps.run-104.py311.1.nbc"):
+        for name in ("motion_kernels.tick-104.py311.nbi", "motion_kernels.tick-104.py311.1.nbc"):
             (cache / name).write_bytes(b"numba")
         return sorted(cache.glob("*.nb[ic]"))
 
     compiled()
-    assert clear_stale_cache(src, cache)  # no digest yet: the cache's origin is unknown
+    assert clear_stale_cache(root, sources, compiled_)  # no digest yet: the origin is unknown
     assert not list(cache.glob("*.nb[ic]")) and kept.is_file()
     files = compiled()
-    assert not clear_stale_cache(src, cache)  # unchanged sources: kept
+    assert not clear_stale_cache(root, sources, compiled_)  # unchanged sources: kept
     assert sorted(cache.glob("*.nb[ic]")) == files
-    (src / "tick.py").write_text("x = 3\n")  # another file than the cached kernel's
-    assert clear_stale_cache(src, cache)
+    (root / "control" / "guide.py").write_text("x = 3\n")  # another file than the kernel's
+    assert clear_stale_cache(root, sources, compiled_)
     assert not list(cache.glob("*.nb[ic]")) and kept.is_file()
-    blocked = tmp_path / "not_a_directory"
+    assert len(list(other.glob("*.nbi"))) == 1
+    blocked = tmp_path / "blocked"
     blocked.write_text("")
-    assert not clear_stale_cache(src, blocked)  # where nothing can be written: no error
+    assert not clear_stale_cache(blocked, sources, compiled_)  # nothing can be written: no error

@@ -20,7 +20,6 @@ from langenv.exercise import (
     load_exercise,
     resolve_exercise,
 )
-from langenv.kernels.path import pack
 
 GOOD = """\
 # A test exercise: out along x and back.
@@ -55,7 +54,7 @@ def test_the_study_exercise_is_default_exercise_exactly() -> None:
     ex = resolve_exercise("external_rotation")
     ref = default_exercise()
     assert ex.trajectory.fingerprint() == ref.fingerprint()
-    assert np.array_equal(pack(ex.trajectory), pack(ref))  # what the compiled tick reads
+    assert np.array_equal(ex.trajectory.packed(), ref.packed())  # what the compiled tick reads
     assert ex.trajectory.waypoint_s.tolist() == ref.waypoint_s.tolist()
     assert ex.admittance() == type(ex.admittance())()  # the study's parameters, 10 N
     assert (ex.graph, ex.single) == ("default", "lc-noap")  # the product graph (= "lc")

@@ -10,11 +10,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from langenv.errors import PhraseGraphError
-from langenv.kernels.steps import eta as compiled_eta
-from langenv.kernels.steps import pack_graph
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.coverage import coverage, speech_lengths
 from langenv.speech.graph import MAX_FILLER, Phrase, PhraseGraph, default_graph_path
+from langenv.speech.graph_kernels import eta as compiled_eta
 
 
 def write(tmp_path: Path, text: str, name: str = "g.yaml") -> Path:
@@ -124,7 +123,7 @@ def test_compiled_eta_equals_the_graph_s_bit_for_bit(
     g: PhraseGraph, frac: float, t_x: float
 ) -> None:
     order = tuple(g.phrases)
-    mid, slot, kid_ptr, kids = pack_graph(g, order)
+    mid, slot, kid_ptr, kids = g.packed(order)
     for i, u in enumerate(order):
         remaining = frac * g.slot(u)
         assert compiled_eta(i, remaining, t_x, mid, slot, kid_ptr, kids) == g.eta(u, remaining, t_x)

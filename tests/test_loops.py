@@ -23,6 +23,7 @@ from langenv.control.admittance import AdmittanceParams, VariableAdmittance
 from langenv.control.cooperation import CooperationFilter
 from langenv.control.guide import GATE_REACH, Guide
 from langenv.control.motion_etc import FastETC, reference_etc
+from langenv.control.path_kernels import closest as compiled_closest
 from langenv.control.trajectory import (
     MAX_ARC_ANGLE,
     ArcSegment,
@@ -38,8 +39,6 @@ from langenv.exercise import SHIPPED_EXERCISES, Exercise, load_exercise, resolve
 from langenv.exercise.__main__ import main as exercise_cli
 from langenv.exercise.check import check_exercise
 from langenv.exercise.path_checks import path_problems
-from langenv.kernels.path import closest as compiled_closest
-from langenv.kernels.path import pack
 from langenv.motion import GuidedArm
 from langenv.robot.arm import Arm
 from langenv.robot.force_sensor import ForceSensor
@@ -117,7 +116,7 @@ def test_the_closest_point_stays_local_at_a_loops_start_and_end(name: str) -> No
     loop's end, as near to the hand); past the end it stays at the end (not back to the start)."""
     ex = _loop(name)
     traj = ex.trajectory
-    path = pack(traj)
+    path = traj.packed()
     for k in range(len(ex.legs)):
         a, b = ex.leg_span(k)
         behind = traj.position(a) - 0.004 * traj.tangent(a)
@@ -397,11 +396,11 @@ def test_the_ur_bridge_runs_a_loop_round_to_its_end(tmp_path: Path) -> None:
     lab's origin: the session goes round the circle and ends at its end, not at its start."""
     from langenv.live.registry import load_registered_policy
     from langenv.live.robot_loop import RobotLoop
+    from langenv.live.ur_exercise import exercise_trajectory
+    from langenv.live.ur_preflight import move_to_start, zero_sensor
     from langenv.robot.ur import fake_rtde
     from langenv.robot.ur.bridge import URRobot
     from langenv.robot.ur.config import URConfig
-    from langenv.robot.ur.exercise import exercise_trajectory
-    from langenv.robot.ur.preflight import move_to_start, zero_sensor
 
     ex = _loop("circle")
     host = "127.0.0.1"

@@ -166,10 +166,14 @@ def test_fast_etc_validation(guide: Guide, adm: VariableAdmittance) -> None:
 
 
 def _ramp_end_one_halving_at_a_time(prm: np.ndarray, u0: float, w0: float) -> tuple[float, float]:
-    """``langenv.kernels.etc.ramp_end`` as first written: one bisection halving per step."""
-    from langenv.kernels import etc as ek
+    """``langenv.control.etc_kernels.ramp_end`` as first written: one bisection halving per step."""
+    from langenv.control import etc_kernels as ek
 
-    ui, tau, acc = float(prm[ek.P_UINF]), float(prm[ek.P_TAU]), float(prm[ek.P_ACC])
+    ui, tau, acc = (
+        float(prm[ek.ETC_PARAMS.at.u_inf]),
+        float(prm[ek.ETC_PARAMS.at.tau]),
+        float(prm[ek.ETC_PARAMS.at.acc]),
+    )
 
     def g(t: float, s: float) -> float:
         return s * (ui + (u0 - ui) * math.exp(-t / tau) - w0) - acc * t
@@ -212,18 +216,26 @@ def test_ramp_end_two_halvings_a_round_is_the_plain_bisection(
 ) -> None:
     """The compiled ramp end (two halvings per round, evaluated side by side) returns the plain
     bisection's bracket end to the bit, the near-equal ``u0 = w0`` branch included."""
-    from langenv.kernels import etc as ek
+    from langenv.control import etc_kernels as ek
 
-    prm = np.zeros(ek.LEG0)
-    prm[ek.P_UINF], prm[ek.P_TAU], prm[ek.P_ACC] = ui, tau, 0.14
+    prm = ek.ETC_PARAMS.zeros()
+    prm[ek.ETC_PARAMS.at.u_inf], prm[ek.ETC_PARAMS.at.tau], prm[ek.ETC_PARAMS.at.acc] = (
+        ui,
+        tau,
+        0.14,
+    )
     for w in (w0, u0 + nudge):
         assert ek.ramp_end(prm, u0, w) == _ramp_end_one_halving_at_a_time(prm, u0, w)
 
 
 def test_ramp_end_stops_after_sixty_halvings_like_the_plain_bisection() -> None:
     """A bracket that never gets under 1 us (a huge one) ends after 60 halvings either way."""
-    from langenv.kernels import etc as ek
+    from langenv.control import etc_kernels as ek
 
-    prm = np.zeros(ek.LEG0)
-    prm[ek.P_UINF], prm[ek.P_TAU], prm[ek.P_ACC] = 1e9, 0.5, 1e-12
+    prm = ek.ETC_PARAMS.zeros()
+    prm[ek.ETC_PARAMS.at.u_inf], prm[ek.ETC_PARAMS.at.tau], prm[ek.ETC_PARAMS.at.acc] = (
+        1e9,
+        0.5,
+        1e-12,
+    )
     assert ek.ramp_end(prm, 0.0, 1.0) == _ramp_end_one_halving_at_a_time(prm, 0.0, 1.0)

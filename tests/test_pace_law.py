@@ -14,20 +14,20 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import langenv
+from langenv import env_kernels as ek
 from langenv.env import LAW_CHUNK
 from langenv.errors import ConfigError
 from langenv.exercise import speak
-from langenv.kernels import pacer
-from langenv.kernels import steps as sk
 from langenv.observation import Obs, encode_flag, encode_fraction, encode_seconds
 from langenv.pacing import PaceLaw, PaceLimits, command_from_action
+from langenv.pacing_kernels import law_commands
 from langenv.users import SyntheticUser
 from langenv.users.synthetic import LogNormal, SyntheticUserParams
 from policies.analytic import LanguageController, make_analytic
 
 pytestmark = pytest.mark.portable
 
-FIELDS = (*pacer.ROW_FIELDS, "qpos", "f_user")
+FIELDS = (*ek.ROW_FIELDS, "qpos", "f_user")
 
 
 def _make(policy: LanguageController, **kwargs: Any) -> Any:
@@ -46,7 +46,7 @@ def _policy_steps(
     rewards: list[float] = []
     for _ in range(limit):
         obs, reward, terminated, _, info = env.step(policy.act(obs))
-        for name in pacer.ROW_FIELDS:
+        for name in ek.ROW_FIELDS:
             rows[name].append(float(info[name]))
         rows["qpos"].append(env.motion.arm.data.qpos.copy())
         rows["f_user"].append(env.motion.f_user.copy())
@@ -80,7 +80,7 @@ def _law_steps(
         else:
             _, reward, terminated, _, info = env.step(policy.act(env.observation()))
         steps += 1
-        for name in pacer.ROW_FIELDS:
+        for name in ek.ROW_FIELDS:
             parts[name].append(np.array([float(info[name])]))
         parts["qpos"].append(env.motion.arm.data.qpos[None, :].copy())
         parts["f_user"].append(env.motion.f_user[None, :].copy())
@@ -161,7 +161,7 @@ def test_compare_episode_with_the_law_is_the_policys(
     assert law_row == plain_row
     fast = EpisodeLog.load_npz(tmp_path / "law" / "lc_s2.npz")
     slow = EpisodeLog.load_npz(tmp_path / "plain" / "lc_s2.npz")
-    for name in (*pacer.ROW_FIELDS[1:], "t", "qpos", "f_user"):
+    for name in (*ek.ROW_FIELDS[1:], "t", "qpos", "f_user"):
         assert np.array_equal(getattr(fast, name), getattr(slow, name)), name
     assert fast.utterances == slow.utterances and fast.ret == slow.ret
 
@@ -218,17 +218,9 @@ def test_commands_are_the_policys_through_observation_and_action(
     )
     law = policy.pace_law()
     assert law is not None
-    env = _bare_env_array(env_limits)
-    values = [0.0] * pacer.N_LAW
-    values[pacer.L_KCA] = law.k_c / law.k_a
-    values[pacer.L_KEM], values[pacer.L_EMCLIP] = law.k_em, law.em_clip
-    values[pacer.L_PMAX], values[pacer.L_AMAX] = limits.p_max, limits.a_max
-    values[pacer.L_TSCALE], values[pacer.L_CMIN] = 40.0, -1.5
-    got = pacer.commands(np.array(values), env, t_x, t_a, c, motion_on)
+    v = law.values()
+    got = law_commands(
+        v["k_ca"], v["k_em"], v["em_clip"], v["law_p_max"], v["law_a_max"], v["c_min"], 40.0,
+        env_limits.p_max, env_limits.a_max, t_x, t_a, c, motion_on,
+    )  # fmt: skip
     assert got == expected
-
-
-def _bare_env_array(limits: PaceLimits) -> np.ndarray:
-    es = np.zeros(sk.N_ENV)
-    es[sk.E_PMAX], es[sk.E_AMAX] = limits.p_max, limits.a_max
-    return es

@@ -32,6 +32,9 @@ from train.ppo import (
 
 REPO = Path(__file__).resolve().parents[1]
 CONFIG = REPO / "configs" / "ppo.yaml"
+TWO_ENVS = REPO / "configs" / "ppo_2env.yaml"
+"""The recipe batched as 2 envs of 1024-step rollouts: the runs below count on 2048-step
+rollouts with --n-envs 2 (checkpoints, evaluations and resume points at 2048 and 4096 steps)."""
 
 
 def _finetune_config(tmp: Path) -> Path:
@@ -56,7 +59,7 @@ def _finetune_config(tmp: Path) -> Path:
 
 def _train(*extra: str) -> subprocess.CompletedProcess[str]:
     env = dict(os.environ, PYTHONPATH=str(REPO))
-    cmd = [sys.executable, "-m", "train.ppo", "--config", str(CONFIG), "--no-progress-bar"]
+    cmd = [sys.executable, "-m", "train.ppo", "--config", str(TWO_ENVS), "--no-progress-bar"]
     return subprocess.run(
         [*cmd, *extra], cwd=REPO, env=env, capture_output=True, text=True, timeout=300
     )
@@ -544,7 +547,7 @@ def test_ctrl_c_exits_130_with_one_line(tmp_path: Path) -> None:
 
     out = tmp_path / "run"
     env = dict(os.environ, PYTHONPATH=str(REPO))
-    cmd = [sys.executable, "-m", "train.ppo", "--config", str(CONFIG), "--no-progress-bar"]
+    cmd = [sys.executable, "-m", "train.ppo", "--config", str(TWO_ENVS), "--no-progress-bar"]
     cmd += ["--n-envs", "2", "--vec-env", "subproc", "--n-eval-episodes", "0"]
     # A short run first, so that the workers load the env's compiled kernels from numba's cache
     # instead of compiling them (minutes of CPU under load on a fresh clone) when Ctrl-C comes

@@ -14,13 +14,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from langenv.errors import PhraseGraphError, ScriptError
-from langenv.kernels.steps import _fill as compiled_fill
-from langenv.kernels.steps import eta as compiled_eta
-from langenv.kernels.steps import pack_graph
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.author import parse_script
 from langenv.speech.coverage import speech_lengths
 from langenv.speech.graph import Phrase, PhraseGraph
+from langenv.speech.graph_kernels import eta as compiled_eta
+from langenv.speech.graph_kernels import fill as compiled_fill
 from langenv.speech.repeat import MAX_REPEAT, SEP, WAIT_PLAN, Repeat, is_gap
 from langenv.speech.timeline import SpeechTimeline
 
@@ -185,7 +184,7 @@ def test_compiled_eta_equals_the_graph_s_bit_for_bit(
     g: PhraseGraph, frac: float, t_x: float
 ) -> None:
     order = tuple(g.phrases)
-    mid, slot, kid_ptr, kids = pack_graph(g, order)
+    mid, slot, kid_ptr, kids = g.packed(order)
     for i, u in enumerate(order):
         remaining = frac * g.slot(u)
         assert compiled_eta(i, remaining, t_x, mid, slot, kid_ptr, kids) == g.eta(u, remaining, t_x)
@@ -339,7 +338,7 @@ def _said(g: PhraseGraph, motion: float) -> list[tuple[str, float, float]]:
 
 def _compiled_agrees(g: PhraseGraph) -> None:
     order = tuple(g.phrases)
-    mid, slot, kid_ptr, kids = pack_graph(g, order)
+    mid, slot, kid_ptr, kids = g.packed(order)
     for t_x in (0.0, 2.0, 7.5, 30.0):
         for i, u in enumerate(order):
             remaining = 0.5 * g.slot(u)
@@ -457,7 +456,7 @@ def test_only_the_silence_before_the_ending_words_outlasts_its_plan(
     and never right after a filler. Fails before the wait went before the ending words (a pause
     before an optional line was opened; a filler was followed by the wait)."""
     order = tuple(g.phrases)
-    mid, slot, kid_ptr, kids = pack_graph(g, order)
+    mid, slot, kid_ptr, kids = g.packed(order)
     for i, u in enumerate(order):
         for t_x in (0.0, motion / 3, motion):
             remaining = 0.3 * g.slot(u)

@@ -17,12 +17,12 @@ import pytest
 from langenv.errors import ConfigError, DeviceError
 from langenv.live.registry import load_registered_policy
 from langenv.live.robot_loop import LOG_COLUMNS, RobotLoop
+from langenv.live.ur_exercise import exercise_trajectory
+from langenv.live.ur_preflight import move_to_start, run_checks, zero_sensor
 from langenv.robot.ur import fake_rtde
 from langenv.robot.ur.__main__ import main as ur_main
 from langenv.robot.ur.bridge import URRobot
 from langenv.robot.ur.config import URConfig, load_ur_config
-from langenv.robot.ur.exercise import exercise_trajectory
-from langenv.robot.ur.preflight import move_to_start, run_checks, zero_sensor
 from langenv.users import load_session
 
 HOST = "127.0.0.1"

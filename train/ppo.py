@@ -96,6 +96,9 @@ __all__ = [
     "train",
 ]
 
+#: The vector envs a run may step its envs in (``--vec-env``).
+VEC_ENVS = ("auto", "batched", "subproc", "dummy")
+
 #: Keys of a zoo-style section that are not PPO constructor arguments.
 _ZOO_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_wrapper", "env_kwargs")
 _UNSUPPORTED = ("frame_stack", "callback", "vec_env_wrapper", "normalize_kwargs")
@@ -120,10 +123,13 @@ class TrainArgs:
         eval_freq: Env steps (all envs together) between periodic evaluations.
         checkpoint_freq: Env steps between checkpoints.
         n_envs: Parallel training envs; ``None``: the YAML's ``n_envs``.
-        vec_env: ``"subproc"`` (one process per env), ``"dummy"`` (in this process) or
-            ``"auto"``: subprocesses only when there are more CPU cores than envs (the learner
-            needs one too; on fewer, the processes' hand-offs cost more than the parallel env
-            steps gain). Either way the same envs with the same seeds: the same run.
+        vec_env: ``"batched"`` (every env a session of one batched env, stepped in one
+            compiled call over the cores: :mod:`train.vec_env`), ``"subproc"`` (one process
+            per env), ``"dummy"`` (in this process) or ``"auto"``: batched where it applies
+            (no ``worlds``, only the wrappers it has a batched form of), else subprocesses only
+            when there are more CPU cores than envs (the learner needs one too; on fewer, the
+            processes' hand-offs cost more than the parallel env steps gain). Any of them: the
+            same envs with the same seeds, the same run.
         resume: Continue the run in ``out`` from its resume point, with its saved settings.
         init_from: Fine-tune: start from this saved model's network weights and normalisation
             statistics instead of random weights (a model zip written by this script or by
@@ -171,9 +177,9 @@ class TrainArgs:
             raise ConfigError(f"TrainArgs.n_eval_episodes must be >= 0, got {self.n_eval_episodes}")
         if self.seed < 0 or self.eval_seed < 0:
             raise ConfigError("TrainArgs.seed and eval_seed must be >= 0")
-        if self.vec_env not in ("subproc", "dummy", "auto"):
+        if self.vec_env not in VEC_ENVS:
             raise ConfigError(
-                f"TrainArgs.vec_env must be 'subproc', 'dummy' or 'auto', got {self.vec_env!r}"
+                f"TrainArgs.vec_env must be one of {', '.join(VEC_ENVS)}, got {self.vec_env!r}"
             )
         if not re.fullmatch(r"[A-Za-z0-9_.-]+", self.name):
             raise ConfigError(f"TrainArgs.name must be a plain file stem, got {self.name!r}")
@@ -268,10 +274,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--vec-env",
-        choices=("subproc", "dummy", "auto"),
+        choices=VEC_ENVS,
         default=None,
-        help="envs in subprocesses, in this process, or auto: subprocesses only with more CPU "
-        f"cores than envs; the same run either way {default('vec_env')}",
+        help="batched: every env a session of one batched env (one compiled call per step over "
+        "the cores); subproc: one process per env; dummy: in this process; auto: batched where "
+        "it applies (no worlds, batched wrappers), else subprocesses only with more CPU cores "
+        f"than envs; the same run either way {default('vec_env')}",
     )
     p.add_argument(
         "--resume",
@@ -551,6 +559,33 @@ def _ppo_kwargs(run: _Run) -> dict[str, Any]:
     return kw
 
 
+def use_batched(vec_env: str, run: _Run) -> bool:
+    """Whether ``vec_env`` (see :class:`TrainArgs`) steps ``run``'s envs as one batched env.
+
+    Raises:
+        ConfigError: ``"batched"`` for a run it cannot step (worlds, another wrapper).
+    """
+    from train.vec_env import BATCHED_WRAPPERS
+
+    if vec_env not in ("batched", "auto"):
+        return False
+    names = [_dotted(k) for k, _ in (run.wrapper.chain if run.wrapper is not None else [])]
+    why = ""
+    if run.args.env_id != "LangCtrl-v0":
+        why = f"env {run.args.env_id!r} (batched: LangCtrl-v0)"
+    elif run.worlds is not None:
+        why = "a run across worlds (its envs change scripts per episode)"
+    elif any(name not in BATCHED_WRAPPERS for name in names):
+        why = f"env_wrapper {names} (batched: {', '.join(BATCHED_WRAPPERS)})"
+    if why and vec_env == "batched":
+        raise ConfigError(f"--vec-env batched cannot step {why}; use subproc or dummy")
+    return not why
+
+
+def _dotted(klass: Any) -> str:
+    return f"{klass.__module__}.{klass.__qualname__}"
+
+
 def use_subprocesses(vec_env: str, n_envs: int) -> bool:
     """Whether ``vec_env`` (see :class:`TrainArgs`) runs ``n_envs`` envs in subprocesses."""
     if n_envs < 2 or vec_env == "dummy":
@@ -578,10 +613,26 @@ def _make_envs(run: _Run) -> tuple[Any, Any]:
 
     a = run.args
     cls = _SubprocVecEnv if use_subprocesses(a.vec_env, run.n_envs) else DummyVecEnv
-    if run.worlds is not None:
+    if run.worlds is not None and not use_batched(a.vec_env, run):
         return _make_world_envs(run, cls)
     per_env = _exercise_kwargs(run.env_kwargs)
-    if len(per_env) == 1:
+    env: Any
+    if use_batched(a.vec_env, run):
+        from train.vec_env import make_batched_vec_env
+
+        chain = run.wrapper.chain if run.wrapper is not None else []
+        sessions = [
+            {k: v for k, v in per_env[i % len(per_env)].items() if k != "max_episode_steps"}
+            for i in range(run.n_envs)
+        ]
+        env = make_batched_vec_env(
+            run.n_envs,
+            {"max_episode_steps": run.env_kwargs.get("max_episode_steps", 1500)},
+            a.seed,
+            [(_dotted(k), kw) for k, kw in chain],
+            session_kwargs=sessions,
+        )
+    elif len(per_env) == 1:
         env = make_vec_env(
             a.env_id,
             n_envs=run.n_envs,
@@ -1213,7 +1264,7 @@ class _SubprocVecEnv(SubprocVecEnv):
     float64), so that the two give the same run."""
 
     def __init__(self, env_fns: list[Any], start_method: str | None = None) -> None:
-        from langenv.kernels.warm import warm_up
+        from langenv.warm import warm_up
 
         warm_up()  # compiled here once, before the workers start (they would compile together)
         super().__init__([_IgnoreSigint(fn) for fn in env_fns], start_method)
@@ -1387,7 +1438,7 @@ def _learn(
         )
         raise
     wall = time.perf_counter() - t0
-    config["wall_time_s"] = round(wall, 1)
+    config["wall_time_s"] = round(wall, 3)
     _save_triple(model, None, final, config)
     print(f"wrote {final}.zip ({model.num_timesteps} steps, {wall:.0f} s)", file=sys.stderr)
     return final.with_suffix(".zip")

@@ -222,7 +222,7 @@ def _run(todo: list[SweepSession], store: Any, ns: argparse.Namespace, spec: Swe
     from tqdm import tqdm
 
     from langenv.errors import LangEnvError
-    from langenv.kernels.warm import warm_up
+    from langenv.warm import warm_up
 
     warm_up()  # compiled once here: the workers load it, never compile it at once
     try:

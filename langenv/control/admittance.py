@@ -24,8 +24,17 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from langenv.errors import ConfigError
+from langenv.layout import Field
 
-__all__ = ["AdmittanceParams", "VariableAdmittance"]
+__all__ = ["ADMITTANCE_SETTINGS", "ADMITTANCE_STATE", "AdmittanceParams", "VariableAdmittance"]
+
+ADMITTANCE_STATE = (Field("v_ref", 3, doc="the reference velocity (m/s)"),)
+"""The admittance's state: the velocity :meth:`VariableAdmittance.step` integrates."""
+ADMITTANCE_SETTINGS = (
+    Field("d_over_m", doc="D0 / M0 (1/s)"),
+    Field("inv_d", doc="1 / D0 (s m / N)"),
+)
+"""The admittance's settings (:meth:`VariableAdmittance.settings`)."""
 
 
 @dataclass(frozen=True)
@@ -115,6 +124,10 @@ class VariableAdmittance:
         self._m = params.mass
         self._d_over_m = params.damping / params.mass
         self._inv_d = 1.0 / params.damping
+
+    def settings(self) -> dict[str, float]:
+        """The settings by the names of :data:`ADMITTANCE_SETTINGS`."""
+        return {"d_over_m": self._d_over_m, "inv_d": self._inv_d}
 
     def step(
         self, v: np.ndarray, force: np.ndarray, p: float, p_dot: float, dt: float

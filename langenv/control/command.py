@@ -14,7 +14,20 @@ import math
 
 import numpy as np
 
-__all__ = ["cap_speed", "follow"]
+from langenv.layout import Field
+
+__all__ = ["COMMAND_SETTINGS", "COMMAND_STATE", "cap_speed", "follow"]
+
+COMMAND_STATE = (
+    Field("v_cmd", 3, doc="the velocity command sent in the last tick (m/s)"),
+    Field("was_moving", kind="bool", doc="the command was not zero before the last tick"),
+)
+"""The command's state, declared for the compiled tick."""
+COMMAND_SETTINGS = (
+    Field("max_acc", doc="the command's acceleration limit (m/s^2)"),
+    Field("dv_max", doc="its largest change per tick (m/s)"),
+)
+"""The command's settings."""
 
 
 def follow(current: np.ndarray, target: np.ndarray, dv_max: float) -> np.ndarray:

@@ -16,8 +16,25 @@ import math
 import numpy as np
 
 from langenv.errors import ConfigError
+from langenv.layout import Field
 
-__all__ = ["CooperationFilter", "force_for_cooperation"]
+__all__ = [
+    "COOPERATION_SETTINGS",
+    "COOPERATION_STATE",
+    "CooperationFilter",
+    "force_for_cooperation",
+]
+
+COOPERATION_STATE = (
+    Field("r", doc="the filtered resistance in [0, 1]"),
+    Field("c", doc="cooperation 1 - r"),
+)
+"""The filter's state (:attr:`CooperationFilter.r`, :attr:`CooperationFilter.c`)."""
+COOPERATION_SETTINGS = (
+    Field("keep", doc="alpha^dt: the share of r kept per sample"),
+    Field("inv_f_max", doc="1 / F_max (1/N)"),
+)
+"""The filter's settings for a sample period (:meth:`CooperationFilter.settings`)."""
 
 
 def _check_params(alpha: float, f_max: float, where: str) -> tuple[float, float]:
@@ -58,6 +75,12 @@ class CooperationFilter:
     def rate(self) -> float:
         """``ln(1/alpha)`` (1/s), the filter's bandwidth."""
         return -self._log_alpha
+
+    def settings(self, dt: float) -> dict[str, float]:
+        """The settings by the names of :data:`COOPERATION_SETTINGS` for samples ``dt`` apart
+        (the same ``keep`` as :meth:`update` computes)."""
+        keep = self._keep if dt == self._dt else math.exp(self._log_alpha * dt)
+        return {"keep": keep, "inv_f_max": self._inv_f_max}
 
     def reset(self, r: float = 0.0) -> None:
         """Restart from resistance ``r`` (default 0: full cooperation)."""

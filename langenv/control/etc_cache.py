@@ -7,11 +7,12 @@ module keeps them in ``$LANGCTRL_ETC_CACHE`` (default ``~/.cache/langctrl/etc``;
 disk cache off) as ``<digest>.npz``. The digest hashes the tables' key (geometry, admittance and
 guide parameters, the legs' lengths, switch distances and turn angles, table settings), the
 package version *and the source of the code that builds them* (every module of
-``langenv.control`` and ``langenv.kernels``), so an edit of that code, or another version of the
-package, never reads stale tables. A file that cannot be read or does not match is ignored (and
-replaced); a directory that cannot be written, or sources that cannot be read (a zipped install),
-leave the tables in memory only (one warning per process). Files are never pruned: each code
-version and parameter set adds one of 1-3 MB; delete the directory to reclaim the space.
+``langenv.control`` and ``langenv.kernels``, and :mod:`langenv.layout`), so an edit of that code,
+or another version of the package, never reads stale tables. A file that cannot be read or does
+not match is ignored (and replaced); a directory that cannot be written, or sources that cannot
+be read (a zipped install), leave the tables in memory only (one warning per process). Files are
+never pruned: each code version and parameter set adds one of 1-3 MB; delete the directory to
+reclaim the space.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ __all__ = ["etc_cache_dir", "load_tables", "store_tables", "tables_digest"]
 
 _FORMAT = 1  # bump when the stored arrays' meaning changes
 _SOURCE_DIRS = ("control", "kernels")  # the packages whose code builds the tables
+_SOURCE_FILES = ("layout.py",)  # and the declarations their arrays are packed by
 _code_digest: str | None = None
 _warned = False
 
@@ -60,6 +62,7 @@ def _code() -> str:
         files = sorted(f for d in _SOURCE_DIRS for f in (root / d).glob("*.py"))
         if not files:
             raise OSError(f"no source files under {root}")
+        files += [root / name for name in _SOURCE_FILES]
         for f in files:
             h.update(f.relative_to(root).as_posix().encode())
             h.update(f.read_bytes())

@@ -73,13 +73,27 @@ import numpy as np
 from langenv.control.admittance import AdmittanceParams
 from langenv.control.trajectory import Trajectory
 from langenv.errors import ConfigError
+from langenv.layout import Field, Layout
 
-__all__ = ["GATE_REACH", "GATE_STEP", "GOVERNOR_SHARE", "Guide", "GuideState", "switch_gate"]
+__all__ = [
+    "GATE_REACH",
+    "GATE_STEP",
+    "GOVERNOR_SHARE",
+    "GUIDE_SETTINGS",
+    "GUIDE_STATE",
+    "LEG",
+    "TURNED_COS2",
+    "Guide",
+    "GuideState",
+    "switch_gate",
+]
 
 GOVERNOR_SHARE = 0.5
 """Share of ``max_acceleration`` the speed governor plans its braking and turning with (the rest
 is left for the guide's corrections)."""
-_TURNED_COS2 = math.cos(math.radians(25.0)) ** 2
+TURNED_COS2 = math.cos(math.radians(25.0)) ** 2
+"""The governor's hand is still turning into a leg while its command is more than 25 deg off
+the leg's direction (cos^2 of that angle)."""
 GATE_REACH = 2.0
 """A leg's final approach stays within this many ``switch_tol`` of its end point (module
 docstring, "Loops")."""
@@ -122,6 +136,37 @@ def switch_gate(trajectory: Trajectory, start: float, end: float, reach: float) 
     gate = approach - 1  # the last sample at least ``reach`` from the end
     returns = any(d < far for d in d2[:gate])
     return ss[gate] if returns else start
+
+
+GUIDE_STATE = (
+    Field("s", doc="arc length of the closest point (m)"),
+    Field("leg", kind="int", doc="the leg being guided (the number of legs once done)"),
+    Field("done", kind="bool", doc="the last leg's end has been reached"),
+)
+"""The guide's state (:class:`GuideState`), declared for the compiled tick."""
+GUIDE_SETTINGS = (
+    Field("k", doc="guide stiffness K (N/m)"),
+    Field("f_prop", doc="propelling force (N)"),
+    Field("tol2", doc="the switch tolerance's square (m^2, rad^2)"),
+    Field("ff_mass", doc="mass of the curvature feed-forward (kg; 0: off)"),
+    Field("acc", doc="the command's acceleration limit (m/s^2; inf: no governor)"),
+    Field("v_turn2", doc="the guided plateau speed's square (m^2/s^2)"),
+    Field("end_tangent", 3, doc="the direction of progress once done"),
+    Field("n_legs", kind="int", doc="number of legs"),
+)
+"""The guide's settings (:meth:`Guide.settings`)."""
+LEG = Layout(
+    "leg",
+    (
+        Field("start", doc="the leg's start (arc length, m)"),
+        Field("end", doc="its end (arc length, m)"),
+        Field("end_point", 3, doc="its end point (m)"),
+        Field("end_angle", doc="the tool's running turn at its end (rad)"),
+        Field("switch", doc="its switch distance before the end (m)"),
+        Field("gate", doc="its gate (arc length, m; :meth:`Guide.gate`)"),
+    ),
+)
+"""One leg's row (:meth:`Guide.leg_rows`)."""
 
 
 @dataclass
@@ -184,6 +229,28 @@ class Guide:
             switch_gate(trajectory, a, b, reach) for a, b in zip(self._starts, ends, strict=True)
         ]
 
+    def settings(self) -> dict[str, float | tuple[float, ...]]:
+        """The guide's settings by the names of :data:`GUIDE_SETTINGS`."""
+        return {
+            "k": self._k, "f_prop": self._f_prop, "tol2": self._tol2, "ff_mass": self._ff_mass,
+            "acc": self._acc, "v_turn2": self._v_turn2, "n_legs": self._n_legs,
+            "end_tangent": tuple(self.tangent(GuideState(self._ends[-1], self._n_legs, True))),
+        }  # fmt: skip
+
+    def leg_rows(self) -> np.ndarray:
+        """The legs as rows of :data:`LEG`, shape ``(n_legs, LEG.size)``."""
+        rows = np.zeros((self._n_legs, LEG.size))
+        for j in range(self._n_legs):
+            LEG.pack(
+                rows[j],
+                {
+                    "start": self._starts[j], "end": self._ends[j], "end_point": self._end_pts[j],
+                    "end_angle": self._end_angle[j], "switch": self._q_sw[j],
+                    "gate": self._gate[j],
+                },
+            )  # fmt: skip
+        return rows
+
     @property
     def n_legs(self) -> int:
         """Number of legs (the last one ends at the end of the trajectory)."""
@@ -240,7 +307,7 @@ class Guide:
         b = seg.unit_tangent(t)
         c0, c1, c2 = v_cmd.tolist()
         along = c0 * b[0] + c1 * b[1] + c2 * b[2]
-        if along * along < _TURNED_COS2 * (c0 * c0 + c1 * c1 + c2 * c2) or along < 0.0:
+        if along * along < TURNED_COS2 * (c0 * c0 + c1 * c1 + c2 * c2) or along < 0.0:
             return math.sqrt(self._v_turn2)
         room = self._ends[k] - state.s - self._q_sw[k]
         acc *= GOVERNOR_SHARE

@@ -31,13 +31,13 @@ from typing import Any
 import numpy as np
 
 from langenv.control import etc_cache
+from langenv.control import etc_kernels as etc_kernel
 from langenv.control.admittance import VariableAdmittance
 from langenv.control.command import follow
+from langenv.control.etc_kernels import ETC_LEG, ETC_PARAMS
+from langenv.control.etc_kernels import simulate as simulate_law
 from langenv.control.guide import Guide, GuideState
 from langenv.errors import ConfigError
-from langenv.kernels import etc as etc_kernel
-from langenv.kernels.law import simulate as simulate_law
-from langenv.kernels.path import pack as pack_path
 
 __all__ = ["DT", "FastETC", "reference_etc"]
 
@@ -138,7 +138,8 @@ class _Law:
         lateral: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
         t_max: float = 60.0,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`simulate_numpy`, compiled (:mod:`langenv.kernels.law`): the same results."""
+        """:meth:`simulate_numpy`, compiled (:func:`langenv.control.etc_kernels.simulate`): the
+        same results."""
         q, u, w, y, ul, wl = _leg_states(q, u, w, lateral)
         out = np.empty((4, q.size))
         gain = (1.0 - self.decay) * self.inv_d
@@ -293,8 +294,9 @@ class FastETC:
             q_step,
             behind_u_step,
         )
-        self.path: np.ndarray = pack_path(traj)
-        """The trajectory packed for the compiled kernels (:func:`langenv.kernels.path.pack`)."""
+        self.path: np.ndarray = traj.packed()
+        """The trajectory packed for the compiled kernels (:meth:`Trajectory.packed
+        <langenv.control.trajectory.Trajectory.packed>`)."""
         tables = _TABLES.get(key)
         if tables is None:  # built once per machine (etc_cache), then once per process at most
             tables = etc_cache.load_tables(key)
@@ -303,8 +305,8 @@ class FastETC:
                 etc_cache.store_tables(key, *tables)
             _TABLES[key] = tables
         self.prm: np.ndarray = tables[0]
-        """The law, the table grids and the legs, packed for :func:`langenv.kernels.etc.estimate`
-        (read-only)."""
+        """The law, the table grids and the legs, packed for
+        :func:`langenv.control.etc_kernels.estimate` (read-only)."""
         self.tab: np.ndarray = tables[1]
         """The tables, flat (read-only)."""
 
@@ -314,26 +316,25 @@ class FastETC:
         origin: tuple[float, ...],
         steps: tuple[float, ...],
     ) -> np.ndarray:
-        """``prm`` of :mod:`langenv.kernels.etc`: the law, the table grids and the legs."""
+        """``prm`` of :mod:`langenv.control.etc_kernels`: :data:`ETC_PARAMS`, then a row of
+        :data:`ETC_LEG` per leg."""
         law = self._law
         size = behind_shape[0] * behind_shape[1] * behind_shape[2]
-        prm = np.zeros(etc_kernel.LEG0 + 3 * self._n_legs)
-        prm[: etc_kernel.P_BO] = (law.dt, law.acc, law.u_inf, law.tau, law.tau_d, self._inv_acc)
-        prm[etc_kernel.P_BO : etc_kernel.P_BO + 3] = origin
-        prm[etc_kernel.P_BS : etc_kernel.P_BS + 3] = steps
-        prm[etc_kernel.P_BN : etc_kernel.P_BN + 3] = behind_shape
-        prm[etc_kernel.P_U0 : etc_kernel.LEG0] = (
-            self._u0,
-            self._du,
-            self._nu,
-            self._n_legs,
-            3 * self._n_legs * size,
-        )
+        prm = np.zeros(ETC_PARAMS.size + ETC_LEG.size * self._n_legs)
+        ETC_PARAMS.pack_all(
+            prm,
+            {
+                "dt": law.dt, "acc": law.acc, "u_inf": law.u_inf, "tau": law.tau,
+                "tau_d": law.tau_d, "inv_acc": self._inv_acc, "behind_origin": origin,
+                "behind_step": steps, "behind_shape": behind_shape, "rest_u0": self._u0,
+                "rest_du": self._du, "rest_n": self._nu, "n_legs": self._n_legs,
+                "rest_offset": 3 * self._n_legs * size,
+            },
+        )  # fmt: skip
         for k in range(self._n_legs):
-            prm[etc_kernel.LEG0 + 3 * k : etc_kernel.LEG0 + 3 * k + 3] = (
-                self._ends[k],
-                self._lengths[k],
-                self._q_sw[k],
+            row = prm[ETC_PARAMS.size + ETC_LEG.size * k :]
+            ETC_LEG.pack_all(
+                row, {"end": self._ends[k], "length": self._lengths[k], "switch": self._q_sw[k]}
             )
         return prm
 
@@ -364,7 +365,7 @@ class FastETC:
         rest[-1] = np.abs(ug)[None, :] * self._inv_acc  # the last leg: braking to rest
         tab = np.concatenate([*behind, rest.ravel()])
         uu, ww = np.meshgrid(ug, ug, indexing="ij")
-        r0 = int(prm[etc_kernel.P_REST])
+        r0 = int(prm[ETC_PARAMS.at.rest_offset])
         for k in range(self._n_legs - 2, -1, -1):
             c, j = self._cos[k], k + 1
             sn = math.sqrt(max(1.0 - c * c, 0.0))

@@ -34,9 +34,11 @@ from numpy.typing import ArrayLike
 
 from langenv import vec
 from langenv.errors import TrajectoryError
+from langenv.layout import Field, Layout
 from langenv.validation import as_vec3
 
 __all__ = [
+    "SEGMENT",
     "ArcSegment",
     "LineSegment",
     "Segment",
@@ -54,6 +56,26 @@ CONTINUITY_TOL = 1e-6
 MAX_ARC_ANGLE = math.pi
 
 Vec3 = tuple[float, float, float]
+
+SEGMENT = Layout(
+    "segment",
+    (
+        Field("kind", kind="int", doc="0 a line, 1 an arc"),
+        Field("s0", doc="arc length at the segment's start (m)"),
+        Field("s1", doc="arc length at its end (m)"),
+        Field("length", doc="its length (m)"),
+        Field("turn0", doc="the tool's running turn at its start (rad)"),
+        Field("turn_rate", doc="the tool's turn per metre along it (rad/m)"),
+        Field("origin", 3, doc="a line's start point, an arc's centre (m)"),
+        Field("axis1", 3, doc="a line's unit direction, an arc's e1 (start radius direction)"),
+        Field("axis2", 3, doc="an arc's e2 (in-plane normal to e1; zeros for a line)"),
+        Field("radius", doc="an arc's radius (m)"),
+        Field("sign", doc="an arc's sense of rotation about its axis (+-1)"),
+        Field("angle", doc="an arc's swept angle (rad)"),
+    ),
+)
+"""One row of a packed trajectory (:meth:`Trajectory.packed`): what the compiled path functions
+(:mod:`langenv.control.path_kernels`) read."""
 
 
 def _as_vec3(value: ArrayLike, name: str) -> np.ndarray:
@@ -407,6 +429,28 @@ class Trajectory:
                 geo = (*seg.start.tolist(), *seg.end.tolist())
             parts.append((type(seg).__name__, geo, seg.waypoint, seg.turn))
         return tuple(parts)
+
+    def packed(self) -> np.ndarray:
+        """The segments as rows of :data:`SEGMENT`, shape ``(n, SEGMENT.size)``, float64: the
+        trajectory as the compiled kernels take it."""
+        rows = np.zeros((len(self.segments), SEGMENT.size))
+        for i, seg in enumerate(self.segments):
+            values: dict[str, object] = {
+                "s0": self._starts[i],
+                "s1": self._ends[i],
+                "length": seg.length,
+                "turn0": self._turn_start[i],
+                "turn_rate": self._turn_rate[i],
+            }
+            if isinstance(seg, ArcSegment):
+                values.update(
+                    kind=1, origin=seg._c, axis1=seg._e1, axis2=seg._e2, radius=seg.radius,
+                    sign=seg._sign, angle=seg.angle,
+                )  # fmt: skip
+            else:
+                values.update(kind=0, origin=seg._p0, axis1=seg._u)
+            SEGMENT.pack(rows[i], values)
+        return rows
 
     # ------------------------------------------------------------------ lookup
     def segment_index(self, s: float, side: str = "right") -> int:

@@ -1,28 +1,24 @@
-"""Compiled kernels of the 500 Hz hot path (numba, ``nopython`` mode, cached on disk).
+"""The compiled-code toolkit of the 500 Hz hot path (numba, ``nopython`` mode, cached on disk).
 
-One control tick of :class:`~langenv.motion.GuidedArm` is one call into compiled code,
-:func:`~langenv.kernels.tick.tick`: :func:`~langenv.kernels.tick.control`
-(sensor deadband, cooperation filter, guide, admittance, safety limits, speed governor,
-acceleration-limited command and the arm's damped-least-squares velocity controller, up to
-``ctrl`` and ``qfrc_applied``), MuJoCo's own ``mj_step2``/``mj_step1``/``mj_jacSite``
-(:mod:`~langenv.kernels.mjc`) and :func:`~langenv.kernels.tick.observe` (the hand's velocity,
-its distance from the path, the motion ETC ``t_x`` and the safety monitor). The Python classes
-(:class:`~langenv.control.guide.Guide`, :class:`~langenv.control.motion_etc.FastETC`,
-:class:`~langenv.robot.arm.Arm`, ...) stay the reference and the API; the kernels repeat their
-arithmetic operation for operation (the same order of additions, MuJoCo's own order for its
-BLAS routines), so a compiled episode is bit-identical to the Python one.
+Each law's compiled twin sits beside its Python reference (``control/guide_kernels.py`` beside
+``control/guide.py``, ``robot/arm_kernels.py`` beside ``robot/arm.py``, ...) and works on arrays
+whose layout the part declares once (:mod:`langenv.layout`); :mod:`langenv.motion_kernels`
+composes them into one tick and :mod:`langenv.env_kernels` into the env's ticks. This package
+holds what they share: the decorators (:func:`jit`, :func:`kernel`, :func:`inline`),
+:mod:`~langenv.kernels.blas` (MuJoCo's dense routines, in MuJoCo's order),
+:mod:`~langenv.kernels.pymath` (CPython's ``hypot``/``dist``) and :mod:`~langenv.kernels.mjc`
+(MuJoCo's steps and the C library's ``pow``, called by address). It imports nothing of langenv
+but its errors and the layouts.
 
-Modules: :mod:`~langenv.kernels.blas` (MuJoCo's dense routines), :mod:`~langenv.kernels.path`
-(a trajectory as an array: locate, frame, closest point, tool angle),
-:mod:`~langenv.kernels.etc` (FastETC's closed form and tables), :mod:`~langenv.kernels.arm`
-(the arm's velocity controller), :mod:`~langenv.kernels.tick` (the tick),
-:mod:`~langenv.kernels.steps` (the env's ticks of one step: pacing, user, tick, speech, rewards),
-:mod:`~langenv.kernels.pacer` (steps of a pace law: what an analytic aligner decides each tick).
+The kernels repeat their references' arithmetic operation for operation (the same order of
+additions, MuJoCo's own order for its BLAS routines, no ``fastmath``), so a compiled episode is
+bit-identical to the Python one.
 
 Numba checks a cached kernel against its own source file only, while these kernels call each
-other across files: importing the package drops the package's cached kernels whenever any of its
-modules changed (:func:`clear_stale_cache`), so an edit to ``tick.py`` cannot leave ``steps.run``
-running the old tick.
+other across files and read the slots of declarations made in other files: importing the
+package drops the cached kernels of every module in :data:`COMPILED` whenever any file of
+:data:`SOURCES` changed (:func:`clear_stale_cache`), so an edit to ``guide.py``'s declaration
+cannot leave ``env_kernels.run`` running with the old slots.
 """
 
 from __future__ import annotations
@@ -30,45 +26,118 @@ from __future__ import annotations
 import hashlib
 import os
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, TypeVar, cast
 
 import numba
 
-__all__ = ["clear_stale_cache", "inline", "jit", "kernel"]
+__all__ = ["COMPILED", "SOURCES", "clear_stale_cache", "inline", "jit", "kernel"]
+
+COMPILED = (
+    "kernels/blas.py",
+    "kernels/mjc.py",
+    "kernels/pymath.py",
+    "kernels/views.py",
+    "control/path_kernels.py",
+    "control/etc_kernels.py",
+    "control/guide_kernels.py",
+    "control/admittance_kernels.py",
+    "control/cooperation_kernels.py",
+    "control/command_kernels.py",
+    "robot/arm_kernels.py",
+    "robot/force_sensor_kernels.py",
+    "users/noise_kernels.py",
+    "users/table_kernels.py",
+    "speech/graph_kernels.py",
+    "safety_kernels.py",
+    "pacing_kernels.py",
+    "reward_kernels.py",
+    "observation_kernels.py",
+    "motion_kernels.py",
+    "env_kernels.py",
+    "batch/kernels.py",
+)
+"""The modules (relative to ``langenv/``) whose compiled kernels call each other or read other
+files' declarations: their disk caches are dropped together. (``speech/vocoder_kernels.py`` is
+self-contained: numba's own check of its file suffices.)"""
+SOURCES = (
+    *COMPILED,
+    "kernels/__init__.py",
+    "layout.py",
+    "observation.py",
+    "control/trajectory.py",
+    "control/guide.py",
+    "control/admittance.py",
+    "control/cooperation.py",
+    "control/command.py",
+    "robot/arm.py",
+    "robot/force_sensor.py",
+    "safety.py",
+    "pacing.py",
+    "speech/timeline.py",
+)
+"""The files whose content the compiled kernels depend on: :data:`COMPILED` and the parts'
+declarations (``tests/test_architecture.py`` checks that every module importing
+:mod:`langenv.layout` or this package is listed)."""
 
 _STAMP = "langctrl-kernels.sha256"
 
 
-def clear_stale_cache(sources: Path, cache: Path) -> bool:
-    """Delete numba's cache files in ``cache`` unless the ``*.py`` files of ``sources`` are those
-    they were compiled from (a digest kept in ``cache``); returns whether any was deleted.
+def _cache_dirs(directory: Path) -> list[Path]:
+    """Where numba keeps the caches of the modules in ``directory``: its ``__pycache__``, and
+    under ``NUMBA_CACHE_DIR`` where that is set (numba's ``UserProvidedCacheLocator``)."""
+    dirs = [directory / "__pycache__"]
+    base = getattr(numba.config, "CACHE_DIR", "")
+    if base:
+        full = os.path.abspath(directory)
+        dirs.append(
+            Path(base)
+            / "_".join([os.path.split(full)[-1], hashlib.sha1(full.encode()).hexdigest()])
+        )
+    return dirs
 
-    Fails quietly where ``cache`` cannot be written (a read-only install: its sources do not
+
+def clear_stale_cache(
+    root: Path, sources: Sequence[str], compiled: Sequence[str], stamp: str = "kernels"
+) -> bool:
+    """Delete numba's cache files of the modules ``compiled`` (paths relative to ``root``) unless
+    the files ``sources`` (relative to ``root``, or absolute) are those they were compiled from
+    (a digest kept in the cache of ``root/stamp``); returns whether any was deleted. Other
+    packages whose kernels read langenv's declarations call it too
+    (:mod:`policies.residual_kernels`).
+
+    Fails quietly where the cache cannot be written (a read-only install: its sources do not
     change, and numba then caches elsewhere, per file).
     """
-    stamp = cache / _STAMP
+    stamp_dir = root / stamp / "__pycache__"
+    stamp_file = stamp_dir / _STAMP
     try:
         digest = hashlib.sha256()
-        for path in sorted(sources.glob("*.py")):
-            digest.update(path.name.encode() + b"\0" + path.read_bytes())
-        if stamp.is_file() and stamp.read_text() == digest.hexdigest():
+        for name in sorted(sources):
+            path = root / name
+            data = path.read_bytes() if path.is_file() else b"(none)"
+            digest.update(name.encode() + b"\0" + data)
+        if stamp_file.is_file() and stamp_file.read_text() == digest.hexdigest():
             return False
-        stale = sorted(cache.glob("*.nb[ic]"))
+        stale: list[Path] = []
+        for name in compiled:
+            module = root / name
+            for cache in _cache_dirs(module.parent):
+                stale.extend(sorted(cache.glob(f"{module.stem}.*.nb[ic]")))
         for path in stale:
             path.unlink(missing_ok=True)
-        cache.mkdir(exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{_STAMP}.", dir=cache)
+        stamp_dir.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{_STAMP}.", dir=stamp_dir)
         with os.fdopen(fd, "w") as fh:
             fh.write(digest.hexdigest())
-        os.replace(tmp, stamp)
+        os.replace(tmp, stamp_file)
         return bool(stale)
     except OSError:
         return False
 
 
-clear_stale_cache(Path(__file__).parent, Path(__file__).parent / "__pycache__")
+clear_stale_cache(Path(__file__).resolve().parent.parent, SOURCES, COMPILED)
 
 F = TypeVar("F", bound=Callable[..., Any])
 

@@ -30,12 +30,38 @@ from numba.extending import intrinsic
 
 from langenv.errors import ConfigError
 from langenv.kernels import kernel
+from langenv.layout import Field, Layout
 
-__all__ = ["available", "call_jac", "call_md", "call_pow", "pointers", "pow_address", "py_square"]
+__all__ = [
+    "POINTERS",
+    "available",
+    "call_jac",
+    "call_md",
+    "call_pow",
+    "pointers",
+    "pow_address",
+    "py_square",
+]
 
-# slots of the pointer array
-P_MODEL, P_DATA, P_STEP1, P_STEP2, P_JACSITE, P_JACP, P_JACR, P_SITE, P_POW = range(9)
-N_POINTERS = 9
+POINTERS = Layout(
+    "pointers",
+    (
+        Field("model", kind="int", doc="the ``mjModel``"),
+        Field("data", kind="int", doc="the ``mjData``"),
+        Field("step1", kind="int", doc="``mj_step1``"),
+        Field("step2", kind="int", doc="``mj_step2``"),
+        Field("jac_site", kind="int", doc="``mj_jacSite``"),
+        Field("jacp", kind="int", doc="the positional Jacobian's buffer"),
+        Field("jacr", kind="int", doc="the rotational Jacobian's buffer"),
+        Field("site", kind="int", doc="the handle site's id (a number, not an address)"),
+        Field("pow", kind="int", doc="the C library's ``pow``"),
+    ),
+)
+"""The addresses of :func:`pointers`' ``int64`` array, by name."""
+_P = POINTERS.at
+P_MODEL, P_DATA, P_STEP1, P_STEP2, P_JACSITE = _P.model, _P.data, _P.step1, _P.step2, _P.jac_site
+P_JACP, P_JACR, P_SITE, P_POW = _P.jacp, _P.jacr, _P.site, _P.pow
+N_POINTERS = POINTERS.size
 
 
 @functools.cache

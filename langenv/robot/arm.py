@@ -51,6 +51,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from langenv import vec
 from langenv.errors import ActionError, ConfigError
+from langenv.layout import Field, Layout
 from langenv.robot.handles import ArmHandles, load_model
 from langenv.robot.ik import IK_ACCEPT, solve_ik
 from langenv.robot.rotation import rotation_error_matrix, rotation_vector
@@ -74,6 +75,48 @@ UR5_JOINTS: tuple[str, ...] = (
 """Joint names of the UR5 model, base to flange."""
 
 _LIMIT_CHECK_MAX = 25  # ticks, longest interval between two joint-limit checks
+
+
+ARM = Layout(
+    "arm",
+    (
+        Field("v_max", doc="the hand's speed limit (m/s)"),
+        Field("kp", doc="position gain (1/s)"),
+        Field("e_max", doc="largest tracking error (m)"),
+        Field("e_max2", doc="its square"),
+        Field("lambda2", doc="the damping's square"),
+        Field("dt", doc="the control period (s)"),
+        Field("task", kind="int", doc="task size: 6 (orientation held) or 3"),
+        Field("n", kind="int", doc="controlled joints"),
+        Field("nv", kind="int", doc="the model's degrees of freedom"),
+        Field("has_limits", kind="bool", doc="whether any joint is limited"),
+        Field("countdown", kind="int", doc="ticks until the joint margins are checked again"),
+        Field("full_dofs", kind="bool", doc="whether the joints are the model's dofs in order"),
+        Field("max_qd", doc="the highest joint speed limit (rad/s)"),
+        Field("x_ref", 3, doc="the reference point (m); the Arm's own ``x_ref`` is a view of it"),
+        Field("rot_b", 27, doc="the orientation hold's (3, 9) matrix"),
+        Field("a", 36, doc="work: the damped system's matrix"),
+        Field("xdot", 6, doc="work: the task velocity"),
+        Field("y", 6, doc="work: the system's solution"),
+        Field("v", 3, doc="the clipped hand velocity command (m/s)"),
+    ),
+)
+"""The compiled controller's settings, state and work (:mod:`langenv.robot.arm_kernels`); after
+``ARM.size`` come the per-joint blocks of :data:`ARM_JOINTS` (``n`` entries each) and the task
+Jacobian (``task * n``)."""
+ARM_JOINTS = Layout(
+    "arm_joints",
+    (
+        Field("inv_qd_max", doc="1 / the joint's speed limit (s/rad)"),
+        Field("lower", doc="lower limit (rad)"),
+        Field("upper", doc="upper limit (rad)"),
+        Field("lower_margin", doc="lower limit plus the margin (rad)"),
+        Field("upper_margin", doc="upper limit minus the margin (rad)"),
+        Field("qdot", doc="the joint speed command (rad/s)"),
+    ),
+)
+"""Per-joint blocks of the compiled controller's array: block ``j`` of field ``f`` starts at
+``ARM.size + ARM_JOINTS.at.f * n``."""
 
 
 def _joint_speed_limits(max_joint_speed: float | ArrayLike, n: int) -> NDArray[np.float64]:
@@ -225,6 +268,76 @@ class Arm:
         self._ctrl_view: NDArray[np.float64] | None = None
         if np.array_equal(acts, np.arange(acts[0], acts[0] + n)):
             self._ctrl_view = d.ctrl[acts[0] : acts[0] + n]
+
+    # ------------------------------------------------------------------ compiled controller
+    def compiled_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """The controller packed for :mod:`langenv.robot.arm_kernels`: ``aw`` (:data:`ARM`,
+        then the :data:`ARM_JOINTS` blocks and the task Jacobian) and ``ai`` (the joints' dof
+        and qpos addresses and their actuators, int64, ``3 n``). From then on the arm's
+        reference point is a view of ``aw``, so the Python step and the kernel move the same
+        three numbers."""
+        n, nv, k = self.n_joints, self.model.nv, self._task
+        aw = np.zeros(ARM.size + len(ARM_JOINTS.fields) * n + k * n)
+        ARM.pack(
+            aw,
+            {
+                "v_max": self.max_hand_speed, "kp": self._kp, "e_max": self._emax,
+                "e_max2": self._emax2, "lambda2": self._lambda2, "dt": self.dt, "task": k,
+                "n": n, "nv": nv, "has_limits": self._has_limits, "full_dofs": self._full_dofs,
+                "max_qd": float(np.max(1.0 / self._inv_qdmax)), "x_ref": self._x_ref,
+            },
+        )  # fmt: skip
+        j = ARM_JOINTS.at
+        for block, values in (
+            (j.inv_qd_max, self._inv_qdmax), (j.lower, self._lo), (j.upper, self._hi),
+            (j.lower_margin, self._lo_m), (j.upper_margin, self._hi_m),
+        ):  # fmt: skip
+            aw[ARM.size + block * n : ARM.size + (block + 1) * n] = values
+        self._x_ref = aw[ARM.at.x_ref : ARM.at.x_ref + 3]
+        ai = np.concatenate([self._dofs, self._qadr, self._act_ids]).astype(np.int64)
+        return aw, ai
+
+    def compiled_views(self) -> dict[str, np.ndarray]:
+        """The MuJoCo arrays the compiled tick reads and writes, by name: ``jac`` (the site
+        Jacobian, flat (6 nv)), ``jacp``/``jacr`` (its halves, what ``mj_jacSite`` writes),
+        ``xpos``/``xmat`` (the handle site's), ``qpos``, ``qvel``, ``ctrl``, ``qfrc``
+        (``qfrc_applied``); views, valid as long as the arm."""
+        d = self.data
+        return {
+            "jac": self._jac.reshape(-1), "jacp": self._jacp, "jacr": self._jacr,
+            "xpos": self._site_xpos, "xmat": self._site_xmat, "qpos": d.qpos, "qvel": d.qvel,
+            "ctrl": d.ctrl, "qfrc": d.qfrc_applied,
+        }  # fmt: skip
+
+    @property
+    def full_dofs(self) -> bool:
+        """Whether the controlled joints are the model's degrees of freedom, in order (the
+        compiled ticks of the env need it)."""
+        return self._full_dofs
+
+    def load_compiled_state(self, aw: np.ndarray) -> None:
+        """Copy the controller's state after a reset into ``aw`` (the countdown to the next
+        joint-margin check and the orientation hold)."""
+        ARM.pack(aw, {"countdown": self._limit_countdown, "rot_b": self._rot_b})
+
+    def store_compiled_state(self, aw: np.ndarray) -> None:
+        """Take the controller's state back from ``aw`` (before a Python tick)."""
+        self._limit_countdown = int(aw[ARM.at.countdown])
+
+    def avoid_limits_compiled(self, aw: np.ndarray) -> None:
+        """The compiled controller found a joint inside its margin: re-solve ``aw``'s joint
+        speeds in Python (:meth:`step`'s 3, the reference) before the compiled ``apply``."""
+        n, k = self.n_joints, self._task
+        qdot = aw[ARM.size + ARM_JOINTS.at.qdot * n : ARM.size + (ARM_JOINTS.at.qdot + 1) * n]
+        self._qdot[:] = qdot
+        self._xdot[:] = aw[ARM.at.xdot : ARM.at.xdot + k]
+        q = self._qpos_view if self._qpos_view is not None else self.data.qpos[self._qadr]
+        self._avoid_limits(q)
+        qdot[:] = self._qdot
+
+    def update_jacobian(self) -> None:
+        """Recompute the handle's Jacobian for the current kinematics (after MuJoCo's step)."""
+        self._update_jacobian()
 
     # ------------------------------------------------------------------ state
 

@@ -9,6 +9,14 @@ from numpy.typing import NDArray
 
 from langenv import vec
 from langenv.errors import ActionError, ConfigError
+from langenv.layout import Field
+
+__all__ = ["SENSOR_SETTINGS", "SENSOR_STATE", "ForceSensor"]
+
+SENSOR_STATE = (Field("f_measured", 3, doc="the last reading, after the deadband (N)"),)
+"""The sensor's reading, declared for the compiled tick."""
+SENSOR_SETTINGS = (Field("deadband", doc="the deadband's radius (N)"),)
+"""The sensor's settings (the compiled tick draws no noise: a noisy sensor ticks in Python)."""
 
 
 class ForceSensor:

@@ -106,7 +106,7 @@ class IOArm:
         """Start a session with the TCP at ``hand_position`` (the exercise's start).
 
         Unlike the simulation, a robot is not placed: it must already be there (the confirmed
-        move of :mod:`langenv.robot.ur.preflight`). Clears the fault and the timing record; the
+        move of :mod:`langenv.live.ur_preflight`). Clears the fault and the timing record; the
         first :meth:`step` allows commands again (``robot.enable()``, which starts the robot's
         period clock right before the first command). A stop is latched across sessions: after
         one, a new session needs the operator's :meth:`release` first.

@@ -41,6 +41,8 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
+import numpy as np
+
 from langenv.errors import AudioError, ConfigError, PhraseGraphError
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.repeat import (
@@ -607,7 +609,8 @@ class PhraseGraph:
         return self._fill(u, float(target))
 
     def _fill(self, v: str, left: float) -> float:
-        """:meth:`pause_length` without checks (mirrored by ``langenv.kernels.steps.eta``)."""
+        """:meth:`pause_length` without checks (mirrored by
+        :func:`langenv.speech.graph_kernels.fill`)."""
         slot, mid, children = self._slot, self._mid, self._children
         y = left - slot[v]
         rest = 0.0
@@ -620,6 +623,19 @@ class PhraseGraph:
         length = left - rest
         lo, hi = self._lo[v], self._hi[v]
         return lo if length < lo else (hi if length > hi else length)
+
+    def packed(self, order: tuple[str, ...]) -> tuple[np.ndarray, ...]:
+        """The graph as arrays for :mod:`langenv.speech.graph_kernels`: ``mid`` (n), ``slot``
+        (n, 3: the nominal slot, its minimum and maximum, which differ for a pause only), by
+        index in ``order``, the children's offsets ``kid_ptr`` (n + 1) and indexes ``kids``, in
+        the graph's order."""
+        index = {u: i for i, u in enumerate(order)}
+        mid = np.array([self._mid[u] for u in order])
+        slot = np.array([(self.slot(u), *self.slot_range(u)) for u in order]).reshape(-1, 3)
+        kids = [index[v] for u in order for v in self.children(u)]
+        counts = [len(self.children(u)) for u in order]
+        kid_ptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        return mid, slot, kid_ptr, np.array(kids, dtype=np.int64)
 
     def shortest_path(self, u: str | None = None) -> tuple[str, ...]:
         """A path from ``u`` (default: start) to a terminal whose speech lasts ``t_min(u)``."""
@@ -738,7 +754,7 @@ class PhraseGraph:
 
 def _nearest(kids: tuple[str, ...], mid: Mapping[str, float], x: float) -> str:
     """The paper's choice: the first of ``kids`` (non-empty) whose ``mid`` is nearest ``x``
-    (mirrored, comparison for comparison, by the kernels of ``langenv.kernels.steps``)."""
+    (mirrored, comparison for comparison, by :func:`langenv.speech.graph_kernels.nearest`)."""
     best = kids[0]
     best_err = abs(x - mid[best])
     for v in kids[1:]:

@@ -24,9 +24,22 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from langenv.errors import ActionError, ConfigError
+from langenv.layout import Field
 from langenv.speech.graph import PhraseGraph
 
-__all__ = ["Choice", "PauseTarget", "SpeechTimeline", "Utterance"]
+__all__ = ["TIMELINE_STATE", "Choice", "PauseTarget", "SpeechTimeline", "Utterance"]
+
+TIMELINE_STATE = (
+    Field("speech_pos", doc="base-pace seconds into the current vertex's slot"),
+    Field("speech_t", doc="time since the timeline's reset (s)"),
+    Field("speech_a", doc="the audio pace of the last step"),
+    Field("mark", doc="the content position where the next boundary falls (s at a = 1)"),
+    Field("phrase", kind="index", doc="the current vertex (its index; -1 once speech is over)"),
+    Field("slot", doc="the current vertex's slot length (a pause: as planned now; s at a = 1)"),
+    Field("in_pause", kind="bool", doc="in the silence after a clip, or a pause vertex"),
+)
+"""The timeline's state inside a vertex, declared for the compiled ticks (which stop before a
+boundary: the choice and the history are Python's)."""
 
 Choice = str | Callable[[tuple[str, ...]], str] | None
 """The next phrase at a boundary: a phrase id, a function of the candidate ids, or None."""
@@ -179,7 +192,7 @@ class SpeechTimeline:
 
     def _replan(self, target: float) -> None:
         """The open pause's length for ``target`` s of speech wanted from now (mirrored by
-        ``langenv.kernels.steps.run``)."""
+        ``langenv.env_kernels.run``)."""
         if not math.isfinite(target):
             raise ActionError(
                 f"SpeechTimeline.step: the pause target must be finite, got {target!r}"
@@ -325,6 +338,25 @@ class SpeechTimeline:
             f"SpeechTimeline.step: phrase {u!r} ends and has several candidates {list(kids)}; "
             "pass `choice` or `t_x`"
         )
+
+    # ------------------------------------------------------------------ compiled state
+    def state_values(self) -> tuple[float, float, float, float, float, bool]:
+        """``(speech_pos, speech_t, speech_a, mark, slot, in_pause)`` of
+        :data:`TIMELINE_STATE` (the phrase's index is the caller's: it depends on its order)."""
+        return self._pos, self._t, self._a, self._mark, self.slot_length, self._in_pause
+
+    def take_state(self, pos: float, t: float, a: float, mark: float, slot: float) -> None:
+        """Take the state back after compiled ticks inside the current vertex (an open pause's
+        length and boundary, planned again at each tick, included)."""
+        self._pos, self._t, self._a = pos, t, a
+        if self._elastic:
+            self._mark = mark
+            self._cur_slot = slot
+
+    @property
+    def elastic(self) -> bool:
+        """Whether the current vertex is a pause whose length is still open."""
+        return self._elastic
 
     # ------------------------------------------------------------------ queries
     def boundary_due(self, horizon: float, a: float | None = None) -> bool:

@@ -38,13 +38,13 @@ from typing import Self
 import numpy as np
 
 from langenv.errors import ConfigError
-from langenv.kernels.noise import ar1
 from langenv.users.base import (
     DEFAULT_DEADBAND,
     against_motion,
     sample_table,
     sample_table_array,
 )
+from langenv.users.noise_kernels import ar1
 
 __all__ = [
     "CALIBRATED_YAML",

@@ -11,7 +11,7 @@
 (:func:`~langenv.exercise.check.check_exercise`: reach, joint margins, contacts, speed, script)
 before the robot is even connected; a failed check is an error naming every problem.
 
-A dry run connects, reads, runs the preflight checks (:mod:`langenv.robot.ur.preflight`) and
+A dry run connects, reads, runs the preflight checks (:mod:`langenv.live.ur_preflight`) and
 prints what a session would do; it commands no motion. A session then zeroes the wrist sensor,
 asks before the slow move to the exercise's start, and runs the policy at 500 Hz until the
 exercise ends or the first stop; every way out sends ``speedStop``.
@@ -121,9 +121,9 @@ def run(
     ask: Callable[[str], str] = input,
 ) -> int:
     """Connect, check, and (unless a dry run) run one session; returns the exit code."""
+    from langenv.live import ur_preflight as preflight
+    from langenv.live.ur_exercise import checked_exercise
     from langenv.robot.backends import make_robot
-    from langenv.robot.ur import preflight
-    from langenv.robot.ur.exercise import checked_exercise
 
     config = _config(ns)
     exercise = checked_exercise(ns.exercise)  # before anything connects or moves
@@ -163,11 +163,11 @@ def _session(
     out: Callable[[str], None],
     ask: Callable[[str], str],
 ) -> int:
+    from langenv.live import ur_preflight as preflight
     from langenv.live.registry import load_registered_policy
     from langenv.live.robot_loop import RobotLoop
     from langenv.live.sinks import SoundCardSink, WavSink
-    from langenv.robot.ur import preflight
-    from langenv.robot.ur.exercise import exercise_trajectory
+    from langenv.live.ur_exercise import exercise_trajectory
 
     policy = load_registered_policy(ns.policy)  # before anything moves
 

@@ -26,9 +26,9 @@ from numpy.typing import NDArray
 
 from langenv.errors import DeviceError
 from langenv.exercise import resolve_exercise
+from langenv.live.ur_exercise import ExerciseSpec, exercise_trajectory, start_pose
 from langenv.robot.ur.bridge import URRobot
 from langenv.robot.ur.config import URConfig
-from langenv.robot.ur.exercise import ExerciseSpec, exercise_trajectory, start_pose
 
 __all__ = ["REST_SPEED", "Check", "move_to_start", "plan", "run_checks", "zero_sensor"]
 

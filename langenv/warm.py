@@ -8,7 +8,7 @@ cache can be left corrupted (numba issue 10128, for gufuncs). :func:`warm_up` ca
 family the env, the pace laws and the vocoder use, so that the processes started after it load
 compiled code (inherited when forked, from the disk cache otherwise) instead of compiling it.
 
-``python -m langenv.kernels.warm`` does the same in a process of its own (the test suite's
+``python -m langenv.warm`` does the same in a process of its own (the test suite's
 controller runs it before its workers start).
 """
 
@@ -25,10 +25,12 @@ def warm_up() -> float:
     """Run a few steps of each compiled path once; returns the seconds it took.
 
     Covers: the motion-time tables (built at ``make``), the env's compiled ticks at 25 Hz and
-    500 Hz, a pace law's compiled steps (:meth:`~langenv.env.LangCtrlEnv.run_law`), and the
-    vocoder's pull (:mod:`langenv.speech.vocoder_kernels`). A kernel already compiled in this
-    process costs nothing more.
+    500 Hz, a pace law's compiled steps (:meth:`~langenv.env.LangCtrlEnv.run_law`), the batched
+    env's (:mod:`langenv.batch`; its ``prange`` kernel apart: it would start Numba's threads
+    before a fork), and the vocoder's pull (:mod:`langenv.speech.vocoder_kernels`). A kernel
+    already compiled in this process costs nothing more.
     """
+    from langenv.batch import LangCtrlVectorEnv
     from langenv.env import LangCtrlEnv
     from langenv.pacing import PaceLaw, PaceLimits
     from langenv.speech.vocoder import time_stretch
@@ -43,6 +45,11 @@ def warm_up() -> float:
         if hz == 500:
             env.run_law(PaceLaw(k_c=10.0, k_a=limits.k_a, limits=limits), max_steps=5)
         env.close()
+    venv = LangCtrlVectorEnv(2, parallel="serial")
+    venv.reset(seed=0)
+    for _ in range(3):
+        venv.step(np.zeros((2, 3), np.float32))
+    venv.close()
     sr = 16_000
     tone = np.sin(2 * np.pi * 220.0 * np.arange(sr // 4) / sr).astype(np.float32)
     time_stretch(tone, sr, np.array([0.0, 1.0]), np.array([0.8, 1.2]))

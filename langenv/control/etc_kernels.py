@@ -1,8 +1,13 @@
-"""FastETC's evaluation, compiled: the closed form of a leg, its tables, and the projection.
+"""FastETC compiled: its leg law (building the tables) and its evaluation (the closed form of a
+leg, its tables, and the projection).
 
 The parameters and tables of a :class:`~langenv.control.motion_etc.FastETC` are packed in two
-float64 arrays (``prm``: the law, the table grids, the legs; ``tab``: the tables, flat); see
-:data:`LEG0` and the ``P_*`` indices. :func:`estimate` is ``FastETC.etc``.
+float64 arrays: ``prm`` (:data:`~langenv.control.motion_etc.ETC_PARAMS`, then per leg a row of
+:data:`~langenv.control.motion_etc.ETC_LEG`) and ``tab`` (the tables, flat). :func:`estimate` is
+``FastETC.etc``; :func:`simulate` is the leg law :meth:`langenv.control.motion_etc._Law.simulate`
+(each state runs its own loop of the same discrete update, element by element, the same
+operations as the vectorised NumPy version, so the tables are bit-identical; building them takes
+a fraction of a second instead of seconds).
 """
 
 from __future__ import annotations
@@ -11,15 +16,55 @@ import math
 
 import numpy as np
 
+from langenv.control.path_kernels import frame, locate
 from langenv.kernels import kernel
-from langenv.kernels.path import frame, locate
+from langenv.layout import Field, Layout
 
-__all__ = ["LEG0", "estimate", "finish", "ramp_end", "table2", "to_switch"]
+__all__ = [
+    "ETC_LEG",
+    "ETC_PARAMS",
+    "estimate",
+    "finish",
+    "ramp_end",
+    "simulate",
+    "table2",
+    "to_switch",
+]
 
-P_DT, P_ACC, P_UINF, P_TAU, P_TAUD, P_INVACC = 0, 1, 2, 3, 4, 5
-P_BO, P_BS, P_BN = 6, 9, 12  # behind-the-start tables: origin, steps, shape (3 each)
-P_U0, P_DU, P_NU, P_NLEGS, P_REST = 15, 16, 17, 18, 19  # rest tables: grid, count, offset
-LEG0 = 20
+ETC_PARAMS = Layout(
+    "etc_params",
+    (
+        Field("dt", doc="the law's tick (s)"),
+        Field("acc", doc="the command's acceleration limit (m/s^2)"),
+        Field("u_inf", doc="the guided plateau speed (m/s)"),
+        Field("tau", doc="the admittance's time constant M0/D0 (s)"),
+        Field("tau_d", doc="1/tau (1/s)"),
+        Field("inv_acc", doc="1/acc (s^2/m)"),
+        Field("behind_origin", 3, doc="the behind-the-start tables' grid origin (m, m/s, m/s)"),
+        Field("behind_step", 3, doc="their grid steps"),
+        Field("behind_shape", 3, kind="int", doc="their shape"),
+        Field("rest_u0", doc="the rest tables' first speed (m/s)"),
+        Field("rest_du", doc="their speed step (m/s)"),
+        Field("rest_n", kind="int", doc="their points per axis"),
+        Field("n_legs", kind="int", doc="number of legs"),
+        Field("rest_offset", kind="int", doc="where the rest tables start in ``tab``"),
+    ),
+)
+"""FastETC's ``prm``: its law and the tables' grids; then a row of :data:`ETC_LEG` per leg."""
+ETC_LEG = Layout(
+    "etc_leg",
+    (
+        Field("end", doc="the leg's end (arc length, m)"),
+        Field("length", doc="its length (m)"),
+        Field("switch", doc="its switch distance before the end (m)"),
+    ),
+)
+"""One leg's row of FastETC's ``prm`` (from ``ETC_PARAMS.size`` on)."""
+
+_P = ETC_PARAMS.at
+_L = ETC_LEG.at
+_LEG0 = ETC_PARAMS.size
+_NL = ETC_LEG.size
 """Index of the first leg's entries in ``prm``: per leg its end, length and switch distance."""
 
 
@@ -50,10 +95,14 @@ def _clamp(v: float, hi: float) -> float:
 @kernel
 def _table3(tab: np.ndarray, off: int, prm: np.ndarray, x: float, y: float, z: float) -> float:
     """Trilinear lookup in a behind-the-start table, clamped at its edges."""
-    nx, ny, nz = int(prm[P_BN]), int(prm[P_BN + 1]), int(prm[P_BN + 2])
-    fi = _clamp((x - prm[P_BO]) / prm[P_BS], nx - 1.000001)
-    fj = _clamp((y - prm[P_BO + 1]) / prm[P_BS + 1], ny - 1.000001)
-    fk = _clamp((z - prm[P_BO + 2]) / prm[P_BS + 2], nz - 1.000001)
+    nx, ny, nz = (
+        int(prm[_P.behind_shape]),
+        int(prm[_P.behind_shape + 1]),
+        int(prm[_P.behind_shape + 2]),
+    )
+    fi = _clamp((x - prm[_P.behind_origin]) / prm[_P.behind_step], nx - 1.000001)
+    fj = _clamp((y - prm[_P.behind_origin + 1]) / prm[_P.behind_step + 1], ny - 1.000001)
+    fk = _clamp((z - prm[_P.behind_origin + 2]) / prm[_P.behind_step + 2], nz - 1.000001)
     i, j, k = int(fi), int(fj), int(fk)
     a, b, c = fi - i, fj - j, fk - k
     base = off + (i * ny + j) * nz + k
@@ -75,7 +124,7 @@ def _g(t: float, s: float, ui: float, u0: float, w0: float, tau: float, acc: flo
 @kernel
 def ramp_end(prm: np.ndarray, u0: float, w0: float) -> tuple[float, float]:
     """When the command catches up with ``v_ref`` on a leg: ``(time, direction)``."""
-    ui, tau, acc = prm[P_UINF], prm[P_TAU], prm[P_ACC]
+    ui, tau, acc = prm[_P.u_inf], prm[_P.tau], prm[_P.acc]
     gap = u0 - w0
     slope0 = (ui - u0) / tau
     if acc == math.inf or (-1e-12 < gap < 1e-12 and -acc <= slope0 <= acc):
@@ -121,8 +170,8 @@ def ramp_end(prm: np.ndarray, u0: float, w0: float) -> tuple[float, float]:
 def _time_to_cover(prm: np.ndarray, dist: float, u0: float) -> float:
     if dist <= 0.0:
         return 0.0
-    ui, tau = prm[P_UINF], prm[P_TAU]
-    a = (u0 - ui) * prm[P_TAUD]
+    ui, tau = prm[_P.u_inf], prm[_P.tau]
+    a = (u0 - ui) * prm[_P.tau_d]
     t = (dist - a) / ui
     if t < 0.0:
         t = 0.0
@@ -144,7 +193,7 @@ def _time_to_cover(prm: np.ndarray, dist: float, u0: float) -> float:
 @kernel
 def to_switch(prm: np.ndarray, dist: float, u0: float, w0: float) -> tuple[float, float, float]:
     """Time for a leg's motion from ``(u0, w0)`` to cover ``dist`` and ``(u, w)`` then."""
-    ui, tau, acc = prm[P_UINF], prm[P_TAU], prm[P_ACC]
+    ui, tau, acc = prm[_P.u_inf], prm[_P.tau], prm[_P.acc]
     t_c, s = ramp_end(prm, u0, w0)
     if t_c > 0.0:
         reach = w0 * t_c + 0.5 * s * acc * t_c * t_c
@@ -164,9 +213,13 @@ def to_switch(prm: np.ndarray, dist: float, u0: float, w0: float) -> tuple[float
 def finish(prm: np.ndarray, tab: np.ndarray, k: int, q: float, u: float, w: float) -> float:
     """Time to finish the exercise from the 1-D state ``(q, u, w)`` on leg ``k`` (s)."""
     t = 0.0
-    length = prm[LEG0 + 3 * k + 1]
+    length = prm[_LEG0 + _NL * k + _L.length]
     if q > length:
-        size = int(prm[P_BN]) * int(prm[P_BN + 1]) * int(prm[P_BN + 2])
+        size = (
+            int(prm[_P.behind_shape])
+            * int(prm[_P.behind_shape + 1])
+            * int(prm[_P.behind_shape + 2])
+        )
         off = 3 * k * size
         e = q - length
         t, u, w = (
@@ -175,14 +228,14 @@ def finish(prm: np.ndarray, tab: np.ndarray, k: int, q: float, u: float, w: floa
             _table3(tab, off + 2 * size, prm, e, u, w),
         )
         q = length
-    dist = q - prm[LEG0 + 3 * k + 2]
+    dist = q - prm[_LEG0 + _NL * k + _L.switch]
     if dist > 0.0:
         tp, u, w = to_switch(prm, dist, u, w)
-        dt = prm[P_DT]
+        dt = prm[_P.dt]
         t += math.ceil(tp / dt - 1e-9) * dt  # the switch comes on the next tick
-    nu = int(prm[P_NU])
-    rest = int(prm[P_REST]) + k * nu * nu
-    return t + table2(tab, rest, prm[P_U0], prm[P_DU], nu, u, w)
+    nu = int(prm[_P.rest_n])
+    rest = int(prm[_P.rest_offset]) + k * nu * nu
+    return t + table2(tab, rest, prm[_P.rest_u0], prm[_P.rest_du], nu, u, w)
 
 
 @kernel
@@ -208,11 +261,56 @@ def estimate(
         c: The velocity command (m/s).
     """
     if done:
-        return math.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]) * prm[P_INVACC]
-    s_end = prm[LEG0 + 3 * leg]
+        return math.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]) * prm[_P.inv_acc]
+    s_end = prm[_LEG0 + _NL * leg + _L.end]
     i, t = locate(path, s, s >= s_end)
     xd0, xd1, xd2, b0, b1, b2, _, _, _, _ = frame(path, i, t)
     q = s_end - s - ((x[0] - xd0) * b0 + (x[1] - xd1) * b1 + (x[2] - xd2) * b2)
     u = v[0] * b0 + v[1] * b1 + v[2] * b2
     w = c[0] * b0 + c[1] * b1 + c[2] * b2
     return finish(prm, tab, leg, q, u, w)
+
+
+@kernel
+def simulate(
+    q: np.ndarray,
+    u: np.ndarray,
+    w: np.ndarray,
+    y: np.ndarray,
+    ul: np.ndarray,
+    wl: np.ndarray,
+    length: float,
+    q_sw: float,
+    f_prop: float,
+    k: float,
+    decay: float,
+    gain: float,
+    dw: float,
+    dt: float,
+    n_ticks: int,
+    out: np.ndarray,
+) -> None:
+    """The law from each state ``(q, u, w)`` (lateral ``(y, ul, wl)``) until it switches.
+
+    ``out`` (4, n): time (``inf`` if not switched within ``n_ticks``), ``q``, ``u``, ``w``.
+    """
+    kg = k * gain
+    for i in range(q.shape[0]):
+        qi, ui, wi, yi, uli, wli = q[i], u[i], w[i], y[i], ul[i], wl[i]
+        t = math.inf
+        for n in range(n_ticks):
+            if qi < q_sw:
+                t = n * dt
+                break
+            e = qi - length
+            f = f_prop + k * (e if e > 0.0 else 0.0)
+            ui = ui * decay + f * gain
+            uli = uli * decay - kg * yi
+            du, dl = ui - wi, uli - wli
+            norm = math.sqrt(du * du + dl * dl)
+            scale = dw / (norm if norm > 1e-300 else 1e-300) if norm > dw else 1.0
+            wi = wi + du * scale
+            wli = wli + dl * scale
+            qi = qi - wi * dt
+            yi = yi + wli * dt
+        out[0, i], out[1, i], out[2, i], out[3, i] = t, qi, ui, wi

@@ -1,0 +1,258 @@
+"""N sessions stepped in one compiled call: the batch's kernels.
+
+Each session of a :class:`~langenv.batch.env.LangCtrlVectorEnv` is a whole ``LangCtrlEnv``
+whose compiled arrays (the tick's, the arm's, MuJoCo's, the env's ticks', the phrase graph's,
+the user's force table) stay where they are; the batch keeps a table of their addresses and
+lengths (:data:`SESSION`, one row per session) and a control row per session (:data:`CONTROL`:
+the step's pace commands, ticks left, the answer). :func:`run_parallel` runs
+:func:`langenv.env_kernels.run` for every active session, spread over the cores by Numba's
+``prange`` (threads, without the GIL; MuJoCo's ``mj_step`` on separate ``mjData`` is
+thread-safe); :func:`run_serial` runs a list of sessions in the calling thread (without the
+GIL: a thread pool may call it). :func:`begin` turns a batch of actions into pace commands and
+starts the step's integrals; :func:`observe` writes each session's observation, reward terms
+and info values after the step, the same values the env computes in Python
+(``tests/test_batch.py``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from langenv import env_kernels as ek
+from langenv import motion_kernels as mk
+from langenv import observation_kernels as ok
+from langenv import reward_kernels as rk
+from langenv.control.trajectory import SEGMENT
+from langenv.kernels import jit
+from langenv.kernels.views import f4_2, f8, f8_2, i8
+from langenv.layout import Field, Layout
+from langenv.observation import TREND_WINDOW
+from langenv.pacing_kernels import command
+
+__all__ = [
+    "CONTROL",
+    "INFO",
+    "SESSION",
+    "begin",
+    "observe",
+    "run_parallel",
+    "run_serial",
+]
+
+_ARRAYS = (
+    ("ws", "the tick's work array (:data:`~langenv.motion_kernels.TICK`, legs, bounds)"),
+    ("path", "the packed trajectory (rows of :data:`~langenv.control.trajectory.SEGMENT`)"),
+    ("aw", "the arm controller's array (:data:`~langenv.robot.arm.ARM`)"),
+    ("ai", "the arm's joint addresses (int64)"),
+    ("jac", "the handle's Jacobian (6 nv)"),
+    ("xpos", "the handle site's position"),
+    ("xmat", "the handle site's orientation"),
+    ("qpos", "``mjData.qpos``"),
+    ("qvel", "``mjData.qvel``"),
+    ("ctrl", "``mjData.ctrl``"),
+    ("qfrc", "``mjData.qfrc_applied``"),
+    ("prm", "FastETC's parameters"),
+    ("tab", "FastETC's tables"),
+    ("ptr", "MuJoCo's pointers (int64)"),
+    ("es", "the env's ticks' array (:data:`~langenv.env_kernels.ENV_STEPS`)"),
+    ("hist", "the cooperation history"),
+    ("table", "the user's force table"),
+    ("mid", "the graph's mid-lengths"),
+    ("slot", "the graph's slots (n, 3)"),
+    ("kid_ptr", "the graph's children offsets (int64)"),
+    ("kids", "the graph's children (int64)"),
+    ("tails", "the observation's child blocks per vertex (float32)"),
+    ("dur", "each vertex's clip length at a = 1 (s)"),
+)
+SESSION = Layout(
+    "session",
+    tuple(Field(f"{name}_at", kind="int", doc=f"address of {doc}") for name, doc in _ARRAYS),
+    tuple(Field(f"{name}_n", kind="int", doc=f"length of {name}") for name, _ in _ARRAYS),
+)
+"""One session's arrays for the batch's kernels: each one's address and length (an int64 row;
+2-D arrays: their number of entries)."""
+CONTROL = Layout(
+    "control",
+    (
+        Field("active", kind="bool", doc="the session takes part in this round"),
+        Field("p_cmd", doc="the step's physical pace command"),
+        Field("a_cmd", doc="the step's audio pace command"),
+        Field("left", kind="int", doc="ticks of the step still to run"),
+        Field("answer", kind="int", doc=":func:`langenv.env_kernels.run`'s answer"),
+        Field("code", kind="int", doc="and its code"),
+        Field("length", doc="the trajectory's length (m)"),
+        Field("horizon", doc="a step's length (s): the boundary flag's horizon"),
+        Field("t_speech", doc="when the speech ended (s; NaN while it goes on)"),
+        Field("w_em", doc="the env's misalignment weight"),
+        Field("w_pace", doc="the env's pace weight"),
+        Field("p_max", doc="the env's upper bound of p (the action map)"),
+        Field("a_max", doc="the env's upper bound of a"),
+    ),
+)
+"""Per session: the step's commands and progress, and what :func:`observe` needs besides the
+arrays (a float64 row)."""
+INFO = (
+    "time", "t_x", "t_a", "em", "p", "a", "cooperation", "hand_speed", "progress", "in_pause",
+    "motion_done", "speech_done", "t_motion", "t_speech", "path_deviation", "max_hand_speed",
+    "reward_em", "reward_pace", "reward", "phrase",
+)  # fmt: skip
+"""The columns of :func:`observe`'s info rows (flags as 0/1, ``t_motion``/``t_speech`` NaN while
+going on, ``phrase`` the vertex's index or -1)."""
+
+_S = SESSION.at
+_C = CONTROL.at
+_E = ek.ENV_STEPS.at
+_T = mk.TICK.at
+_SEG = SEGMENT.size
+_N_INFO = len(INFO)
+
+
+@jit
+def _run_one(s: np.ndarray, c: np.ndarray) -> None:
+    """:func:`langenv.env_kernels.run` for one session (``s``: its :data:`SESSION` row, ``c``:
+    its :data:`CONTROL` row)."""
+    n_v = s[_S.mid_n]
+    done, answer, code = ek.run(
+        f8(s[_S.ws_at], s[_S.ws_n]),
+        f8_2(s[_S.path_at], s[_S.path_n] // _SEG, _SEG),
+        f8(s[_S.aw_at], s[_S.aw_n]),
+        i8(s[_S.ai_at], s[_S.ai_n]),
+        f8(s[_S.jac_at], s[_S.jac_n]),
+        f8(s[_S.xpos_at], s[_S.xpos_n]),
+        f8(s[_S.xmat_at], s[_S.xmat_n]),
+        f8(s[_S.qpos_at], s[_S.qpos_n]),
+        f8(s[_S.qvel_at], s[_S.qvel_n]),
+        f8(s[_S.ctrl_at], s[_S.ctrl_n]),
+        f8(s[_S.qfrc_at], s[_S.qfrc_n]),
+        f8(s[_S.prm_at], s[_S.prm_n]),
+        f8(s[_S.tab_at], s[_S.tab_n]),
+        i8(s[_S.ptr_at], s[_S.ptr_n]),
+        f8(s[_S.es_at], s[_S.es_n]),
+        f8(s[_S.hist_at], s[_S.hist_n]),
+        f8(s[_S.table_at], s[_S.table_n]),
+        f8(s[_S.mid_at], n_v),
+        f8_2(s[_S.slot_at], n_v, 3),
+        i8(s[_S.kid_ptr_at], s[_S.kid_ptr_n]),
+        i8(s[_S.kids_at], s[_S.kids_n]),
+        c[_C.p_cmd],
+        c[_C.a_cmd],
+        int(c[_C.left]),
+    )
+    c[_C.left] -= done
+    c[_C.answer] = answer
+    c[_C.code] = code
+
+
+@numba.njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def run_parallel(sessions: np.ndarray, control: np.ndarray) -> None:
+    """:func:`langenv.env_kernels.run` for every session whose control row is ``active``,
+    spread over Numba's threads (``prange``); each session runs until its step's ticks are done
+    or it needs Python (its answer in its control row)."""
+    for i in numba.prange(sessions.shape[0]):
+        if control[i, _C.active] != 0.0:
+            _run_one(sessions[i], control[i])
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def run_serial(sessions: np.ndarray, control: np.ndarray, which: np.ndarray) -> None:
+    """:func:`run_parallel` for the sessions ``which`` (int64 indexes), one after another in
+    the calling thread (without the GIL: a thread pool's workers may call it together on
+    disjoint sessions)."""
+    for k in range(which.shape[0]):
+        i = which[k]
+        if control[i, _C.active] != 0.0:
+            _run_one(sessions[i], control[i])
+
+
+@jit
+def begin(
+    sessions: np.ndarray,
+    control: np.ndarray,
+    actions: np.ndarray,
+    pause_factor: np.ndarray,
+    ticks: int,
+    c_min: float,
+) -> None:
+    """Start a step of every active session: its pace commands from ``actions`` (float64, the
+    env's map :func:`~langenv.pacing.command_from_action`), its ticks, the pause rule's factor,
+    and the step's integrals and highest speed at 0."""
+    for i in range(sessions.shape[0]):
+        c = control[i]
+        if c[_C.active] == 0.0:
+            continue
+        c[_C.p_cmd] = command(actions[i, 0], c[_C.p_max], c_min)
+        c[_C.a_cmd] = command(actions[i, 1], c[_C.a_max], c_min)
+        c[_C.left] = ticks
+        s = sessions[i]
+        es = f8(s[_S.es_at], s[_S.es_n])
+        es[_E.em_int] = 0.0
+        es[_E.pace_int] = 0.0
+        es[_E.max_speed] = 0.0
+        es[_E.pause_factor] = pause_factor[i]
+
+
+@jit
+def observe(
+    sessions: np.ndarray,
+    control: np.ndarray,
+    which: np.ndarray,
+    obs: np.ndarray,
+    info: np.ndarray,
+    ticks: int,
+    t_scale: float,
+) -> None:
+    """The observation (``obs[i]``, float32) and the info values (``info[i]``, :data:`INFO`) of
+    the sessions ``which`` after their step, as ``LangCtrlEnv`` computes them (its
+    ``_observation``, ``_info`` and ``_step_result`` without the end's ``reward_am``)."""
+    for k in range(which.shape[0]):
+        i = which[k]
+        s, c = sessions[i], control[i]
+        ws = f8(s[_S.ws_at], s[_S.ws_n])
+        es = f8(s[_S.es_at], s[_S.es_n])
+        hist = f8(s[_S.hist_at], s[_S.hist_n])
+        n_v = s[_S.mid_n]
+        kid_ptr = i8(s[_S.kid_ptr_at], s[_S.kid_ptr_n])
+        dur = f8(s[_S.dur_at], n_v)
+        tails = f4_2(s[_S.tails_at], n_v + 1, s[_S.tails_n] // (n_v + 1))
+        t_x, t_a, p, a = ws[_T.t_x], es[_E.t_a], es[_E.p], es[_E.a]
+        coop = ws[_T.c]
+        ci = int(es[_E.coop_i])
+        n = hist.shape[0]
+        newest = hist[(ci - 1) % n]
+        oldest = hist[ci % n] if ci >= n else 1.0
+        progress = ws[_T.s] / c[_C.length]
+        u = int(es[_E.phrase])
+        in_pause = es[_E.in_pause] != 0.0
+        pos = es[_E.speech_pos]
+        if u < 0:
+            said, left, due = 1.0, 0.0, False
+        else:
+            said = 1.0 if in_pause else min(1.0, pos / dur[u])
+            left = es[_E.slot] - pos
+            due = kid_ptr[u + 1] > kid_ptr[u] and es[_E.slot] - pos <= a * (ticks * es[_E.dt])
+        motion_done = not math.isnan(ws[_T.t_end])
+        ok.encode(
+            obs[i], t_x, t_a, p, a, coop, (newest - oldest) / TREND_WINDOW, progress,
+            ws[_T.hand_speed], said, left, in_pause, u < 0, motion_done, due, es[_E.time],
+            tails[u if u >= 0 else n_v],
+        )  # fmt: skip
+        r_em, r_pace = rk.step_terms(
+            es[_E.em_int], es[_E.pace_int], c[_C.w_em], c[_C.w_pace], t_scale
+        )
+        row = info[i]
+        row[0], row[1], row[2], row[3] = es[_E.time], t_x, t_a, t_a - t_x
+        row[4], row[5], row[6], row[7] = p, a, coop, ws[_T.hand_speed]
+        row[8] = progress
+        row[9] = 1.0 if in_pause else 0.0
+        row[10] = 1.0 if motion_done else 0.0
+        row[11] = 1.0 if u < 0 else 0.0
+        row[12] = ws[_T.t_end]
+        row[13] = c[_C.t_speech]
+        row[14], row[15] = ws[_T.path_deviation], es[_E.max_speed]
+        row[16], row[17] = r_em, r_pace
+        row[18] = rk.total(r_em, r_pace, 0.0)
+        row[19] = u
+    _ = _N_INFO

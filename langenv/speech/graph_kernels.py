@@ -1,0 +1,75 @@
+"""The phrase graph's rules compiled (:class:`~langenv.speech.graph.PhraseGraph`): the paper's
+choice (``_nearest``), the pause rule (:meth:`~langenv.speech.graph.PhraseGraph.pause_length`)
+and the speech ETC ``t_a`` (:meth:`~langenv.speech.graph.PhraseGraph.eta`).
+
+The graph as arrays (:meth:`PhraseGraph.packed <langenv.speech.graph.PhraseGraph.packed>`):
+``mid`` (n: each vertex's ``(t_min + t_max) / 2``), ``slot`` (n, 3: the nominal slot, its
+minimum and maximum, which differ for a pause only), the children's offsets ``kid_ptr``
+(n + 1) and indexes ``kids``, in the graph's order. The same operations in the same order as
+the Python methods, comparison for comparison (``tests/test_graph_pauses.py``,
+``tests/test_repeat.py``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from langenv.kernels import inline, kernel
+
+__all__ = ["eta", "fill", "nearest"]
+
+
+@inline
+def nearest(lo: int, hi: int, kids: np.ndarray, mid: np.ndarray, x: float) -> int:
+    """The paper's choice among ``kids[lo:hi]`` (non-empty): the first whose ``mid`` is nearest
+    ``x`` (``langenv.speech.graph._nearest``, comparison for comparison)."""
+    best = kids[lo]
+    best_err = abs(x - mid[best])
+    for j in range(lo + 1, hi):
+        v = kids[j]
+        err = abs(x - mid[v])
+        if err < best_err:
+            best, best_err = v, err
+    return int(best)
+
+
+@kernel
+def fill(
+    v: int, left: float, mid: np.ndarray, slot: np.ndarray, kid_ptr: np.ndarray, kids: np.ndarray
+) -> float:
+    """:meth:`PhraseGraph.pause_length <langenv.speech.graph.PhraseGraph.pause_length>` of the
+    pause of index ``v`` (the same operations in the same order)."""
+    y = left - slot[v, 0]
+    rest = 0.0
+    lo, hi = kid_ptr[v], kid_ptr[v + 1]
+    while hi > lo:
+        w = nearest(lo, hi, kids, mid, y)
+        rest += slot[w, 0]
+        y -= slot[w, 0]
+        lo, hi = kid_ptr[w], kid_ptr[w + 1]
+    length = left - rest
+    s_lo, s_hi = slot[v, 1], slot[v, 2]
+    return s_lo if length < s_lo else (s_hi if length > s_hi else length)
+
+
+@kernel
+def eta(
+    u: int,
+    remaining: float,
+    t_x: float,
+    mid: np.ndarray,
+    slot: np.ndarray,
+    kid_ptr: np.ndarray,
+    kids: np.ndarray,
+) -> float:
+    """:meth:`PhraseGraph.eta <langenv.speech.graph.PhraseGraph.eta>` of vertex index ``u``."""
+    total = remaining
+    left = t_x - remaining
+    lo, hi = kid_ptr[u], kid_ptr[u + 1]
+    while hi > lo:
+        v = nearest(lo, hi, kids, mid, left)
+        length = slot[v, 0] if slot[v, 1] == slot[v, 2] else fill(v, left, mid, slot, kid_ptr, kids)
+        total += length
+        left -= length
+        lo, hi = kid_ptr[v], kid_ptr[v + 1]
+    return total

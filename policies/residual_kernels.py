@@ -1,0 +1,357 @@
+""":class:`~policies.learned.ResidualLC` for a batch of sessions, compiled: the same features and
+the same actions, bit for bit (``tests/test_residual_kernels.py``), at a fraction of a
+microsecond per session instead of tens.
+
+The Python class keeps its state in attributes (the base LC's motion-rate estimate, the
+features' averages, the last correction); here each session's state is a row of
+:data:`RESIDUAL_STATE` and its latest observation a row of ``last_obs``; the design
+(:class:`~policies.learned.ResidualSpec`, the pace limits and the base's gains) is a row of
+:data:`RESIDUAL_PARAMS` (:func:`residual_params`). :func:`observe` takes a batch of observations
+(``start``: a session's first of an episode) and writes the augmented ones; :func:`act` maps a
+batch of corrections to the env's actions for the latest observations.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+import langenv
+from langenv.kernels import SOURCES, clear_stale_cache, inline, jit
+from langenv.layout import Field, Layout
+from langenv.observation import (
+    CHILD_FIELDS,
+    ELAPSED_SCALE,
+    FIRST_CHILD,
+    PACE_SCALE,
+    T_SCALE,
+    Obs,
+)
+from langenv.pacing import COMMAND_MIN, PaceLimits
+from policies.aligner import AlignerGains
+
+__all__ = ["RESIDUAL_PARAMS", "RESIDUAL_STATE", "act", "observe", "residual_params"]
+
+_LANGENV = Path(langenv.__file__).resolve().parent
+clear_stale_cache(  # numba checks this file only; the kernels read langenv's declarations
+    Path(__file__).resolve().parent,
+    ("residual_kernels.py", *(str(_LANGENV / name) for name in SOURCES)),
+    ("residual_kernels.py",),
+    stamp=".",
+)
+
+RESIDUAL_STATE = Layout(
+    "residual_state",
+    (
+        Field("t_x0", doc="t_x at the episode's start (s)"),
+        Field("rate", doc="the motion-rate feature"),
+        Field("rate_avg", doc="its average"),
+        Field("last_r_p", doc="the previous correction of p, as applied"),
+        Field("last_r_a", doc="the previous correction of a, as applied"),
+        Field("base_final", kind="bool", doc="the base is in its terminal or finishing phase"),
+        Field("base_p", doc="the base's physical pace action for the latest observation"),
+        Field("base_a", doc="the base's audio pace action"),
+        Field("lc_has_last", kind="bool", doc="the base's rate estimate has a previous sample"),
+        Field("lc_last_t_x", doc="its t_x (s)"),
+        Field("lc_last_now", doc="its time (s)"),
+        Field("lc_rate", doc="the base's motion-rate estimate (1 at rest)"),
+    ),
+)
+"""One session's state of :class:`~policies.learned.ResidualLC` (and of its base
+:class:`~policies.analytic.LanguageController`)."""
+RESIDUAL_PARAMS = Layout(
+    "residual_params",
+    (
+        Field("scores", kind="bool", doc="choice_mode 'scores' (else 'target')"),
+        Field("max_children", kind="int", doc="choice scores"),
+        Field("pace_scale", doc="largest change of the p command"),
+        Field("audio_gain", doc="largest change of the a command"),
+        Field("choice_scale", doc="largest change of the choice"),
+        Field("decision_hz", doc="decision rate (1/s)"),
+        Field("terminal", doc="the base's terminal-phase horizon (s)"),
+        Field("k_em", doc="the base's misalignment feedback (1/s)"),
+        Field("em_clip", doc="its bound"),
+        Field("gate_em", doc="the correction's gate (s)"),
+        Field("deadband", doc="the correction's dead band"),
+        Field("p_max", doc="the pace limits' upper bound of p"),
+        Field("a_max", doc="and of a"),
+        Field("k_ca", doc="the base's k_c / k_a"),
+    ),
+)
+"""The design of the correction and of its base, as the kernels read it."""
+
+# Numba's ``float(x)`` of a float32 is a float32: the observation's entries are widened with
+# ``np.float64`` (what Python's ``float`` gives), so that arithmetic on them is float64's.
+_S = RESIDUAL_STATE.at
+_P = RESIDUAL_PARAMS.at
+_RATE_TAU = 1.0  # policies.learned._RATE_TAU
+_LOST_SCALE = 10.0
+_FINE_SCALE = 1.0
+_PRIOR_SCALE = 5.0
+_LC_RATE_TAU = 0.04  # policies.analytic.RATE_TAU
+_LC_RATE_FLOOR = 0.3  # policies.analytic.RATE_FLOOR
+_N_FEATURES = 9
+_TX, _TA, _P_, _A_ = int(Obs.T_X), int(Obs.T_A), int(Obs.P), int(Obs.A)
+_COOP, _MDONE, _SDONE, _ELAPSED = (
+    int(Obs.COOPERATION),
+    int(Obs.MOTION_DONE),
+    int(Obs.SPEECH_DONE),
+    int(Obs.ELAPSED),
+)
+
+
+def residual_params(spec: object, limits: PaceLimits | None = None) -> np.ndarray:
+    """:data:`RESIDUAL_PARAMS` of a :class:`~policies.learned.ResidualSpec` (its base: the
+    default gains and ``em_clip``, as :class:`~policies.learned.ResidualLC` builds it)."""
+    from policies.analytic import LanguageController
+
+    lim = limits if limits is not None else PaceLimits()
+    base = LanguageController(limits=lim)
+    gains = AlignerGains()
+    s: object = spec
+    return RESIDUAL_PARAMS.pack_all(
+        RESIDUAL_PARAMS.zeros(),
+        {
+            "scores": s.choice_mode == "scores",  # type: ignore[attr-defined]
+            "max_children": s.max_children,  # type: ignore[attr-defined]
+            "pace_scale": s.pace_scale,  # type: ignore[attr-defined]
+            "audio_gain": s.audio_gain,  # type: ignore[attr-defined]
+            "choice_scale": s.choice_scale,  # type: ignore[attr-defined]
+            "decision_hz": s.decision_hz,  # type: ignore[attr-defined]
+            "terminal": s.terminal,  # type: ignore[attr-defined]
+            "k_em": s.k_em,  # type: ignore[attr-defined]
+            "em_clip": base.em_clip,
+            "gate_em": s.gate_em,  # type: ignore[attr-defined]
+            "deadband": s.deadband,  # type: ignore[attr-defined]
+            "p_max": lim.p_max,
+            "a_max": lim.a_max,
+            "k_ca": gains.k_c / gains.k_a,
+        },
+    )
+
+
+@inline
+def _wide(x: float) -> float:
+    """An observation's entry as a float64 (Python's ``float``; see the comment at ``_S``)."""
+    return np.float64(x)
+
+
+@inline
+def _pmax0(x: float) -> float:
+    """Python's ``max(0.0, x)``."""
+    return x if x > 0.0 else 0.0
+
+
+@inline
+def _clip1(x: float) -> float:
+    """Python's ``min(1.0, max(-1.0, x))``."""
+    x = x if x > -1.0 else -1.0
+    return x if x < 1.0 else 1.0
+
+
+@inline
+def _action_from_command(cmd: float, upper: float) -> float:
+    """:func:`langenv.pacing.action_from_command`."""
+    if cmd >= 1.0:
+        u = (cmd - 1.0) / (upper - 1.0)
+    else:
+        u = (cmd - 1.0) / (1.0 - COMMAND_MIN)
+    return _clip1(u)
+
+
+@inline
+def _command_from_action(u: float, upper: float) -> float:
+    """:func:`langenv.pacing.command_from_action`."""
+    if u >= 0.0:
+        return 1.0 + (upper - 1.0) * u
+    return 1.0 + (1.0 - COMMAND_MIN) * u
+
+
+@inline
+def _phase(o: np.ndarray, terminal: float) -> int:
+    """``LanguageController.phase``: 0 aligning, 1 terminal, 2 finishing, 3 over."""
+    motion_done = o[_MDONE] > 0.0
+    speech_done = o[_SDONE] > 0.0
+    if motion_done and speech_done:
+        return 3
+    if terminal <= 0.0:
+        return 0
+    if motion_done or speech_done:
+        return 2
+    t_x = _wide(o[_TX]) * T_SCALE
+    return 1 if t_x < terminal else 0
+
+
+@jit
+def _base_act(o: np.ndarray, st: np.ndarray, prm: np.ndarray) -> None:
+    """``LanguageController.act`` on the observation ``o``: its action into ``st`` (float32
+    values), its rate estimate updated."""
+    terminal = prm[_P.terminal]
+    if terminal > 0.0:  # _update_rate
+        t_x = _wide(o[_TX]) * T_SCALE
+        now = _wide(o[_ELAPSED]) * ELAPSED_SCALE
+        if o[_MDONE] > 0.0:
+            st[_S.lc_has_last] = 0.0
+        else:
+            skip = False
+            if st[_S.lc_has_last] != 0.0:
+                dt = now - st[_S.lc_last_now]
+                if dt <= 0.0:
+                    skip = True
+                else:
+                    w = dt / (_LC_RATE_TAU + dt)
+                    st[_S.lc_rate] += w * ((st[_S.lc_last_t_x] - t_x) / dt - st[_S.lc_rate])
+            if not skip:
+                st[_S.lc_has_last] = 1.0
+                st[_S.lc_last_t_x] = t_x
+                st[_S.lc_last_now] = now
+    t_x = _pmax0(_wide(o[_TX]) * T_SCALE)
+    t_a = _pmax0(_wide(o[_TA]) * T_SCALE)
+    c = 0.5 * (_wide(o[_COOP]) + 1.0)
+    if t_a == 0.0:
+        p_star, a_star = 1.0, 1.0
+    else:
+        s = t_x / t_a
+        den = s * s + 1.0
+        p_star, a_star = (s * s + s) / den, (s + 1.0) / den
+    a_cmd = a_star - prm[_P.k_ca] * (1.0 - c)
+    motion_done = o[_MDONE] > 0.0
+    if prm[_P.k_em] > 0.0 and not motion_done:
+        clip = prm[_P.em_clip]
+        e = prm[_P.k_em] * (t_a - t_x)
+        e = e if e > -clip else -clip
+        p_star -= e if e < clip else clip
+    phase = _phase(o, terminal)
+    if phase == 1:
+        p_star = 1.0
+        rate = st[_S.lc_rate]
+        rate = rate if rate > _LC_RATE_FLOOR else _LC_RATE_FLOOR
+        a_cmd = t_a * rate / (t_x if t_x > 1e-6 else 1e-6)
+    elif phase == 2:
+        if motion_done:
+            a_cmd = prm[_P.a_max]
+        else:
+            p_star = prm[_P.p_max]
+    st[_S.base_p] = np.float32(_action_from_command(p_star, prm[_P.p_max]))
+    st[_S.base_a] = np.float32(_action_from_command(a_cmd, prm[_P.a_max]))
+
+
+@jit
+def _augment(o: np.ndarray, st: np.ndarray, prm: np.ndarray, out: np.ndarray) -> None:
+    t_x = _pmax0(_wide(o[_TX]) * T_SCALE)
+    t_a = _pmax0(_wide(o[_TA]) * T_SCALE)
+    p = 1.0 + PACE_SCALE * _wide(o[_P_])
+    a = 1.0 + PACE_SCALE * _wide(o[_A_])
+    _base_act(o, st, prm)
+    phase = _phase(o, prm[_P.terminal])
+    st[_S.base_final] = 1.0 if (phase == 1 or phase == 2) else 0.0
+    elapsed = _wide(o[_ELAPSED]) * ELAPSED_SCALE
+    lost = elapsed - (st[_S.t_x0] - t_x)
+    n = o.shape[0]
+    for j in range(n):
+        out[j] = o[j]
+    feats = (
+        st[_S.base_p],
+        st[_S.base_a],
+        (t_a / a - t_x / p) / _FINE_SCALE,
+        (t_a - t_x) / _FINE_SCALE,
+        st[_S.rate],
+        st[_S.rate_avg],
+        lost / _LOST_SCALE,
+        st[_S.last_r_p],
+        st[_S.last_r_a],
+    )
+    for j in range(_N_FEATURES):
+        v = np.float32(feats[j])
+        out[n + j] = v if -1.0 <= v <= 1.0 else (1.0 if v > 1.0 else (-1.0 if v < -1.0 else v))
+
+
+@jit
+def observe(
+    obs: np.ndarray,
+    start: np.ndarray,
+    last_obs: np.ndarray,
+    state: np.ndarray,
+    prm: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """``ResidualLC.start`` (where ``start[i]``) or ``ResidualLC.observe`` of each session's
+    observation ``obs[i]`` (float32): its augmented observation into ``out[i]`` (float32, 9
+    more entries), its state and latest observation updated."""
+    for i in range(obs.shape[0]):
+        o, st, prev = obs[i], state[i], last_obs[i]
+        if start[i]:
+            st[_S.lc_has_last] = 0.0
+            st[_S.lc_rate] = 1.0
+            st[_S.t_x0] = _wide(o[_TX]) * T_SCALE
+            st[_S.rate] = 0.0
+            st[_S.rate_avg] = 0.0
+            st[_S.last_r_p] = 0.0
+            st[_S.last_r_a] = 0.0
+        else:
+            dt = (_wide(o[_ELAPSED]) - _wide(prev[_ELAPSED])) * ELAPSED_SCALE
+            if dt <= 0.0:
+                dt = 1.0 / prm[_P.decision_hz]
+            rate = (_wide(prev[_TX]) - _wide(o[_TX])) * T_SCALE / dt - 1.0
+            st[_S.rate] = _clip1(rate)
+            w = 1.0 - math.exp(-dt / _RATE_TAU)
+            st[_S.rate_avg] += w * (st[_S.rate] - st[_S.rate_avg])
+        for j in range(o.shape[0]):
+            prev[j] = o[j]
+        _augment(o, st, prm, out[i])
+
+
+@jit
+def act(
+    residual: np.ndarray, last_obs: np.ndarray, state: np.ndarray, prm: np.ndarray, out: np.ndarray
+) -> None:
+    """``ResidualLC.action`` of each session's correction ``residual[i]`` (float64, already
+    finite) for its latest observation: the env's action into ``out[i]`` (float32)."""
+    dead = prm[_P.deadband]
+    scores = prm[_P.scores] != 0.0
+    k = residual.shape[1]
+    r = np.empty(k)
+    for i in range(residual.shape[0]):
+        o, st = last_obs[i], state[i]
+        for j in range(k):
+            v = residual[i, j]
+            v = v if v >= -1.0 else -1.0  # np.clip
+            v = v if v <= 1.0 else 1.0
+            if dead > 0.0:
+                sg = 1.0 if v > 0.0 else (-1.0 if v < 0.0 else 0.0)
+                m = abs(v) - dead
+                v = sg * (m if m > 0.0 else 0.0) / (1.0 - dead)
+            r[j] = v
+        if st[_S.base_final] != 0.0:
+            r[0] = 0.0
+            r[1] = 0.0
+        gate = prm[_P.gate_em]
+        if gate > 0.0 and abs(_wide(o[_TA]) * T_SCALE - _wide(o[_TX]) * T_SCALE) < gate:
+            for j in range(k):
+                r[j] = 0.0
+        if prm[_P.pace_scale] == 0.0:
+            r[0] = 0.0
+        if prm[_P.audio_gain] == 0.0:
+            r[1] = 0.0
+        p_cmd = _command_from_action(st[_S.base_p], prm[_P.p_max]) + prm[_P.pace_scale] * r[0]
+        a_cmd = _command_from_action(st[_S.base_a], prm[_P.a_max]) + prm[_P.audio_gain] * r[1]
+        row = out[i]
+        row[0] = np.float32(_action_from_command(p_cmd, prm[_P.p_max]))
+        row[1] = np.float32(_action_from_command(a_cmd, prm[_P.a_max]))
+        st[_S.last_r_p] = r[0]
+        st[_S.last_r_a] = r[1]
+        if not scores:
+            row[2] = np.float32(_clip1(prm[_P.choice_scale] * r[2]))
+        else:
+            t_x = _pmax0(_wide(o[_TX]) * T_SCALE)
+            for c in range(int(prm[_P.max_children])):
+                base = FIRST_CHILD + CHILD_FIELDS * c
+                if base + 2 >= o.shape[0]:
+                    break
+                mid = 0.5 * (_wide(o[base + 1]) + _wide(o[base + 2])) * T_SCALE
+                d = abs(t_x - mid)
+                prior = (_PRIOR_SCALE - d) / (_PRIOR_SCALE + d)
+                score = 0.5 * (prior + prm[_P.choice_scale] * r[2 + c])
+                row[2 + c] = np.float32(_clip1(score))
