@@ -23,6 +23,11 @@ column             window       definition
 ``pause_share``    ``speech``   share (0-1) of the speech time in silence: pauses between clips
                                 and pause vertices
 ``filler_share``   ``speech``   share (0-1) of the speech time spent saying fillers
+``content_share``  ``motion``   share (0-1) of the motion's duration in which content is heard:
+                                a phrase's words as the voice renders them (:func:`voice_trace`),
+                                not a filler, a pause, the silence after a clip or the natural
+                                voice's wait (:func:`content_time`); words said after the motion
+                                ended do not count
 ``p_mean``         ``motion``   mean physical pace while motion is going on
 ``coop_mean``      ``motion``   mean cooperation while the robot guides the hand
 ``t_motion``       --           motion completion time (s)
@@ -54,6 +59,7 @@ __all__ = [
     "OPTIONAL_METRICS",
     "MetricSpec",
     "Window",
+    "content_time",
     "episode_metrics",
     "speech_shares",
     "time_mean",
@@ -105,6 +111,9 @@ METRICS: dict[str, MetricSpec] = {
     ),
     "pause_share": MetricSpec("pauses", "%", 1, "share of speech time in silence (pauses)"),
     "filler_share": MetricSpec("fillers", "%", 1, "share of speech time saying fillers"),
+    "content_share": MetricSpec(
+        "content", "%", 1, "share of the motion's duration in which words are heard", False
+    ),
     "p_mean": MetricSpec("mean p", "", 3, "mean physical pace while moving"),
     "coop_mean": MetricSpec("mean c", "", 3, "mean cooperation while moving"),
     "t_motion": MetricSpec("t_motion", "s", 2, "motion completion time"),
@@ -119,9 +128,11 @@ NUMERIC_METRICS: tuple[str, ...] = tuple(METRICS)
 METRIC_COLUMNS: tuple[str, ...] = ("policy", "user", *NUMERIC_METRICS)
 """All columns of a session row (``sessions.csv``), in order."""
 
-OPTIONAL_METRICS: frozenset[str] = frozenset({"pause_share", "filler_share", "voice_natural"})
-"""Metrics that tables of older runs lack (langctrl 0.4 and before; ``voice_natural``: 0.5):
-read as NaN."""
+OPTIONAL_METRICS: frozenset[str] = frozenset(
+    {"pause_share", "filler_share", "voice_natural", "content_share"}
+)
+"""Metrics that tables of older runs lack (langctrl 0.4 and before; ``voice_natural`` and
+``content_share``: 0.5): read as NaN."""
 
 
 def time_weights(t: np.ndarray) -> np.ndarray:
@@ -261,6 +272,47 @@ def speech_shares(log: EpisodeLog, waiting: np.ndarray | None = None) -> dict[st
     }
 
 
+def content_time(log: EpisodeLog, waiting: np.ndarray, until: float) -> float:
+    """Time (s) from the log's start to ``until`` in which a phrase's words are heard.
+
+    A *content* utterance is a clip that is neither a filler nor a pause vertex; its words are
+    heard over ``[t_start, t_end)`` (the graph's silence after a clip is not part of it) except
+    where the voice waits in silence (``waiting``, the natural voice's wait from
+    :func:`voice_trace`). Samples hold their state until the next one (zero-order hold), as
+    everywhere in this module; utterance ends are exact.
+
+    Args:
+        log: The episode.
+        waiting: Whether the voice waits at each sample, shape ``(n,)``, bool.
+        until: End of the window (s), e.g. ``log.t_motion``.
+
+    Returns:
+        Seconds of words heard in ``[t[0], until)``, ``>= 0``.
+    """
+    t0 = float(log.t[0])
+    spans = [
+        (max(u.t_start, t0), min(u.t_end, until))
+        for u in log.utterances
+        if not u.is_pause and not u.filler
+    ]
+    spans = [(a, b) for a, b in spans if b > a]
+    said = float(sum(b - a for a, b in spans))
+    if not spans or not waiting.any():
+        return said
+    starts = log.t
+    ends = starts + time_weights(log.t)
+    silent = 0.0
+    for a, b in spans:  # the waits inside the words' spans, each sample's overlap exactly
+        lo = max(int(np.searchsorted(starts, a, side="right")) - 1, 0)
+        hi = int(np.searchsorted(starts, b, side="left"))
+        idx = np.arange(lo, hi)
+        idx = idx[waiting[idx]]
+        if idx.size:
+            overlap = np.minimum(ends[idx], b) - np.maximum(starts[idx], a)
+            silent += float(np.sum(np.clip(overlap, 0.0, None)))
+    return max(0.0, said - silent)
+
+
 def voice_trace(log: EpisodeLog) -> tuple[np.ndarray, np.ndarray]:
     """The rate at which the voice is heard at each sample of ``log``, and whether it waits in
     silence there; shape ``(n,)`` each.
@@ -308,6 +360,7 @@ def episode_metrics(log: EpisodeLog) -> dict[str, float | str]:
             (np.abs(voice - 1.0) <= A_TOLERANCE + _EPS).astype(np.float64), t, speech
         ),
         **speech_shares(log, waiting),
+        "content_share": _content_share(log, waiting),
         "p_mean": time_mean(log.p, t, motion),
         "coop_mean": time_mean(log.cooperation, t, motion),
         "t_motion": log.t_motion,
@@ -315,3 +368,11 @@ def episode_metrics(log: EpisodeLog) -> dict[str, float | str]:
         "return": log.ret,
     }
     return row
+
+
+def _content_share(log: EpisodeLog, waiting: np.ndarray) -> float:
+    """``content_share``: words heard over the motion's duration (NaN for a motion of no time)."""
+    span = log.t_motion - float(log.t[0])
+    if not span > 0.0:
+        return float("nan")
+    return min(1.0, content_time(log, waiting, log.t_motion) / span)
