@@ -49,7 +49,7 @@ import numpy as np
 
 from eval.episode import EpisodeLog
 from langenv.errors import ConfigError
-from langenv.speech.voice import voice_rate
+from langenv.speech.voice import voice_rate, words_heard
 
 __all__ = [
     "A_TOLERANCE",
@@ -278,8 +278,7 @@ def content_time(log: EpisodeLog, waiting: np.ndarray, until: float) -> float:
     A *content* utterance is a clip that is neither a filler nor a pause vertex; its words are
     heard over ``[t_start, t_end)`` (the graph's silence after a clip is not part of it) except
     where the voice waits in silence (``waiting``, the natural voice's wait from
-    :func:`voice_trace`). Samples hold their state until the next one (zero-order hold), as
-    everywhere in this module; utterance ends are exact.
+    :func:`voice_trace`); :func:`langenv.speech.voice.words_heard` counts them.
 
     Args:
         log: The episode.
@@ -289,28 +288,8 @@ def content_time(log: EpisodeLog, waiting: np.ndarray, until: float) -> float:
     Returns:
         Seconds of words heard in ``[t[0], until)``, ``>= 0``.
     """
-    t0 = float(log.t[0])
-    spans = [
-        (max(u.t_start, t0), min(u.t_end, until))
-        for u in log.utterances
-        if not u.is_pause and not u.filler
-    ]
-    spans = [(a, b) for a, b in spans if b > a]
-    said = float(sum(b - a for a, b in spans))
-    if not spans or not waiting.any():
-        return said
-    starts = log.t
-    ends = starts + time_weights(log.t)
-    silent = 0.0
-    for a, b in spans:  # the waits inside the words' spans, each sample's overlap exactly
-        lo = max(int(np.searchsorted(starts, a, side="right")) - 1, 0)
-        hi = int(np.searchsorted(starts, b, side="left"))
-        idx = np.arange(lo, hi)
-        idx = idx[waiting[idx]]
-        if idx.size:
-            overlap = np.minimum(ends[idx], b) - np.maximum(starts[idx], a)
-            silent += float(np.sum(np.clip(overlap, 0.0, None)))
-    return max(0.0, said - silent)
+    spans = [(u.t_start, u.t_end) for u in log.utterances if not u.is_pause and not u.filler]
+    return words_heard(log.t, waiting, spans, until)
 
 
 def voice_trace(log: EpisodeLog) -> tuple[np.ndarray, np.ndarray]:

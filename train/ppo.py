@@ -487,6 +487,24 @@ class _WrapperChain:
             env = klass(env, **kwargs)
         return env
 
+    @property
+    def monitor_outside(self) -> bool:
+        """Whether the Monitor goes outside these wrappers: a wrapper whose steps are not the
+        env's (``train.choices.ChoicePoints``: one step per phrase choice) says so."""
+        return any(getattr(klass, "monitor_outside", False) for klass, _ in self.chain)
+
+
+def _monitored(env: Any, wrapper: Any) -> Any:
+    """``env`` with a Monitor and ``wrapper``, the Monitor inside it unless it must be outside
+    (:attr:`_WrapperChain.monitor_outside`), so that it counts the agent's steps."""
+    from stable_baselines3.common.monitor import Monitor
+
+    if wrapper is None:
+        return Monitor(env)
+    if getattr(wrapper, "monitor_outside", False):
+        return Monitor(wrapper(env))
+    return wrapper(Monitor(env))
+
 
 @dataclass
 class _Run:
@@ -570,7 +588,6 @@ def _make_envs(run: _Run) -> tuple[Any, Any]:
     """Training VecEnv (normalised) and evaluation VecEnv (normalisation in eval mode)."""
     import gymnasium as gym
     from stable_baselines3.common.env_util import make_vec_env
-    from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import DummyVecEnv
 
     import langenv  # noqa: F401  (registers the env)
@@ -581,7 +598,7 @@ def _make_envs(run: _Run) -> tuple[Any, Any]:
     if run.worlds is not None:
         return _make_world_envs(run, cls)
     per_env = _exercise_kwargs(run.env_kwargs)
-    if len(per_env) == 1:
+    if len(per_env) == 1 and not getattr(run.wrapper, "monitor_outside", False):
         env = make_vec_env(
             a.env_id,
             n_envs=run.n_envs,
@@ -607,7 +624,7 @@ def _make_envs(run: _Run) -> tuple[Any, Any]:
 
         def make_eval_env(j: int) -> Any:
             wrap = _WrapperChain(chain, ((SeedCycle, {"seeds": seeds[j::k] or seeds[:1]}),))
-            return lambda: wrap(Monitor(gym.make(a.env_id, **per_env[j])))
+            return lambda: _monitored(gym.make(a.env_id, **per_env[j]), wrap)
 
         # Not make_vec_env: it seeds the first reset at random even with seed=None, which would
         # override SeedCycle and make the first evaluation episode a random user. A bare
@@ -623,7 +640,6 @@ def _make_world_envs(run: _Run, cls: Any) -> tuple[Any, Any]:
     """Training and validation VecEnvs across the worlds of ``run.worlds``
     (:mod:`langenv.worlds`): training env ``i`` draws its worlds from seed ``seed + i``; the
     periodic evaluation cycles through ``n_eval_episodes`` validation (exercise, user) pairs."""
-    from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import DummyVecEnv
 
     a, split = run.args, run.worlds
@@ -640,10 +656,9 @@ def _make_world_envs(run: _Run, cls: Any) -> tuple[Any, Any]:
         split.pairs("validation", a.n_eval_episodes)  # enough validation users, before training
         from langenv.worlds import WorldEnv
 
-        wrap = run.wrapper if run.wrapper is not None else (lambda e: e)
         n = a.n_eval_episodes
         eval_env = DummyVecEnv(
-            [lambda: wrap(Monitor(WorldEnv(split, "validation", run.env_kwargs, n)))]
+            [lambda: _monitored(WorldEnv(split, "validation", run.env_kwargs, n), run.wrapper)]
         )
         if run.normalize is not None:
             kw = {k: v for k, v in run.normalize.items() if k != "norm_reward"}
@@ -672,13 +687,10 @@ class _WorldFn:
 
 def _seeded_monitored(env: Any, wrapper: Any, seed: int | None, rank: int) -> Any:
     """``env`` as ``make_vec_env`` finishes each of its envs: the action space seeded
-    ``seed + rank``, a Monitor, then ``wrapper``."""
-    from stable_baselines3.common.monitor import Monitor
-
+    ``seed + rank``, a Monitor, then ``wrapper`` (:func:`_monitored`)."""
     if seed is not None:
         env.action_space.seed(seed + rank)
-    env = Monitor(env)
-    return wrapper(env) if wrapper is not None else env
+    return _monitored(env, wrapper)
 
 
 def _exercise_kwargs(env_kwargs: dict[str, Any]) -> list[dict[str, Any]]:
@@ -1396,8 +1408,10 @@ def _learn(
 #: Per-episode metrics the periodic evaluation records in ``eval/evaluations.npz`` beside SB3's
 #: ``timesteps``, ``results`` and ``ep_lengths`` (one row per evaluation, one column per user):
 #: ``|AM|`` at the end (s; NaN when a session did not end by itself), mean ``|EM|`` over its
-#: decisions (s) and mean ``|a - 1|`` over its decisions while speech goes on.
-EVAL_METRICS: tuple[str, ...] = ("abs_am", "em_mean_abs", "a_dev")
+#: decisions (s) and mean ``|a - 1|`` over its decisions while speech goes on; and where the
+#: env reports them at the end (``train.choices.ChoicePoints``: the session's own metrics, its
+#: mean ``|EM|`` over time) ``content_share`` and ``voice_natural`` (NaN otherwise).
+EVAL_METRICS: tuple[str, ...] = ("abs_am", "em_mean_abs", "a_dev", "content_share", "voice_natural")
 
 
 class _MetricsEvalCallback(EvalCallback):
@@ -1427,10 +1441,20 @@ class _MetricsEvalCallback(EvalCallback):
             self.logger.record("eval/abs_am_median", float(np.nanmedian(self._episode["abs_am"])))
             self.logger.record("eval/em_mean_abs", em)
             self.logger.record("eval/a_dev", a_dev)
+            speech = ""
+            if np.isfinite(self._episode["content_share"]).any():
+                content = float(np.nanmean(self._episode["content_share"]))
+                voice = float(np.nanmean(self._episode["voice_natural"]))
+                within = float(np.mean(np.asarray(self._episode["abs_am"]) <= 1.0))
+                self.logger.record("eval/content_share", content)
+                self.logger.record("eval/voice_natural", voice)
+                speech = (
+                    f", content {content:.4f}, voice natural {voice:.4f}, |AM| <= 1 s {within:.3f}"
+                )
             print(
                 f"[eval @ {self.num_timesteps} steps] held-out users: mean |AM| {am:.3f} s, "
                 f"median |AM| {np.nanmedian(self._episode['abs_am']):.3f} s, mean |EM| "
-                f"{em:.3f} s, mean |a-1| {a_dev:.3f}, return {self.last_mean_reward:.2f}",
+                f"{em:.3f} s, mean |a-1| {a_dev:.3f}{speech}, return {self.last_mean_reward:.2f}",
                 file=sys.stderr,
             )
         return ok
@@ -1458,9 +1482,14 @@ class _MetricsEvalCallback(EvalCallback):
         if locals_["done"]:
             am = info.get("am")
             self._episode["abs_am"].append(abs(float(am)) if am is not None else math.nan)
-            self._episode["em_mean_abs"].append(float(np.mean(self._em_steps)))
+            em = info.get("em_mean_abs")  # the session's own, where the env reports it
+            em = float(em) if em is not None else float(np.mean(self._em_steps))
+            self._episode["em_mean_abs"].append(em)
             a_dev = float(np.mean(self._a_steps)) if self._a_steps else math.nan
             self._episode["a_dev"].append(a_dev)
+            for key in ("content_share", "voice_natural"):
+                value = info.get(key)
+                self._episode[key].append(float(value) if value is not None else math.nan)
             self._em_steps, self._a_steps = [], []
 
 
