@@ -134,3 +134,66 @@ def test_the_choice_env_needs_ticks() -> None:
         ChoicePoints(gym.make(langenv.ENV_ID, decision_hz=25))
     with pytest.raises(ConfigError, match="w_content"):
         ChoicePoints(gym.make(langenv.ENV_ID, decision_hz=500), w_content=-1.0)
+
+
+@pytest.fixture(scope="module")
+def tiny_chooser(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A learned phrase chooser of configs/ppo_speech.yaml, trained in-process for two short
+    rollouts on two envs with a periodic evaluation on two validation people."""
+    from train.ppo import TrainArgs, train
+
+    root = tmp_path_factory.mktemp("tiny_chooser")
+    config = root / "tiny.yaml"
+    config.write_text(
+        f"inherit: {SPLIT}\nLangCtrl-v0: {{n_steps: 16, batch_size: 16, n_epochs: 1}}\n"
+    )
+    args = TrainArgs(
+        config=config,
+        out=root / "run",
+        total_timesteps=64,
+        n_envs=2,
+        vec_env="dummy",
+        n_eval_episodes=2,
+        eval_freq=32,
+        checkpoint_freq=32,
+        progress_bar=False,
+        tensorboard=False,
+    )
+    given = {"out", "n_envs", "n_eval_episodes", "eval_freq", "checkpoint_freq", "total_timesteps"}
+    return train(args, given=given)
+
+
+def test_a_chooser_acts_in_evaluation_as_in_training(tiny_chooser: Path, tmp_path: Path) -> None:
+    from policies.learned import PPOPolicy
+    from train.choices import ChoicePoints
+    from train.export import ExportArgs, export
+
+    evals = np.load(tiny_chooser.parent / "eval" / "evaluations.npz")
+    assert evals["content_share"].shape == (2, 2) and np.isfinite(evals["content_share"]).all()
+    model = export(ExportArgs(tiny_chooser.parent, None, tmp_path / "m"))
+    policy = PPOPolicy.load(model)
+    spec = policy.residual.spec
+    assert (policy.decision_hz, spec.decisions, spec.choice) == (500, "choices", "fill")
+    split = WorldSplit.load(SPLIT)
+    env = ChoicePoints(WorldEnv(split, "validation", {"decision_hz": 500}, 1), **_chooser_kwargs())
+    obs, _ = env.reset()
+    done = False
+    while not done:
+        r = policy.model(policy.normalizer.normalize_obs(obs[None, :])[0])
+        obs, _, terminated, truncated, info = env.step(r)
+        done = terminated or truncated
+    seed = env.env.world["user_seed"]
+    job = Job(f"ppo:{model}", f"s{seed}", seed, None, str(tmp_path), False, False, None,
+              exercise="shoulder_extension", save_log=False,
+              user_model=PerturbedUser(split.perturbations))  # fmt: skip
+    row = run_episode(job)
+    for key in ("content_share", "voice_natural", "em_mean_abs"):
+        assert info[key] == pytest.approx(row[key], abs=1e-12), key
+
+
+def _chooser_kwargs() -> dict[str, object]:
+    import yaml
+
+    data = yaml.safe_load(SPLIT.read_text())
+    (entry,) = data["LangCtrl-v0"]["env_wrapper"]
+    return dict(entry["train.choices.ChoicePoints"])
