@@ -246,10 +246,12 @@ class EvalScore:
 
 
 CONTENT_RULE = (
-    "highest periodic-evaluation mean content share among checkpoints with the highest share of "
-    "|AM| <= 1 s and a mean voice natural within 0.02 of the highest"
+    "highest periodic-evaluation mean content share among checkpoints with a share of "
+    "|AM| <= 1 s no lower than the base's and a mean voice natural no lower than the base's - 0.02"
 )
-"""How ``--best`` chooses among the evaluations of a phrase chooser's run (content recorded)."""
+"""How ``--best`` chooses among the evaluations of a phrase chooser's run (content recorded),
+against its base's figures on the same people (``RUN/eval/base.npz``, written by ``train.ppo``
+before training; without it, the best figures any checkpoint reached stand for the base's)."""
 
 
 def eval_scores(run: Path) -> list[EvalScore]:
@@ -302,6 +304,29 @@ def eval_scores(run: Path) -> list[EvalScore]:
     return sorted(out, key=lambda e: e.steps)
 
 
+def base_score(run: Path) -> EvalScore | None:
+    """The base's figures on the held-out users (``RUN/eval/base.npz``), or None."""
+    import numpy as np
+
+    from train.ppo import BASE_FILE
+
+    path = run / "eval" / BASE_FILE
+    if not path.is_file():
+        return None
+    with np.load(path) as data:
+        am = np.asarray(data["abs_am"], dtype=float)
+        return EvalScore(
+            0,
+            float(np.mean(am)),
+            float(np.mean(data["em_mean_abs"])),
+            float(np.mean(data["a_dev"])),  # NaN where it was not recorded
+            int(am.size),
+            float(np.mean(data["content_share"])),
+            float(np.mean(data["voice_natural"])),
+            float(np.mean(am <= 1.0)),
+        )
+
+
 def best_steps(run: Path, name: str) -> EvalScore:
     """The evaluation with the lowest score (:attr:`EvalScore.score`; the earliest on a tie)
     among those made at a step count that has a checkpoint in ``RUN/checkpoints``.
@@ -330,9 +355,23 @@ def best_steps(run: Path, name: str) -> EvalScore:
                 f"({e.n_users} users)",
                 file=sys.stderr,
             )
-        top = max(e.within for e in eligible)
-        loud = max(e.voice_natural for e in eligible)
-        ok = [e for e in eligible if e.within == top and e.voice_natural >= loud - 0.02]
+        base = base_score(run)
+        if base is not None:
+            top, loud = base.within, base.voice_natural
+            print(
+                f"    base: content {base.content_share:.4f}, voice natural "
+                f"{base.voice_natural:.4f}, |AM| <= 1 s {base.within:.3f}",
+                file=sys.stderr,
+            )
+        else:
+            top = max(e.within for e in eligible)
+            loud = max(e.voice_natural for e in eligible)
+        ok = [e for e in eligible if e.within >= top and e.voice_natural >= loud - 0.02]
+        if not ok:
+            raise ValueError(
+                f"{run}: no checkpoint holds the base's share of |AM| <= 1 s ({top:.3f}) and "
+                f"its voice natural - 0.02 ({loud - 0.02:.4f}) on the held-out users"
+            )
         best = max(ok, key=lambda e: (e.content_share, -e.steps))
         print(f"chosen: {best.steps} steps (content {best.content_share:.4f})", file=sys.stderr)
         return best

@@ -1414,6 +1414,30 @@ def _learn(
 EVAL_METRICS: tuple[str, ...] = ("abs_am", "em_mean_abs", "a_dev", "content_share", "voice_natural")
 
 
+#: The base's figures on the held-out users (``eval/`` of a run; :data:`EVAL_METRICS`, one per
+#: user): a phrase chooser's run evaluates its base once, before training.
+BASE_FILE = "base.npz"
+
+
+def _is_chooser(env: Any) -> bool:
+    """Whether ``env`` (a VecEnv) is a phrase chooser's (``decisions: choices``)."""
+    if not _has_attr(env, "residual_spec"):
+        return False
+    spec = env.get_attr("residual_spec", indices=[0])[0]
+    return getattr(spec, "decisions", "steps") == "choices"
+
+
+class _ZeroCorrection:
+    """A "model" whose action is always 0: the residual's base (for ``evaluate_policy``)."""
+
+    def __init__(self, shape: tuple[int, ...] | None) -> None:
+        self.shape = tuple(shape or ())
+
+    def predict(self, observation: Any, *args: Any, **kwargs: Any) -> tuple[np.ndarray, None]:
+        n = int(np.shape(observation)[0])
+        return np.zeros((n, *self.shape), np.float32), None
+
+
 class _MetricsEvalCallback(EvalCallback):
     """EvalCallback that also logs and records the held-out users' ``|AM|``, ``|EM|`` and
     ``|a - 1|`` (:data:`EVAL_METRICS`), so that a checkpoint can be chosen by them
@@ -1425,6 +1449,38 @@ class _MetricsEvalCallback(EvalCallback):
         self._em_steps: list[float] = []
         self._a_steps: list[float] = []
         self.evaluations_metrics: dict[str, list[list[float]]] = {k: [] for k in EVAL_METRICS}
+
+    def _on_training_start(self) -> None:
+        """Evaluate the base (a zero correction) once on the held-out users, where the env
+        reports the speech people hear: ``eval/base.npz``, what ``train.export --best`` holds
+        the checkpoints against (:data:`BASE_FILE`)."""
+        super()._on_training_start()
+        if self.log_path is None:
+            return
+        path = Path(self.log_path).parent / BASE_FILE
+        if path.is_file() or not _is_chooser(self.eval_env):
+            return
+        self._episode = {k: [] for k in EVAL_METRICS}
+        self._em_steps, self._a_steps = [], []
+        from stable_baselines3.common.evaluation import evaluate_policy
+
+        evaluate_policy(
+            _ZeroCorrection(self.eval_env.action_space.shape),
+            self.eval_env,
+            n_eval_episodes=self.n_eval_episodes,
+            deterministic=True,
+            callback=self._log_success_callback,
+        )
+        if np.isfinite(self._episode["content_share"]).all():
+            arrays: dict[str, Any] = {k: np.asarray(v, float) for k, v in self._episode.items()}
+            np.savez(path, **arrays)
+            print(
+                f"[eval of the base] held-out users: content "
+                f"{np.mean(self._episode['content_share']):.4f}, voice natural "
+                f"{np.mean(self._episode['voice_natural']):.4f}, |AM| <= 1 s "
+                f"{np.mean(np.asarray(self._episode['abs_am']) <= 1.0):.3f}",
+                file=sys.stderr,
+            )
 
     def _on_step(self) -> bool:
         self._episode = {k: [] for k in EVAL_METRICS}
