@@ -65,6 +65,9 @@ BUDGET: dict[str, Shrink | Skip] = {
     "--seed 900000 --stat mean --out out/val": Shrink(
         (("synthetic:48", "synthetic:1"), ("--out", "--no-audio --no-figures --out")), slow=True
     ),
+    "langctrl exercises --out out/exercises": Shrink(
+        (("--out", "--users synthetic:1 --exercises hand_to_mouth --out"),), slow=True
+    ),
     "langctrl exercise list": Shrink(),
     "cp -r langenv/assets/exercises my_exercises": Shrink(),
     "langctrl exercise check my_exercises/hand_to_mouth.yaml": Shrink(),

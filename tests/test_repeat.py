@@ -302,3 +302,14 @@ def test_bad_repeats_in_scripts_name_line_and_column(text: str, message: str) ->
     with pytest.raises(ScriptError) as info:
         parse_script(text, "s.txt")
     assert message in str(info.value)
+
+
+def test_the_cli_names_a_bad_repeat_without_a_traceback(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from langenv.speech.__main__ import main
+
+    path = write(tmp_path, GOOD.replace("times: 3, ", ""))
+    assert main(["check", str(path), "--cache-dir", str(tmp_path / "c")]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "g.yaml: repeat 'cheer': a repeat needs a bound" in err
