@@ -30,10 +30,11 @@ look in ``docs/history.md``; the command says so when it runs on them.
 Writes into ``OUT`` (refused when it holds files, unless ``--overwrite``):
 
 * ``sessions.csv``: one row per episode, the session metrics of :mod:`eval.metrics` plus
-  ``exercise``, ``perturbation``, ``abs_am_le_1s`` and ``protective_stop``;
-* ``generalise.md``: the bars; then per learned policy, per metric (:data:`COMPARED`) and per
-  group (and all together), each policy's statistic, the best analytic one, and the paired
-  bootstrap 95 % intervals of the learned minus the best analytic and minus ``lc-em-end``;
+  ``exercise``, ``population``, ``perturbation``, ``abs_am_le_1s`` and ``protective_stop``;
+* ``generalise.md``: every policy's figures on all the episodes; the bars; then per learned
+  policy, per metric (:data:`COMPARED`) and per group (and all together), each policy's
+  statistic, the best analytic one, and the paired bootstrap 95 % intervals of the learned
+  minus the best analytic and minus ``lc-em-end``;
 * ``speech.png``: content share against voice natural, one point per policy, and each policy's
   share of sessions with ``|AM| <= 1 s`` beside it (:func:`plot_speech`);
 * ``METRIC.png``: one plot per metric (each policy's statistic per group, and the intervals of
@@ -67,6 +68,7 @@ __all__ = [
     "compare_rows",
     "main",
     "markdown",
+    "overview_markdown",
     "parse_args",
     "plot_speech",
 ]
@@ -253,6 +255,41 @@ def bars(
             )
         )
     return out
+
+
+def overview_markdown(rows: list[dict[str, Any]], policies: Sequence[str]) -> str:
+    """Every policy on all the episodes: the speech people hear and the bars' other figures."""
+    head = [
+        "policy",
+        "sessions",
+        "content %",
+        "voice natural %",
+        "pauses %",
+        "fillers %",
+        "|AM| <= 1 s",
+        "median |AM| (s)",
+        "protective stops",
+    ]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for p in policies:
+        mine = [r for r in rows if r["policy"] == p]
+
+        def col(m: str, mine: list[dict[str, Any]] = mine) -> np.ndarray:
+            return np.array([float(r[m]) for r in mine])
+
+        cells = [
+            p,
+            str(len(mine)),
+            f"{100.0 * np.nanmean(col('content_share')):.1f}",
+            f"{100.0 * np.nanmean(col('voice_natural')):.1f}",
+            f"{100.0 * np.nanmean(col('pause_share')):.1f}",
+            f"{100.0 * np.nanmean(col('filler_share')):.1f}",
+            f"{int(col('abs_am_le_1s').sum())}/{len(mine)}",
+            f"{np.nanmedian(col('abs_am')):.2f}",
+            str(int(col("protective_stop").sum())),
+        ]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
 
 
 def bars_markdown(found: Sequence[Bar]) -> str:
@@ -599,6 +636,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parts = [
         title,
         "",
+        "## Every policy, all episodes",
+        "",
+        overview_markdown(rows, [*analytic, *learned]),
         f"## The bars: each learned policy against {ns.base}, paired",
         "",
         bars_markdown(found),
