@@ -266,8 +266,8 @@ def overview_markdown(rows: list[dict[str, Any]], policies: Sequence[str]) -> st
         "voice natural %",
         "pauses %",
         "fillers %",
-        "|AM| <= 1 s",
-        "median |AM| (s)",
+        "\\|AM\\| <= 1 s",
+        "median \\|AM\\| (s)",
         "protective stops",
     ]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
@@ -298,7 +298,7 @@ def bars_markdown(found: Sequence[Bar]) -> str:
         "learned",
         "group",
         "n",
-        "|AM| <= 1 s (learned / base)",
+        "\\|AM\\| <= 1 s (learned / base)",
         "content - base [95 % CI]",
         "voice natural - base [95 % CI]",
         "stops (learned / base)",
@@ -315,7 +315,7 @@ def bars_markdown(found: Sequence[Bar]) -> str:
             _ci(b.content, 4),
             _ci(b.voice, 4),
             f"{b.stops[0]} / {b.stops[1]}",
-            "PASS" if not failed else "FAIL: " + ", ".join(failed),
+            "PASS" if not failed else "FAIL: " + ", ".join(k.replace("|", "\\|") for k in failed),
         ]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"

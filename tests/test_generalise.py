@@ -112,7 +112,7 @@ def test_bars_hold_only_with_every_bar() -> None:
             r["abs_am_le_1s"] = 0.0  # one session beyond 1 s where the base had all
     worse = bars(rows, "ppo", "lc-fill", n_boot=500)[-1]
     assert not worse.holds and not worse.checks["|AM| <= 1 s"]
-    assert "FAIL: |AM| <= 1 s" in bars_markdown([worse])
+    assert "FAIL: \\|AM\\| <= 1 s" in bars_markdown([worse])
 
 
 def test_unpaired_episodes_are_refused() -> None:

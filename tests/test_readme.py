@@ -58,7 +58,7 @@ BUDGET: dict[str, Shrink | Skip] = {
     "langctrl compare --policies ac,lc-noap,lc --users synthetic:12 --seed 0 --out out/compare": (
         Shrink((("synthetic:12", "synthetic:1"),))
     ),
-    "langctrl train --config configs/ppo_speech.yaml --seed SEEDNUM --out runs/speech": Shrink(
+    "langctrl train --config configs/ppo_speech.yaml --seed 3000000 --out runs/speech": Shrink(
         (("--out runs/speech", f"--out runs/speech {CHOICE_BUDGET}"),), slow=True
     ),
     "langctrl export runs/speech --best --out runs/speech/ppo_speech": Shrink(slow=True),
