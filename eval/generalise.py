@@ -49,7 +49,7 @@ import json
 import math
 import sys
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -654,8 +654,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     atomic_write(ns.out / "generalise.md", text)
     plot_speech(rows, [*analytic, *learned], ns.out / "speech.png")
+    shown = [  # the first model's comparisons, with every model's statistic
+        replace(c, values={**c.values, **{n: comps[n][i].values[n] for n in learned}})
+        for i, c in enumerate(comps[learned[0]])
+    ]
     for metric in COMPARED:
-        plot_metric(comps[learned[0]], metric, [*analytic, *learned], ns.out / f"{metric}.png")
+        plot_metric(shown, metric, [*analytic, *learned], ns.out / f"{metric}.png")
     config = {
         "models": [str(m) for m in ns.model],
         "policies": specs,
