@@ -139,10 +139,15 @@ def test_generalise_on_validation(tiny_general_model: Path, tmp_path: Path) -> N
     assert main([*args, "--out", str(out)]) == 2  # a non-empty --out is refused
     assert main([*args, "--base", "lc-xyz", "--out", str(tmp_path / "b")]) == 2
     both = tmp_path / "both"
-    argv = [*args, "--policies", "lc", "--base", "lc", "--population", "both"]
-    assert main([*argv, "--n-boot", "100", "--out", str(both)]) == 0
+    twin = tmp_path / "twin" / "tiny"  # the same model under another name: two learned policies
+    twin.parent.mkdir()
+    for src, dst in zip(model_files(tiny_general_model), model_files(twin), strict=True):
+        dst.write_bytes(src.read_bytes())
+    argv = [*args, "--model", f"{twin}.zip", "--policies", "lc", "--base", "lc"]
+    assert main([*argv, "--population", "both", "--n-boot", "100", "--out", str(both)]) == 0
     text = (both / "generalise.md").read_text()
     assert "shoulder_extension (perturbed)" in text and "shoulder_extension (plain)" in text
+    assert "| ppo-tiny |" in text and all((both / f"{m}.png").is_file() for m in COMPARED)
 
 
 def test_a_test_role_says_it_is_a_look(
