@@ -639,9 +639,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         "## Every policy, all episodes",
         "",
         overview_markdown(rows, [*analytic, *learned]),
-        f"## The bars: each learned policy against {ns.base}, paired",
+        f"## The bars: each learned policy against {ns.base}, paired, all sessions",
         "",
-        bars_markdown(found),
+        bars_markdown([b for b in found if b.group == "all"]),
+        f"## The bars per group: each learned policy against {ns.base}",
+        "",
+        bars_markdown([b for b in found if b.group != "all"]),
     ]
     comps = {}
     for name in learned:

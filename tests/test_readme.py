@@ -65,6 +65,17 @@ BUDGET: dict[str, Shrink | Skip] = {
     "langctrl generalise --model runs/speech/ppo_speech.zip --users 48 --out out/val": Shrink(
         (("--users 48", "--users 1 --policies lc,lc-fill --n-boot 100"),), slow=True
     ),
+    "langctrl exercises --out out/exercises": Shrink(
+        (("--out", "--users synthetic:1 --exercises hand_to_mouth --out"),), slow=True
+    ),
+    "langctrl generalise --model models/ppo_speech.zip --model "
+    "models/speech_seeds/ppo_speech_s1000000.zip --model "
+    "models/speech_seeds/ppo_speech_s2000000.zip --role test --users 48 --population both "
+    "--out out/speech_test": Skip(
+        "the learned phrase chooser's look at the test sets (docs/history.md records it); "
+        "tools/results.py runs it for the README's table, the generalise job is tested on "
+        "validation people"
+    ),
     "langctrl exercise list": Shrink(),
     "cp -r langenv/assets/exercises my_exercises": Shrink(),
     "langctrl exercise check my_exercises/hand_to_mouth.yaml": Shrink(),

@@ -188,14 +188,15 @@ SECTIONS: dict[str, Section] = {
         (SPEECH_LOOK,),
         (
             FileSection(SPEECH_MD, "Every policy"),
-            FileSection(SPEECH_MD, "The bars"),
+            FileSection(SPEECH_MD, "The bars: "),
         ),
     ),
     "speech-headline": Section(
         (SPEECH_LOOK,),
         (
             FileSection(SPEECH_MD, "Every policy", ("lc", "lc-fill", SHIPPED)),
-            FileSection(SPEECH_MD, "The bars", (SHIPPED,)),
+            FileSection(SPEECH_MD, "The bars per group", (SHIPPED,)),
+            FileSection(SPEECH_MD, "The bars: ", (SHIPPED,)),
         ),
     ),
     "fidelity": Section(

@@ -94,11 +94,21 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
             :class:`~langenv.worlds.WorldEnv` of such envs.
         choice_scale: Largest change of the base's target-duration action (see
             :class:`~policies.learned.ResidualSpec`).
-        k_c, choice, fill_margin, fill_anticipate, pause_scale, k_em: The base controller's
-            settings (:class:`~policies.learned.ResidualSpec`; the defaults are ``lc-fill``'s
-            design with the paper's gains).
-        w_content, w_voice, w_am, w_am_fine, am_scale, w_am_far, w_em, w_stop: Reward weights
-            (module docstring).
+        k_c: The base's cooperation gain of the audio law (``lc-fill``: 0).
+        choice: The base's phrase rule (``"fill"``: ``lc-fill``'s; ``"mid"``: the paper's).
+        fill_margin: The content rule's margin (s).
+        fill_anticipate: How much the content rule trusts the person's pace so far.
+        pause_scale: The base's pause target over ``t_x`` in pauses with a choice after them.
+        k_em: The base's misalignment feedback on the physical pace (1/s).
+        w_content: Weight of the content share (module docstring).
+        w_voice: Weight of the voice natural share.
+        w_am: Weight of ``|AM|`` (1/s).
+        w_am_fine: Weight of ``ln(1 + |AM| / am_scale)``.
+        am_scale: Scale of that term (s), > 0.
+        w_am_far: Penalty when ``|AM| > 1 s``.
+        w_em: Weight of the mean ``|EM|`` (1/s).
+        w_stop: Penalty for a protective stop or a cut-off episode, instead of the alignment
+            terms.
 
     Raises:
         ConfigError: if the env does not step one tick at a time, or for a bad setting.
