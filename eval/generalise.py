@@ -366,8 +366,8 @@ def _value(x: float) -> str:
 
 def plot_speech(rows: list[dict[str, Any]], policies: Sequence[str], path: Path) -> Path:
     """The speech people hear, all episodes together: each policy's mean content share against
-    its mean voice natural (one point per policy, left) and its share of sessions with
-    ``|AM| <= 1 s`` (right)."""
+    its mean voice natural (one point per policy; left: all, middle: around the best), and its
+    sessions with ``|AM| <= 1 s`` (right)."""
     from matplotlib.figure import Figure
 
     from eval.plots import _save, policy_color
@@ -376,21 +376,51 @@ def plot_speech(rows: list[dict[str, Any]], policies: Sequence[str], path: Path)
         x = np.array([float(r[m]) for r in rows if r["policy"] == p])
         return float(np.nanmean(x)) if np.isfinite(x).any() else math.nan
 
-    fig = Figure(figsize=(10.0, 4.2), facecolor="white")
-    left, right = fig.subplots(1, 2, width_ratios=[3, 2])
+    markers = "osD^v<>Pp*hX"
+    points = {
+        p: (100.0 * mean(p, "content_share"), 100.0 * mean(p, "voice_natural")) for p in policies
+    }
+    fig = Figure(figsize=(13.0, 4.4), facecolor="white")
+    left, mid, right = fig.subplots(1, 3, width_ratios=[3, 3, 2.4])
     for i, p in enumerate(policies):
-        x, y = 100.0 * mean(p, "content_share"), 100.0 * mean(p, "voice_natural")
-        left.scatter([x], [y], s=60, color=policy_color(p, i), label=p, zorder=3)
-        left.annotate(p, (x, y), textcoords="offset points", xytext=(6, 4), fontsize=8)
+        x, y = points[p]
+        style = {"color": policy_color(p, i), "marker": markers[i % len(markers)], "s": 60}
+        left.scatter([x], [y], label=p, zorder=3, **style)
+        mid.scatter([x], [y], zorder=3, **style)
     left.set_xlabel("content share: words heard over the motion (%)")
     left.set_ylabel("voice heard natural (% of the speech)")
+    left.legend(fontsize=7, loc="lower right")
     left.grid(alpha=0.3)
-    within = [100.0 * mean(p, "abs_am_le_1s") for p in policies]
+    best = max(points.values(), key=lambda v: v[0])
+    near = [p for p, v in points.items() if v[0] >= best[0] - 6.0]
+    for k, p in enumerate(near):
+        x, y = points[p]
+        mid.annotate(p, (x, y), textcoords="offset points", xytext=(6, 10 - 9 * k), fontsize=7)
+    xs = [points[p][0] for p in near]
+    ys = [points[p][1] for p in near]
+    mid.set_xlim(min(xs) - 0.5, max(xs) + 1.5)
+    mid.set_ylim(min(ys) - 1.0, max(ys) + 1.0)
+    mid.set_title("around the most content", fontsize=9)
+    mid.set_xlabel("content share (%)")
+    mid.grid(alpha=0.3)
+    counts = []
+    for p in policies:
+        within = [float(r["abs_am_le_1s"]) for r in rows if r["policy"] == p]
+        counts.append((int(sum(within)), len(within)))
+    shares = [100.0 * k / n if n else 0.0 for k, n in counts]
     rows_y = np.arange(len(policies))
-    right.barh(rows_y, within, color=[policy_color(p, i) for i, p in enumerate(policies)])
-    for k, w in enumerate(within):
-        right.text(min(w, 100.0) - 1.0, k, f"{w:.0f} %", va="center", ha="right", fontsize=8)
-    right.set_yticks(rows_y, list(policies))
+    right.barh(rows_y, shares, color=[policy_color(p, i) for i, p in enumerate(policies)])
+    for k, (n_in, n) in enumerate(counts):
+        right.text(
+            2.0,
+            k,
+            f"{n_in}/{n}",
+            va="center",
+            ha="left",
+            fontsize=8,
+            bbox={"facecolor": "white", "edgecolor": "none", "pad": 1.0},
+        )
+    right.set_yticks(rows_y, list(policies), fontsize=8)
     right.invert_yaxis()
     right.set_xlim(0.0, 100.0)
     right.set_xlabel("sessions with |AM| <= 1 s (%)")
