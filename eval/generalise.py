@@ -1,17 +1,27 @@
-"""Does a learned aligner generalise? Every policy on every held-out exercise and person.
+"""Does a learned policy generalise? Every policy on every held-out exercise and person.
 
 Run::
 
-    python -m eval.generalise --model runs/general/best/ppo_general.zip --out out/generalise
-    python -m eval.generalise --model MODEL --role test --users 48 --out out/test_look_1
+    python -m eval.generalise --model runs/speech/best/ppo_speech.zip --out out/generalise
+    python -m eval.generalise --model M1.zip --model M2.zip --role test --users 48 \
+        --population both --out out/test_look_1
 
 The split (exercises and user seeds of each role, the users' perturbations) is the one recorded
-with the model (``worlds`` in ``MODEL_config.yaml``, written by ``python -m train.ppo`` from a
-config with a ``worlds`` section), or ``--split CONFIG`` (a config with one). Every policy of
-``--policies`` (default ``ac,lc-noap,lc,lc-em-end``) and the learned one (``ppo:MODEL``) runs
-on every exercise of the role times its first ``--users`` user seeds, each user a
-:class:`~langenv.users.PerturbedUser` of the split's perturbations (``--no-perturb``: the plain
-synthetic population), the same episodes for every policy: paired.
+with the (first) model (``worlds`` in ``MODEL_config.yaml``, written by ``python -m train.ppo``
+from a config with a ``worlds`` section), or ``--split CONFIG`` (a config with one). Every
+policy of ``--policies`` (default ``ac,lc-noap,lc,lc-em-end,lc-fill``) and each learned one
+(``ppo:MODEL``; several ``--model``: ``ppo-STEM``) runs on every exercise of the role times its
+first ``--users`` user seeds, the same episodes for every policy: paired. The people are
+:class:`~langenv.users.PerturbedUser` of the split's perturbations (``--population
+perturbed``, the default), the plain synthetic population (``plain``, or ``--no-perturb``), or
+both (``both``: each exercise and user twice, the groups of the tables are then ``EXERCISE
+(population)``).
+
+**The bars** (:func:`bars`): each learned policy against ``--base`` (default ``lc-fill``, the
+best analytic policy for the speech people hear, chosen on the validation worlds), on the same
+episodes, paired, per group and all together: the share of sessions with ``|AM| <= 1 s`` no
+lower, the content share higher with the 95 % bootstrap interval of the difference above 0, the
+voice heard natural no lower than the base's - 0.02, no more protective stops.
 
 ``--role`` is ``validation`` by default. The test exercises and users are for the claim: look
 at them (``--role test``) only with the model you ship, at most twice per study, and record each
@@ -20,11 +30,15 @@ look in ``docs/history.md``; the command says so when it runs on them.
 Writes into ``OUT`` (refused when it holds files, unless ``--overwrite``):
 
 * ``sessions.csv``: one row per episode, the session metrics of :mod:`eval.metrics` plus
-  ``exercise``, ``perturbation``, ``abs_am_le_1s`` and ``protective_stop``;
-* ``generalise.md``: per metric (:data:`COMPARED`) and per exercise (and all together), each
-  policy's statistic, the best analytic one, and the paired bootstrap 95 % intervals of the learned
+  ``exercise``, ``population``, ``perturbation``, ``abs_am_le_1s`` and ``protective_stop``;
+* ``generalise.md``: every policy's figures on all the episodes; the bars; then per learned
+  policy, per metric (:data:`COMPARED`) and per group (and all together), each policy's
+  statistic, the best analytic one, and the paired bootstrap 95 % intervals of the learned
   minus the best analytic and minus ``lc-em-end``;
-* ``METRIC.png``: one plot per metric (each policy's statistic per exercise, and the intervals);
+* ``speech.png``: content share against voice natural, one point per policy, and each policy's
+  share of sessions with ``|AM| <= 1 s`` beside it (:func:`plot_speech`);
+* ``METRIC.png``: one plot per metric (each policy's statistic per group, and the intervals of
+  the first learned policy);
 * ``config.json``: the arguments, the split and whether this was a look at the test set.
 """
 
@@ -35,7 +49,7 @@ import json
 import math
 import sys
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -44,26 +58,39 @@ import numpy as np
 from eval.stats import Stat
 
 __all__ = [
+    "BASE",
     "COMPARED",
+    "Bar",
     "Comparison",
+    "bars",
+    "bars_markdown",
     "build_parser",
     "compare_rows",
     "main",
     "markdown",
+    "overview_markdown",
     "parse_args",
+    "plot_speech",
 ]
 
-#: The metrics compared: column -> (statistic, label). Lower is better for all of them except
-#: ``abs_am_le_1s`` (the share of sessions with ``|AM| <= 1 s``), where higher is.
+#: The metrics compared: column -> (statistic, label). Higher is better for the shares of
+#: :data:`_HIGHER_IS_BETTER` (content, voice natural, sessions with ``|AM| <= 1 s``), lower for
+#: the rest.
 COMPARED: dict[str, tuple[Stat, str]] = {
-    "em_mean_abs": ("mean", "mean |EM| (s)"),
-    "abs_am": ("median", "median |AM| (s)"),
+    "content_share": ("mean", "content share"),
+    "voice_natural": ("mean", "voice natural"),
     "abs_am_le_1s": ("mean", "share |AM| <= 1 s"),
-    "a_dev": ("mean", "mean |a - 1|"),
     "protective_stop": ("mean", "protective stops (share)"),
+    "abs_am": ("median", "median |AM| (s)"),
+    "em_mean_abs": ("mean", "mean |EM| (s)"),
+    "a_dev": ("mean", "mean |a - 1|"),
 }
-_HIGHER_IS_BETTER = frozenset({"abs_am_le_1s"})
+_HIGHER_IS_BETTER = frozenset({"abs_am_le_1s", "content_share", "voice_natural"})
 REFERENCE = "lc-em-end"
+#: The analytic policy the bars compare with by default: the best for content on validation.
+BASE = "lc-fill"
+#: How much lower than the base's the learned policy's voice natural may be (the issue's bar).
+VOICE_SLACK = 0.02
 
 
 @dataclass(frozen=True)
@@ -87,6 +114,11 @@ class Comparison:
     vs_best: tuple[float, float, float]
     vs_reference: tuple[float, float, float]
     n: int
+
+
+def _group(row: dict[str, Any]) -> str:
+    """A row's group: its ``group`` (exercise and population), else its exercise."""
+    return str(row.get("group", row["exercise"]))
 
 
 def _column(rows: list[dict[str, Any]], policy: str, metric: str) -> np.ndarray:
@@ -117,11 +149,11 @@ def compare_rows(
     """
     from langenv.errors import ConfigError
 
-    groups = sorted({str(r["exercise"]) for r in rows})
+    groups = sorted({_group(r) for r in rows})
     out = []
     for metric, (stat, _label) in COMPARED.items():
         for group in [*groups, "all"]:
-            sub = [r for r in rows if group == "all" or r["exercise"] == group]
+            sub = [r for r in rows if group == "all" or _group(r) == group]
             keys = {
                 p: sorted(r["key"] for r in sub if r["policy"] == p) for p in [learned, *analytic]
             }
@@ -129,9 +161,11 @@ def compare_rows(
                 raise ConfigError(f"{group}: the policies did not run the same episodes")
             cols = {p: _column(sub, p, metric) for p in keys}
             fn = np.nanmedian if stat == "median" else np.nanmean
-            values = {p: float(fn(c)) for p, c in cols.items()}
+            values = {
+                p: float(fn(c)) if np.isfinite(c).any() else math.nan for p, c in cols.items()
+            }
             sign = -1.0 if metric in _HIGHER_IS_BETTER else 1.0
-            best = min(analytic, key=lambda p: (sign * values[p], p))
+            best = min(analytic, key=lambda p: (_rank(sign * values[p]), p))
             vs_best = _diff(cols[learned], cols[best], stat, n_boot, seed)
             vs_ref = (math.nan, math.nan, math.nan)
             if REFERENCE in cols:
@@ -139,6 +173,152 @@ def compare_rows(
             n = len(keys[learned])
             out.append(Comparison(metric, group, values, best, vs_best, vs_ref, n))
     return out
+
+
+def _rank(x: float) -> float:
+    return x if math.isfinite(x) else math.inf  # a policy without the metric is never the best
+
+
+@dataclass(frozen=True)
+class Bar:
+    """The bars of one learned policy against the base on one group of episodes (paired).
+
+    Attributes:
+        learned: The learned policy.
+        base: The analytic policy it is held against.
+        group: The group (``"all"``, an exercise, or ``EXERCISE (population)``).
+        n: Episodes.
+        within: Shares of sessions with ``|AM| <= 1 s``: ``(learned, base)``.
+        content: Learned minus base mean content share: ``(estimate, lo, hi)``.
+        voice: Learned minus base mean voice natural: ``(estimate, lo, hi)``.
+        stops: Protective stops: ``(learned, base)``.
+    """
+
+    learned: str
+    base: str
+    group: str
+    n: int
+    within: tuple[float, float]
+    content: tuple[float, float, float]
+    voice: tuple[float, float, float]
+    stops: tuple[int, int]
+
+    @property
+    def checks(self) -> dict[str, bool]:
+        """Each bar: whether it holds."""
+        return {
+            "|AM| <= 1 s": self.within[0] >= self.within[1] - 1e-12,
+            "content": self.content[1] > 0.0,
+            "voice": self.voice[0] >= -VOICE_SLACK,
+            "stops": self.stops[0] <= self.stops[1],
+        }
+
+    @property
+    def holds(self) -> bool:
+        """Whether every bar holds."""
+        return all(self.checks.values())
+
+
+def bars(
+    rows: list[dict[str, Any]],
+    learned: str,
+    base: str,
+    *,
+    n_boot: int = 2000,
+    seed: int = 0,
+) -> list[Bar]:
+    """The bars of ``learned`` against ``base`` per group and all together (module docstring).
+
+    Raises:
+        ConfigError: when the two did not run the same episodes.
+    """
+    from langenv.errors import ConfigError
+
+    out = []
+    for group in [*sorted({_group(r) for r in rows}), "all"]:
+        sub = [r for r in rows if group == "all" or _group(r) == group]
+        keys = {p: sorted(r["key"] for r in sub if r["policy"] == p) for p in (learned, base)}
+        if keys[learned] != keys[base]:
+            raise ConfigError(f"{group}: {learned} and {base} did not run the same episodes")
+        col = {p: {m: _column(sub, p, m) for m in COMPARED} for p in (learned, base)}
+        mine, theirs = col[learned], col[base]
+        out.append(
+            Bar(
+                learned,
+                base,
+                group,
+                len(keys[learned]),
+                (float(np.mean(mine["abs_am_le_1s"])), float(np.mean(theirs["abs_am_le_1s"]))),
+                _diff(mine["content_share"], theirs["content_share"], "mean", n_boot, seed),
+                _diff(mine["voice_natural"], theirs["voice_natural"], "mean", n_boot, seed),
+                (int(mine["protective_stop"].sum()), int(theirs["protective_stop"].sum())),
+            )
+        )
+    return out
+
+
+def overview_markdown(rows: list[dict[str, Any]], policies: Sequence[str]) -> str:
+    """Every policy on all the episodes: the speech people hear and the bars' other figures."""
+    head = [
+        "policy",
+        "sessions",
+        "content %",
+        "voice natural %",
+        "pauses %",
+        "fillers %",
+        "\\|AM\\| <= 1 s",
+        "median \\|AM\\| (s)",
+        "protective stops",
+    ]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for p in policies:
+        mine = [r for r in rows if r["policy"] == p]
+
+        def col(m: str, mine: list[dict[str, Any]] = mine) -> np.ndarray:
+            return np.array([float(r[m]) for r in mine])
+
+        cells = [
+            p,
+            str(len(mine)),
+            f"{100.0 * np.nanmean(col('content_share')):.1f}",
+            f"{100.0 * np.nanmean(col('voice_natural')):.1f}",
+            f"{100.0 * np.nanmean(col('pause_share')):.1f}",
+            f"{100.0 * np.nanmean(col('filler_share')):.1f}",
+            f"{int(col('abs_am_le_1s').sum())}/{len(mine)}",
+            f"{np.nanmedian(col('abs_am')):.2f}",
+            str(int(col("protective_stop").sum())),
+        ]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def bars_markdown(found: Sequence[Bar]) -> str:
+    """The bars as a Markdown table."""
+    head = [
+        "learned",
+        "group",
+        "n",
+        "\\|AM\\| <= 1 s (learned / base)",
+        "content - base [95 % CI]",
+        "voice natural - base [95 % CI]",
+        "stops (learned / base)",
+        "verdict",
+    ]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for b in found:
+        failed = [k for k, ok in b.checks.items() if not ok]
+        cells = [
+            b.learned,
+            b.group,
+            str(b.n),
+            f"{b.within[0]:.3f} / {b.within[1]:.3f}",
+            _ci(b.content, 4),
+            _ci(b.voice, 4),
+            f"{b.stops[0]} / {b.stops[1]}",
+            "PASS" if not failed else "FAIL: " + ", ".join(k.replace("|", "\\|") for k in failed),
+        ]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
 
 
 def _diff(
@@ -153,11 +333,11 @@ def _diff(
     return (ci.estimate, ci.lo, ci.hi)
 
 
-def _ci(c: tuple[float, float, float]) -> str:
+def _ci(c: tuple[float, float, float], digits: int = 3) -> str:
     est, lo, hi = c
     if math.isnan(est):
         return "n/a"
-    return f"{est:+.3f} [{lo:+.3f}, {hi:+.3f}]"
+    return f"{est:+.{digits}f} [{lo:+.{digits}f}, {hi:+.{digits}f}]"
 
 
 def markdown(comparisons: Sequence[Comparison], learned: str, analytic: Sequence[str]) -> str:
@@ -173,11 +353,79 @@ def markdown(comparisons: Sequence[Comparison], learned: str, analytic: Sequence
         head.append(f"{learned} - {REFERENCE} [95 % CI]")
         lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
         for c in mine:
-            cells = [c.group, str(c.n), *(f"{c.values[p]:.3f}" for p in [*analytic, learned])]
+            cells = [c.group, str(c.n), *(_value(c.values[p]) for p in [*analytic, learned])]
             cells += [c.best, _ci(c.vs_best), _ci(c.vs_reference)]
             lines.append("| " + " | ".join(cells) + " |")
         lines.append("")
     return "\n".join(lines)
+
+
+def _value(x: float) -> str:
+    return "n/a" if math.isnan(x) else f"{x:.3f}"
+
+
+def plot_speech(rows: list[dict[str, Any]], policies: Sequence[str], path: Path) -> Path:
+    """The speech people hear, all episodes together: each policy's mean content share against
+    its mean voice natural (one point per policy; left: all, middle: around the best), and its
+    sessions with ``|AM| <= 1 s`` (right)."""
+    from matplotlib.figure import Figure
+
+    from eval.plots import _save, policy_color
+
+    def mean(p: str, m: str) -> float:
+        x = np.array([float(r[m]) for r in rows if r["policy"] == p])
+        return float(np.nanmean(x)) if np.isfinite(x).any() else math.nan
+
+    markers = "osD^v<>Pp*hX"
+    points = {
+        p: (100.0 * mean(p, "content_share"), 100.0 * mean(p, "voice_natural")) for p in policies
+    }
+    fig = Figure(figsize=(13.0, 4.4), facecolor="white")
+    left, mid, right = fig.subplots(1, 3, width_ratios=[3, 3, 2.4])
+    for i, p in enumerate(policies):
+        x, y = points[p]
+        style = {"color": policy_color(p, i), "marker": markers[i % len(markers)], "s": 60}
+        left.scatter([x], [y], label=p, zorder=3, **style)
+        mid.scatter([x], [y], zorder=3, **style)
+    left.set_xlabel("content share: words heard over the motion (%)")
+    left.set_ylabel("voice heard natural (% of the speech)")
+    left.legend(fontsize=7, loc="lower right")
+    left.grid(alpha=0.3)
+    best = max(points.values(), key=lambda v: v[0])
+    near = [p for p, v in points.items() if v[0] >= best[0] - 6.0]
+    for k, p in enumerate(near):
+        x, y = points[p]
+        mid.annotate(p, (x, y), textcoords="offset points", xytext=(6, 10 - 9 * k), fontsize=7)
+    xs = [points[p][0] for p in near]
+    ys = [points[p][1] for p in near]
+    mid.set_xlim(min(xs) - 0.5, max(xs) + 1.5)
+    mid.set_ylim(min(ys) - 1.0, max(ys) + 1.0)
+    mid.set_title("around the most content", fontsize=9)
+    mid.set_xlabel("content share (%)")
+    mid.grid(alpha=0.3)
+    counts = []
+    for p in policies:
+        within = [float(r["abs_am_le_1s"]) for r in rows if r["policy"] == p]
+        counts.append((int(sum(within)), len(within)))
+    shares = [100.0 * k / n if n else 0.0 for k, n in counts]
+    rows_y = np.arange(len(policies))
+    right.barh(rows_y, shares, color=[policy_color(p, i) for i, p in enumerate(policies)])
+    for k, (n_in, n) in enumerate(counts):
+        right.text(
+            2.0,
+            k,
+            f"{n_in}/{n}",
+            va="center",
+            ha="left",
+            fontsize=8,
+            bbox={"facecolor": "white", "edgecolor": "none", "pad": 1.0},
+        )
+    right.set_yticks(rows_y, list(policies), fontsize=8)
+    right.invert_yaxis()
+    right.set_xlim(0.0, 100.0)
+    right.set_xlabel("sessions with |AM| <= 1 s (%)")
+    fig.tight_layout()
+    return _save(fig, path)
 
 
 def plot_metric(
@@ -231,7 +479,15 @@ def _split(ns: argparse.Namespace) -> Any:
     from langenv.worlds import WorldSplit
     from policies.learned import model_files
 
-    return WorldSplit.load(ns.split if ns.split is not None else model_files(ns.model)[2])
+    return WorldSplit.load(ns.split if ns.split is not None else model_files(ns.model[0])[2])
+
+
+#: ``--population``'s choices, and the populations each runs.
+POPULATIONS: dict[str, tuple[str, ...]] = {
+    "perturbed": ("perturbed",),
+    "plain": ("plain",),
+    "both": ("perturbed", "plain"),
+}
 
 
 def _jobs(ns: argparse.Namespace, split: Any, specs: list[str], names: dict[str, str]) -> list:
@@ -239,14 +495,17 @@ def _jobs(ns: argparse.Namespace, split: Any, specs: list[str], names: dict[str,
     from langenv.users import PerturbedUser, SyntheticUser
 
     jobs = []
-    for ex, seed in split.pairs(ns.role, ns.users * len(split.exercises(ns.role))):
-        user = SyntheticUser() if ns.no_perturb else PerturbedUser(split.perturbations)
-        out_dir = ns.out / "sessions" / Path(ex).stem
-        out_dir.mkdir(parents=True, exist_ok=True)
-        for spec in specs:
-            job = Job(spec, f"s{seed}", seed, None, str(out_dir), False, False, None,
-                      split.graphs.get(ex), names[spec], exercise=ex, user_model=user)  # fmt: skip
-            jobs.append(job)
+    for population in POPULATIONS[ns.population]:
+        for ex, seed in split.pairs(ns.role, ns.users * len(split.exercises(ns.role))):
+            plain = population == "plain"
+            user = SyntheticUser() if plain else PerturbedUser(split.perturbations)
+            out_dir = ns.out / "sessions" / population / Path(ex).stem
+            out_dir.mkdir(parents=True, exist_ok=True)
+            for spec in specs:
+                job = Job(spec, f"s{seed}", seed, None, str(out_dir), False, False, None,
+                          split.graphs.get(ex), names[spec], exercise=ex, user_model=user,
+                          save_log=False)  # fmt: skip
+                jobs.append((population, job))
     return jobs
 
 
@@ -259,28 +518,36 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--model",
         type=Path,
+        action="append",
         required=True,
         metavar="ZIP",
-        help="the learned model (.zip; required)",
+        help="a learned model (.zip; required; repeat it for several)",
     )
     p.add_argument(
         "--policies",
-        default="ac,lc-noap,lc,lc-em-end",
+        default="ac,lc-noap,lc,lc-em-end,lc-fill",
         metavar="LIST",
         help="comma-separated analytic policies to compare it with (default: %(default)s)",
+    )
+    p.add_argument(
+        "--base",
+        default=BASE,
+        metavar="NAME",
+        help="the analytic policy of --policies the bars hold the learned ones against "
+        "(default: %(default)s)",
     )
     p.add_argument(
         "--split",
         default=None,
         metavar="CONFIG",
         help="a training config with a 'worlds' section (default: the split recorded with the "
-        "model)",
+        "first model)",
     )
     p.add_argument(
         "--role",
         choices=("validation", "test"),
         default="validation",
-        help="which held-out exercises and users; test only for the model you ship, at most "
+        help="which held-out exercises and users; test only for the models you ship, at most "
         "twice (default: %(default)s)",
     )
     p.add_argument(
@@ -291,9 +558,17 @@ def build_parser() -> argparse.ArgumentParser:
         help="users per exercise: the role's first N user seeds (default: %(default)s)",
     )
     p.add_argument(
+        "--population",
+        choices=tuple(POPULATIONS),
+        default=None,
+        help="the split's perturbed people, the plain synthetic population, or both "
+        "(default: perturbed)",
+    )
+    p.add_argument(
         "--no-perturb",
         action="store_true",
-        help="the plain synthetic population instead of the split's perturbed users",
+        help="the plain synthetic population instead of the split's perturbed users "
+        "(--population plain)",
     )
     p.add_argument(
         "--workers",
@@ -328,26 +603,35 @@ def build_parser() -> argparse.ArgumentParser:
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     """The command line (see the module docstring)."""
     p = build_parser()
-    return p.parse_args(argv)
+    ns = p.parse_args(argv)
+    if ns.no_perturb and ns.population not in (None, "plain"):
+        p.error("--no-perturb is --population plain")
+    ns.population = ns.population or ("plain" if ns.no_perturb else "perturbed")
+    return ns
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point; returns the exit status (2: bad arguments or split)."""
+    """Entry point; returns the exit status (2: bad arguments or split); 0 whether or not the
+    bars hold (``generalise.md`` says)."""
     from eval.compare import policy_names, run_jobs
     from eval.report import atomic_write, write_sessions_csv
     from langenv.errors import ConfigError, ModelError
 
     ns = parse_args(argv)
     analytic = [s.strip() for s in ns.policies.split(",") if s.strip()]
-    learned_spec = f"ppo:{ns.model}"
+    learned_specs = [f"ppo:{m}" for m in ns.model]
     try:
         if ns.users < 1:
             raise ConfigError(f"--users must be >= 1, got {ns.users}")
+        if ns.base not in analytic:
+            raise ConfigError(f"--base {ns.base} is not one of --policies ({ns.policies})")
+        if len(set(learned_specs)) != len(learned_specs):
+            raise ConfigError("a --model is given twice")
         if ns.out.is_dir() and any(ns.out.iterdir()) and not ns.overwrite:
             raise ConfigError(f"--out {ns.out} holds files; give --overwrite or another --out")
         from policies import load_policy
 
-        for spec in [*analytic, learned_spec]:
+        for spec in [*analytic, *learned_specs]:
             load_policy(spec)  # every policy loads before any episode runs
         split = _split(ns)
         split.pairs(ns.role, ns.users * len(split.exercises(ns.role)))  # enough users
@@ -360,36 +644,69 @@ def main(argv: Sequence[str] | None = None) -> int:
             "figures in docs/history.md (at most two looks per study)",
             file=sys.stderr,
         )
-    specs = [*analytic, learned_spec]
+    specs = [*analytic, *learned_specs]
     names = policy_names(specs)
-    jobs = _jobs(ns, split, specs, names)
-    rows = run_jobs(jobs, ns.workers)
-    for job, row in zip(jobs, rows, strict=True):
+    pairs = _jobs(ns, split, specs, names)
+    rows = run_jobs([job for _, job in pairs], ns.workers)
+    both = len(POPULATIONS[ns.population]) > 1
+    for (population, job), row in zip(pairs, rows, strict=True):
         row["exercise"] = job.exercise
-        row["key"] = f"{job.exercise}/{job.user}"
-        row["perturbation"] = _perturbation(job.user_model, job.seed)
+        row["population"] = population
+        row["group"] = f"{job.exercise} ({population})" if both else str(job.exercise)
+        row["key"] = f"{population}/{job.exercise}/{job.user}"
+        row["perturbation"] = (
+            _perturbation(job.user_model, job.seed) if population == "perturbed" else "none"
+        )
         row["abs_am_le_1s"] = float(float(row["abs_am"]) <= 1.0)
-    learned = names[learned_spec]
-    comps = compare_rows(rows, learned, analytic, n_boot=ns.n_boot, seed=ns.seed)
+    learned = [names[s] for s in learned_specs]
+    found = [
+        b for name in learned for b in bars(rows, name, ns.base, n_boot=ns.n_boot, seed=ns.seed)
+    ]
+    title = f"# {ns.role}: {', '.join(split.exercises(ns.role))} ({ns.population} people)"
+    parts = [
+        title,
+        "",
+        "## Every policy, all episodes",
+        "",
+        overview_markdown(rows, [*analytic, *learned]),
+        f"## The bars: each learned policy against {ns.base}, paired, all sessions",
+        "",
+        bars_markdown([b for b in found if b.group == "all"]),
+        f"## The bars per group: each learned policy against {ns.base}",
+        "",
+        bars_markdown([b for b in found if b.group != "all"]),
+    ]
+    comps = {}
+    for name in learned:
+        comps[name] = compare_rows(rows, name, analytic, n_boot=ns.n_boot, seed=ns.seed)
+        parts += [f"## {name}: every metric", "", markdown(comps[name], name, analytic)]
+    text = "\n".join(parts)
     write_sessions_csv(
-        [{k: v for k, v in r.items() if k != "key"} for r in rows], ns.out / "sessions.csv"
+        [{k: v for k, v in r.items() if k not in ("key", "group")} for r in rows],
+        ns.out / "sessions.csv",
     )
-    text = markdown(comps, learned, analytic)
-    atomic_write(
-        ns.out / "generalise.md", f"# {ns.role}: {', '.join(split.exercises(ns.role))}\n\n{text}"
-    )
+    atomic_write(ns.out / "generalise.md", text)
+    plot_speech(rows, [*analytic, *learned], ns.out / "speech.png")
+    shown = [  # the first model's comparisons, with every model's statistic
+        replace(c, values={**c.values, **{n: comps[n][i].values[n] for n in learned}})
+        for i, c in enumerate(comps[learned[0]])
+    ]
     for metric in COMPARED:
-        plot_metric(comps, metric, [*analytic, learned], ns.out / f"{metric}.png")
+        plot_metric(shown, metric, [*analytic, *learned], ns.out / f"{metric}.png")
     config = {
-        "model": str(ns.model),
+        "models": [str(m) for m in ns.model],
         "policies": specs,
+        "base": ns.base,
         "role": ns.role,
         "test_look": ns.role == "test",
         "users_per_exercise": ns.users,
-        "perturbed": not ns.no_perturb,
+        "population": ns.population,
         "split": split.to_dict(),
         "n_boot": ns.n_boot,
         "seed": ns.seed,
+        "bars_hold": {
+            b.learned: all(x.holds for x in found if x.learned == b.learned) for b in found
+        },
     }
     atomic_write(ns.out / "config.json", json.dumps(config, indent=2) + "\n")
     print(text)

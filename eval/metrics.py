@@ -28,6 +28,11 @@ column             window       definition
 ``t_motion``       --           motion completion time (s)
 ``t_speech``       --           speech completion time (s)
 ``return``         --           episode return
+``content_share``  ``motion``   share (0-1) of the motion's duration in which content is heard:
+                                a phrase's words as the voice renders them (:func:`voice_trace`),
+                                not a filler, a pause, the silence after a clip or the natural
+                                voice's wait (:func:`content_time`); words said after the motion
+                                ended do not count
 =================  ===========  ===========================================================
 
 Cooperation is averaged over the motion only because after the motion ends the hand rests and
@@ -44,7 +49,7 @@ import numpy as np
 
 from eval.episode import EpisodeLog
 from langenv.errors import ConfigError
-from langenv.speech.voice import voice_rate
+from langenv.speech.voice import voice_rate, words_heard
 
 __all__ = [
     "A_TOLERANCE",
@@ -54,6 +59,7 @@ __all__ = [
     "OPTIONAL_METRICS",
     "MetricSpec",
     "Window",
+    "content_time",
     "episode_metrics",
     "speech_shares",
     "time_mean",
@@ -110,6 +116,11 @@ METRICS: dict[str, MetricSpec] = {
     "t_motion": MetricSpec("t_motion", "s", 2, "motion completion time"),
     "t_speech": MetricSpec("t_speech", "s", 2, "speech completion time"),
     "return": MetricSpec("return", "", 2, "episode return (sum of rewards)", False),
+    # last: the bootstrap of summary.md draws from one generator in this order, so a metric
+    # added at the end leaves the intervals of the others as they were
+    "content_share": MetricSpec(
+        "content", "%", 1, "share of the motion's duration in which words are heard", False
+    ),
 }
 """Specification of every numeric metric, in column order."""
 
@@ -119,9 +130,11 @@ NUMERIC_METRICS: tuple[str, ...] = tuple(METRICS)
 METRIC_COLUMNS: tuple[str, ...] = ("policy", "user", *NUMERIC_METRICS)
 """All columns of a session row (``sessions.csv``), in order."""
 
-OPTIONAL_METRICS: frozenset[str] = frozenset({"pause_share", "filler_share", "voice_natural"})
-"""Metrics that tables of older runs lack (langctrl 0.4 and before; ``voice_natural``: 0.5):
-read as NaN."""
+OPTIONAL_METRICS: frozenset[str] = frozenset(
+    {"pause_share", "filler_share", "voice_natural", "content_share"}
+)
+"""Metrics that tables of older runs lack (langctrl 0.4 and before; ``voice_natural`` and
+``content_share``: 0.5): read as NaN."""
 
 
 def time_weights(t: np.ndarray) -> np.ndarray:
@@ -261,6 +274,26 @@ def speech_shares(log: EpisodeLog, waiting: np.ndarray | None = None) -> dict[st
     }
 
 
+def content_time(log: EpisodeLog, waiting: np.ndarray, until: float) -> float:
+    """Time (s) from the log's start to ``until`` in which a phrase's words are heard.
+
+    A *content* utterance is a clip that is neither a filler nor a pause vertex; its words are
+    heard over ``[t_start, t_end)`` (the graph's silence after a clip is not part of it) except
+    where the voice waits in silence (``waiting``, the natural voice's wait from
+    :func:`voice_trace`); :func:`langenv.speech.voice.words_heard` counts them.
+
+    Args:
+        log: The episode.
+        waiting: Whether the voice waits at each sample, shape ``(n,)``, bool.
+        until: End of the window (s), e.g. ``log.t_motion``.
+
+    Returns:
+        Seconds of words heard in ``[t[0], until)``, ``>= 0``.
+    """
+    spans = [(u.t_start, u.t_end) for u in log.utterances if not u.is_pause and not u.filler]
+    return words_heard(log.t, waiting, spans, until)
+
+
 def voice_trace(log: EpisodeLog) -> tuple[np.ndarray, np.ndarray]:
     """The rate at which the voice is heard at each sample of ``log``, and whether it waits in
     silence there; shape ``(n,)`` each.
@@ -313,5 +346,14 @@ def episode_metrics(log: EpisodeLog) -> dict[str, float | str]:
         "t_motion": log.t_motion,
         "t_speech": log.t_speech,
         "return": log.ret,
+        "content_share": _content_share(log, waiting),
     }
     return row
+
+
+def _content_share(log: EpisodeLog, waiting: np.ndarray) -> float:
+    """``content_share``: words heard over the motion's duration (NaN for a motion of no time)."""
+    span = log.t_motion - float(log.t[0])
+    if not span > 0.0:
+        return float("nan")
+    return min(1.0, content_time(log, waiting, log.t_motion) / span)

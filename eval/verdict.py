@@ -6,7 +6,8 @@ box characters), so logs stay readable.
 
 The table has one row per policy: the median over users of ``|AM|``, the mean over users of the
 mean ``|EM|`` and of the mean ``|a - 1|`` while speaking, the mean shares of speech time at
-``|a - 1| <= 0.1``, in pauses and in fillers (when the rows have them), the number of truncated
+``|a - 1| <= 0.1``, in pauses and in fillers and the share of the motion in which words are
+heard (``content %``; when the rows have them), the number of truncated
 episodes when
 there are any, the number of protective stops when ``sessions.csv`` has a column for them
 (the first of :data:`STOP_COLUMNS` present) and the phrase graph each policy spoke when it has a
@@ -50,8 +51,10 @@ _SHARE_COLUMNS = {
     "voice_natural": "voice natural %",
     "pause_share": "pauses %",
     "filler_share": "fillers %",
+    "content_share": "content %",
 }
-"""Shares of speech time shown (mean over users, in percent) when the rows have them."""
+"""Shares shown (mean over users, in percent) when the rows have them: of the speech time, and
+for ``content_share`` of the motion's duration (words heard, :mod:`eval.metrics`)."""
 
 
 def _values(rows: Sequence[Row], policy: str, column: str) -> np.ndarray:

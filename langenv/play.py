@@ -6,7 +6,7 @@ speaks through the sound card in real time, slowing, speeding and rewording as y
 the phrase and the paces shown on screen::
 
     python -m langenv.play                          # LC, you are the person
-    python -m langenv.play --policy ppo:models/ppo_aligner.zip
+    python -m langenv.play --policy ppo:models/ppo_speech.zip
     python -m langenv.play --user synthetic --audio-out talk.wav   # watch a simulated person
     python -m langenv.play --exercise hand_to_mouth  # another exercise (checked first)
 

@@ -1,7 +1,8 @@
 """Policies of LangCtrl-v0: the paper's analytic controllers and learned aligners.
 
-``load_policy(spec)`` builds one from its command-line name: ``"ac"``, ``"lc-noap"``, ``"lc"``,
-``"lc-em"``, ``"lc-end"``, ``"lc-em-end"`` or ``"ppo:PATH"`` (a trained model saved by
+``load_policy(spec)`` builds one from its command-line name: an analytic policy of
+:data:`policies.analytic.ANALYTIC` (``"ac"``, ``"lc-noap"``, ``"lc"``, ``"lc-em"``, ``"lc-end"``,
+``"lc-em-end"``, ``"lc-fill"``) or ``"ppo:PATH"`` (a trained model saved by
 ``python -m train.ppo``, or an ensemble manifest ``ppo:PATH.yaml`` written by
 ``python -m train.ensemble``).
 """
@@ -18,8 +19,7 @@ __all__ = ["AdmittanceController", "LanguageController", "Policy", "load_policy"
 
 
 def load_policy(spec: str) -> Any:
-    """Build a policy from ``ac``, ``lc-noap``, ``lc``, ``lc-em``, ``lc-end``, ``lc-em-end`` or
-    ``ppo:PATH``.
+    """Build a policy from a name of :data:`policies.analytic.ANALYTIC` or ``ppo:PATH``.
 
     Raises:
         KeyError: unknown policy name.

@@ -1,16 +1,23 @@
-"""The paper's controllers as policies of ``LangCtrl-v0``: AC, LC-noAP and LC.
+"""The paper's controllers as policies of ``LangCtrl-v0``: AC, LC-noAP and LC; and LC's variants.
 
 They read only the env's observation and act only through its action (no access to env
 internals). At ``decision_hz=500`` the LC policy is exactly the paper's controller: the env applies
 ``dp/dt = k_p (p_cmd - p)``, ``da/dt = k_a (a_cmd - a)`` with ``p_cmd = p*`` and
 ``a_cmd = a* - (k_c/k_a)(1 - c)``, and its "target" phrase choice at ``u = 0`` is the paper's rule
 ``argmin |t_x - (t_min + t_max)/2|``.
+
+Variants (not in the paper): ``lc-em`` (misalignment feedback on ``p``), ``lc-end`` (a terminal
+phase), ``lc-em-end`` (both: the base of the learned aligner up to issue 27) and ``lc-fill``,
+whose phrase choice aims at *content*: the longest wording that still lets the speech end with
+the motion (:func:`fill_choice`), instead of the paper's middle of the range.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Any, Literal
 
 import numpy as np
@@ -19,15 +26,77 @@ from langenv import observation as ob
 from langenv.errors import ConfigError
 from langenv.exercise.spec import GRAPH_ROLES
 from langenv.observation import Obs
-from langenv.pacing import PaceLaw, PaceLimits, action_from_command
+from langenv.pacing import PaceLaw, PaceLimits, action_from_command, command_from_action
 from policies.aligner import AlignerGains, audio_command, optimal_paces
 
-__all__ = ["AdmittanceController", "LanguageController", "make_analytic"]
+__all__ = [
+    "ANALYTIC",
+    "AdmittanceController",
+    "LanguageController",
+    "fill_choice",
+    "make_analytic",
+]
 
 #: Time constant (s) of the terminal phase's estimate of the motion's actual rate ``-dt_x/dt``.
 RATE_TAU = 0.04
 #: Lowest motion rate the terminal phase plans with (a stalled hand must not ask for a = 0).
 RATE_FLOOR = 0.3
+#: Octaves of the env's target-duration action per unit (``langenv.env``: target ``t_x 2^{2u}``).
+_CHOICE_OCTAVES = 2.0
+
+
+def fill_choice(observation: ob.ObsValues, margin: float, horizon: float | None = None) -> float:
+    """The content rule's next-phrase action: the child with the longest shortest speech
+    ``t_min`` that still fits in the motion's time to go less ``margin``.
+
+    Among the valid children of the current phrase (the observation's child blocks), those with
+    ``t_min <= t_x - margin`` can still end with the motion (their shortest continuation fits,
+    with ``margin`` s to spare); the one of them with the largest ``t_min`` is chosen (among the
+    alternatives of one step, the longest wording; between another saying of a repeat and the
+    end, another saying), and when none fits, the one with the smallest ``t_min``. The env
+    chooses the child whose middle length ``(t_min + t_max)/2`` is nearest the target duration
+    ``t_x 2^{2u}``, so the action is the ``u`` whose target is that child's middle: 0 when it is
+    the paper's own choice or there is nothing to choose.
+
+    Args:
+        observation: The env's observation (its child blocks are the candidates).
+        margin: Time (s) the shortest continuation must leave to spare.
+        horizon: The motion's time to go the choice plans with (s); default its ETC ``t_x``.
+
+    Returns:
+        The choice action ``u`` in ``[-1, 1]``.
+    """
+    t_x = ob.seconds(observation, Obs.T_X)
+    plan = t_x if horizon is None else horizon
+    kids: list[tuple[float, float]] = []  # (t_min, mid) of the valid children, in order
+    k = 0
+    while (block := ob.child(observation, k)) is not None:
+        valid, t_min, t_max = block
+        if valid:
+            kids.append((t_min, 0.5 * (t_min + t_max)))
+        k += 1
+    if len(kids) < 2 or t_x <= 1e-3:
+        return 0.0
+    fits = [i for i, (t_min, _) in enumerate(kids) if t_min <= plan - margin]
+    if fits:
+        best = max(fits, key=lambda i: (kids[i][0], -i))
+    else:
+        best = min(range(len(kids)), key=lambda i: (kids[i][0], i))
+    paper = min(range(len(kids)), key=lambda i: (abs(t_x - kids[i][1]), i))
+    if kids[best][1] == kids[paper][1]:
+        return 0.0  # the paper's rule says it (or a child of the same middle length)
+    u = math.log2(max(kids[best][1], 1e-3) / t_x) / _CHOICE_OCTAVES
+    return min(1.0, max(-1.0, u))
+
+
+def _valid_children(observation: ob.ObsValues) -> int:
+    """How many of the observation's child blocks are valid next phrases."""
+    n, k = 0, 0
+    while (block := ob.child(observation, k)) is not None:
+        n += block[0]
+        k += 1
+    return n
+
 
 Phase = Literal["aligning", "terminal", "finishing", "over"]
 
@@ -77,6 +146,21 @@ class LanguageController:
             (averaged over ``RATE_TAU``, at least ``RATE_FLOOR``). After one of the two has
             ended, the other is finished as fast as allowed (``a_max`` or ``p_max``). See
             :meth:`phase`. This makes the policy stateful: call :meth:`reset` at each episode.
+        choice: The phrase rule: ``"mid"`` (the paper's) or ``"fill"`` (the content rule): at
+            each choice the next phrase is :func:`fill_choice`'s, the longest wording whose
+            shortest continuation still ends ``fill_margin`` s before the motion. The action
+            says it only on the tick (at 500 Hz) or the step (slower) in which the slot ends, so
+            that the target-duration action does not also move the pause rule's target
+            elsewhere; between choices the policy is its pace law (``pace_law()``).
+        fill_margin: The content rule's margin (s; any finite number, used with ``"fill"``).
+        fill_anticipate: How much the content rule trusts the person's pace so far (>= 0; 0:
+            not at all): it plans with the time to go ``t_x (1 + fill_anticipate (r - 1))``,
+            ``r`` the seconds the motion has taken per second of ETC it used up (in [1, 3], 1
+            until the ETC has fallen by 1 s).
+        pause_scale: The pause rule's target duration over ``t_x`` while the speech is in a
+            pause vertex with a choice after it (> 0; 1: the rule's own). Below 1 the pauses
+            are shortened towards their minimum so that words fill the time instead; the wait
+            before the last phrase (one child) is left to the rule. Not 1: no ``pace_law()``.
     """
 
     name: str = "lc"
@@ -89,8 +173,13 @@ class LanguageController:
     k_em: float = 0.0
     em_clip: float = 0.5
     terminal: float = 0.0
+    choice: Literal["mid", "fill"] = "mid"
+    fill_margin: float = 1.0
+    fill_anticipate: float = 0.0
+    pause_scale: float = 1.0
     _last: tuple[float, float] | None = field(default=None, init=False, repr=False)
     _rate: float = field(default=1.0, init=False, repr=False)
+    _t_x0: float | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.graph_role not in GRAPH_ROLES:
@@ -104,11 +193,29 @@ class LanguageController:
                 raise ConfigError(
                     f"LanguageController.{name} must be finite and >= 0, got {value!r}"
                 )
+        if self.choice not in ("mid", "fill"):
+            raise ConfigError(
+                f"LanguageController.choice must be 'mid' or 'fill', got {self.choice!r}"
+            )
+        if not (math.isfinite(self.fill_anticipate) and self.fill_anticipate >= 0.0):
+            raise ConfigError(
+                "LanguageController.fill_anticipate must be finite and >= 0, "
+                f"got {self.fill_anticipate!r}"
+            )
+        if not (math.isfinite(self.pause_scale) and self.pause_scale > 0.0):
+            raise ConfigError(
+                f"LanguageController.pause_scale must be finite and > 0, got {self.pause_scale!r}"
+            )
+        if not math.isfinite(self.fill_margin):
+            raise ConfigError(
+                f"LanguageController.fill_margin must be finite, got {self.fill_margin!r}"
+            )
 
     def reset(self) -> None:
         """Forget the motion-rate estimate (used only by the terminal phase)."""
         self._last = None
         self._rate = 1.0
+        self._t_x0 = None
 
     @property
     def motion_rate(self) -> float:
@@ -153,15 +260,43 @@ class LanguageController:
     def pace_law(self) -> PaceLaw | None:
         """This policy as a law the env can apply at every tick itself
         (:meth:`LangCtrlEnv.run_law <langenv.env.LangCtrlEnv.run_law>`: the same episodes, far
-        faster at 500 Hz); None with a terminal phase (it keeps a state the law does not)."""
-        if self.terminal > 0.0:
+        faster at 500 Hz); None with a terminal phase or ``fill_anticipate`` (they keep a
+        state the law does not) or a ``pause_scale`` other than 1 (the law's pauses are the
+        rule's)."""
+        if self.terminal > 0.0 or self.pause_scale != 1.0:
+            return None
+        if self.choice == "fill" and self.fill_anticipate > 0.0:
             return None
         return PaceLaw(self.gains.k_c, self.gains.k_a, self.k_em, self.em_clip, self.limits)
 
     def act(self, observation: np.ndarray) -> np.ndarray:
-        """Pace commands from the ETCs and cooperation; the paper's phrase rule."""
+        """Pace commands from the ETCs and cooperation; the paper's phrase rule (or the content
+        rule, ``choice="fill"``)."""
         values = np.asarray(observation).tolist()  # the same values as floats: cheaper to read
-        if self.terminal > 0.0:
+        p_star, a_cmd = self._commands(values)
+        action = np.zeros(self.action_dim, np.float32)
+        action[0] = action_from_command(p_star, self.limits.p_max)
+        action[1] = action_from_command(a_cmd, self.limits.a_max)
+        if self.choice == "fill":
+            action[2] = self._fill_action(values, a_cmd)
+        return action  # action[2] = 0: target speech duration = t_x (the paper's rule)
+
+    def choice_due(self, observation: np.ndarray) -> bool:
+        """Whether the next phrase is chosen in the coming decision step, among at least two
+        valid children: the step whose action's phrase value the env uses (see ``choice``).
+
+        Call it after :meth:`act` on the same observation (it reads the terminal phase's rate
+        estimate as :meth:`act` left it).
+        """
+        values = np.asarray(observation).tolist()
+        if _valid_children(values) < 2:
+            return False
+        return self._slot_ends(values, self._commands(values, update=False)[1])
+
+    def _commands(self, values: ob.ObsValues, update: bool = True) -> tuple[float, float]:
+        """The physical and audio pace commands for an observation (``update``: advance the
+        terminal phase's rate estimate, idempotent for a repeated observation)."""
+        if self.terminal > 0.0 and update:
             self._update_rate(values)
         t_x = max(0.0, ob.seconds(values, Obs.T_X))
         t_a = max(0.0, ob.seconds(values, Obs.T_A))
@@ -180,42 +315,112 @@ class LanguageController:
                 a_cmd = self.limits.a_max
             else:
                 p_star = self.limits.p_max
-        action = np.zeros(self.action_dim, np.float32)
-        action[0] = action_from_command(p_star, self.limits.p_max)
-        action[1] = action_from_command(a_cmd, self.limits.a_max)
-        return action  # action[2] = 0: target speech duration = t_x (the paper's rule)
+        return p_star, a_cmd
+
+    def _fill_action(self, values: ob.ObsValues, a_cmd: float) -> float:
+        """The content rule's phrase action (see ``choice``, ``pause_scale``)."""
+        t_x = ob.seconds(values, Obs.T_X)
+        if self._t_x0 is None:
+            self._t_x0 = t_x
+        if self._slot_ends(values, a_cmd):
+            horizon = None
+            used = self._t_x0 - t_x
+            if self.fill_anticipate > 0.0 and used >= 1.0:
+                r = min(3.0, max(1.0, ob.elapsed(values) / used))
+                horizon = t_x * (1.0 + self.fill_anticipate * (r - 1.0))
+            return fill_choice(values, self.fill_margin, horizon)
+        if self.pause_scale != 1.0 and ob.flag(values, Obs.IN_PAUSE):
+            if _valid_children(values) >= 2:
+                u = math.log2(self.pause_scale) / _CHOICE_OCTAVES
+                return min(1.0, max(-1.0, u))
+        return 0.0
+
+    def _slot_ends(self, values: ob.ObsValues, a_cmd: float) -> bool:
+        """Whether the current slot ends (a choice is made) in the coming decision step: at
+        500 Hz the tick in which the speech, moving at the pace this command gives, reaches the
+        slot's end (the tick :meth:`~langenv.env.LangCtrlEnv.run_law` hands to the policy), else
+        the env's ``BOUNDARY_DUE``."""
+        if not ob.flag(values, Obs.IN_PAUSE) or ob.flag(values, Obs.SPEECH_DONE):
+            return False
+        if self.decision_hz < 500:
+            return ob.flag(values, Obs.BOUNDARY_DUE)
+        dt = 1.0 / self.decision_hz
+        lim = self.limits
+        a = ob.pace(values, Obs.A)
+        cmd = command_from_action(
+            float(np.float32(action_from_command(a_cmd, lim.a_max))), lim.a_max
+        )
+        a_new = min(lim.a_max, max(lim.a_min, a + dt * lim.k_a * (cmd - a)))
+        return ob.seconds(values, Obs.PHRASE_LEFT) <= a_new * dt
 
 
-def make_analytic(
-    name: str, decision_hz: int | None = None
-) -> AdmittanceController | LanguageController:
-    """Build ``"ac"``, ``"lc-noap"``, ``"lc"``, ``"lc-em"`` (LC with ``k_em = 1``), ``"lc-end"``
-    (LC with a 1 s terminal phase) or ``"lc-em-end"`` (both: the learned aligner's analytic base).
+def _lc(name: str, **kw: Any) -> Callable[[int | None], LanguageController]:
+    def build(decision_hz: int | None) -> LanguageController:
+        return LanguageController(name=name, decision_hz=decision_hz or 500, **kw)
+
+    return build
+
+
+# ``lc-fill``'s settings, tuned on the validation worlds of ``configs/ppo_general.yaml``
+# (shoulder_extension x the 48 validation users, perturbed; docs/history.md, issue 38).
+#: The content rule's margin (s).
+FILL_MARGIN = 0.25
+#: How much it trusts the person's pace so far.
+FILL_ANTICIPATE = 1.0
+#: Its pauses' target over ``t_x`` (0.25: pauses with a choice after them at their minimum).
+FILL_PAUSE_SCALE = 0.25
+#: The cooperation gain of its audio law (the paper's ``k_c`` is 10): 0, the speech pace follows
+#: the alignment alone; a resisting person hears words, not a slowed or waiting voice.
+FILL_K_C = 0.0
+
+Analytic = AdmittanceController | LanguageController
+
+ANALYTIC: Mapping[str, tuple[str, Callable[[int | None], Analytic]]] = MappingProxyType(
+    {
+        "ac": (
+            "fixed admittance, one utterance (p = a = 1)",
+            lambda hz: AdmittanceController(decision_hz=hz or 25),
+        ),
+        "lc-noap": ("the aligner with a single wording", _lc("lc-noap", graph_role="single")),
+        "lc": ("the paper's Language Controller", _lc("lc")),
+        "lc-em": ("LC with misalignment feedback on p (k_em = 1)", _lc("lc-em", k_em=1.0)),
+        "lc-end": ("LC with a 1 s terminal phase", _lc("lc-end", terminal=1.0)),
+        "lc-em-end": (
+            "LC with both (the learned aligner's base up to issue 27)",
+            _lc("lc-em-end", k_em=1.0, terminal=1.0),
+        ),
+        "lc-fill": (
+            "LC whose phrase choice aims at content: the longest wording that still ends with "
+            "the motion",
+            _lc(
+                "lc-fill",
+                choice="fill",
+                fill_margin=FILL_MARGIN,
+                fill_anticipate=FILL_ANTICIPATE,
+                pause_scale=FILL_PAUSE_SCALE,
+                gains=AlignerGains(k_c=FILL_K_C),
+            ),
+        ),
+    }
+)
+"""The analytic policies by name: ``(what it is, factory(decision_hz))``; the one place their
+names live (``python -m eval.compare --policies``, :func:`make_analytic`, the
+``langctrl.policies`` entry points)."""
+
+
+def make_analytic(name: str, decision_hz: int | None = None) -> Analytic:
+    """Build an analytic policy of :data:`ANALYTIC` by name.
 
     Args:
-        name: The controller.
+        name: The controller (``"ac"``, ``"lc-noap"``, ``"lc"``, ``"lc-em"``, ``"lc-end"``,
+            ``"lc-em-end"``, ``"lc-fill"``).
         decision_hz: Decision rate; default 500 for the aligners (exactly the paper's loop) and 25
             for AC (its commands are constant, so the rate does not change what it does).
 
     Raises:
         KeyError: for an unknown name (the message lists the known ones).
     """
-    if name == "ac":
-        return AdmittanceController(decision_hz=decision_hz or 25)
-    if name == "lc-noap":
-        return LanguageController(
-            name="lc-noap", graph_role="single", decision_hz=decision_hz or 500
-        )
-    if name == "lc":
-        return LanguageController(decision_hz=decision_hz or 500)
-    if name == "lc-em":
-        return LanguageController(name="lc-em", decision_hz=decision_hz or 500, k_em=1.0)
-    if name == "lc-end":
-        return LanguageController(name="lc-end", decision_hz=decision_hz or 500, terminal=1.0)
-    if name == "lc-em-end":
-        return LanguageController(
-            name="lc-em-end", decision_hz=decision_hz or 500, k_em=1.0, terminal=1.0
-        )
-    raise KeyError(
-        f"unknown analytic policy {name!r}; known: ac, lc-noap, lc, lc-em, lc-end, lc-em-end"
-    )
+    entry = ANALYTIC.get(name)
+    if entry is None:
+        raise KeyError(f"unknown analytic policy {name!r}; known: {', '.join(ANALYTIC)}")
+    return entry[1](decision_hz)

@@ -40,6 +40,7 @@ from langenv.errors import ConfigError, GraphChoicesError, ModelError, Observati
 from langenv.exercise.script import SpokenGraph, graph_label
 from langenv.observation import Obs
 from langenv.pacing import PaceLimits, action_from_command, command_from_action
+from policies.aligner import AlignerGains
 from policies.analytic import LanguageController
 
 __all__ = [
@@ -145,6 +146,17 @@ class ResidualSpec:
         deadband: Dead band of the correction (in ``[0, 1)``; 0: none): each component of ``r``
             acts as ``sign(r) max(0, |r| - deadband) / (1 - deadband)``, so that small outputs
             leave the base alone and the network must commit to correct it.
+        k_c: The base's cooperation gain of the audio law (1/s; the paper's 10).
+        choice: The base's phrase rule: ``"mid"`` (the paper's) or ``"fill"`` (``lc-fill``'s
+            content rule, :func:`policies.analytic.fill_choice`); the correction moves the
+            base's target duration (``"target"`` mode: ``u = u_base + choice_scale r_2``).
+        fill_margin, fill_anticipate, pause_scale: The content rule's settings (see
+            :class:`policies.analytic.LanguageController`).
+        decisions: When the network decides. ``"steps"``: at every step of the env (its
+            ``decision_hz``), on the paces and the phrase; ``"choices"``: only where the next
+            phrase is chosen among several (the env at 500 Hz, a tick per step; between those
+            ticks the base acts alone), on the phrase: the learned phrase chooser of issue 38,
+            whose paces are the base's (``pace_scale = audio_scale = 0``).
     """
 
     choice_mode: Literal["target", "scores"] = "target"
@@ -157,6 +169,12 @@ class ResidualSpec:
     k_em: float = 0.0
     gate_em: float = 0.0
     deadband: float = 0.0
+    k_c: float = 10.0
+    choice: Literal["mid", "fill"] = "mid"
+    fill_margin: float = 1.0
+    fill_anticipate: float = 0.0
+    pause_scale: float = 1.0
+    decisions: Literal["steps", "choices"] = "steps"
 
     def __post_init__(self) -> None:
         if self.choice_mode not in ("target", "scores"):
@@ -185,6 +203,46 @@ class ResidualSpec:
                 raise ConfigError(f"ResidualSpec.{name} must be finite and {bound}, got {value!r}")
         if not (isinstance(self.deadband, int | float) and 0.0 <= self.deadband < 1.0):
             raise ConfigError(f"ResidualSpec.deadband must be in [0, 1), got {self.deadband!r}")
+        if self.decisions not in ("steps", "choices"):
+            raise ConfigError(
+                f"ResidualSpec.decisions must be 'steps' or 'choices', got {self.decisions!r}"
+            )
+        if self.decisions == "choices":
+            if self.choice_mode != "target" or self.decision_hz != 500:
+                raise ConfigError(
+                    "ResidualSpec: decisions='choices' needs choice_mode='target' and "
+                    f"decision_hz=500, got {self.choice_mode!r} and {self.decision_hz}"
+                )
+            if self.pace_scale != 0.0 or self.audio_gain != 0.0:
+                raise ConfigError(
+                    "ResidualSpec: decisions='choices' acts on the phrase only: pace_scale and "
+                    "audio_scale must be 0"
+                )
+            if self.terminal != 0.0:
+                raise ConfigError(
+                    "ResidualSpec: decisions='choices' needs a base without a terminal phase "
+                    "(terminal = 0): between choices the env applies the base's law itself"
+                )
+        self.base()  # the base's settings are checked where they are used
+
+    def base(self) -> LanguageController:
+        """The base controller the correction is added to (a fresh one).
+
+        Raises:
+            ConfigError: for a base setting its controller refuses.
+        """
+        return LanguageController(
+            name="base",
+            gains=AlignerGains(k_c=float(self.k_c)),
+            decision_hz=self.decision_hz,
+            action_dim=3,
+            terminal=self.terminal,
+            k_em=self.k_em,
+            choice=self.choice,
+            fill_margin=self.fill_margin,
+            fill_anticipate=self.fill_anticipate,
+            pause_scale=self.pause_scale,
+        )
 
     @property
     def audio_gain(self) -> float:
@@ -218,9 +276,7 @@ class ResidualLC:
     def __init__(self, spec: ResidualSpec, limits: PaceLimits | None = None) -> None:
         self.spec = spec
         self.limits = limits if limits is not None else PaceLimits()
-        self.lc = LanguageController(
-            limits=self.limits, action_dim=3, terminal=spec.terminal, k_em=spec.k_em
-        )
+        self.lc = replace(spec.base(), limits=self.limits)
         self._obs = np.zeros(0, np.float32)
         self._base = np.zeros(3, np.float32)  # the base's action for _obs
         self._base_final = False  # whether the base is in its terminal or finishing phase
@@ -326,8 +382,8 @@ class ResidualLC:
         out[0] = action_from_command(p_cmd, lim.p_max)
         out[1] = action_from_command(a_cmd, lim.a_max)
         self._last_r = r[:2].copy()
-        if spec.choice_mode == "target":
-            out[2] = min(1.0, max(-1.0, spec.choice_scale * r[2]))
+        if spec.choice_mode == "target":  # the base's target moved (the paper's base: u = 0)
+            out[2] = min(1.0, max(-1.0, float(lc[2]) + spec.choice_scale * r[2]))
         else:
             t_x = max(0.0, ob.seconds(obs, Obs.T_X))
             for k in range(spec.max_children):
@@ -651,7 +707,20 @@ class PPOPolicy:
         return self.model(norm[0])
 
     def act(self, observation: np.ndarray) -> np.ndarray:
-        """The env's action for one observation (deterministic), float32."""
+        """The env's action for one observation (deterministic), float32.
+
+        A model that decides at the phrase choices only (``decisions: choices``) is its base
+        at every other tick, and the network is consulted (and its features advanced) only
+        where the base's :meth:`~policies.analytic.LanguageController.choice_due`, as in its
+        training (:class:`train.choices.ChoicePoints`).
+        """
+        if self.residual.spec.decisions == "choices":
+            if not self._started:
+                self.correction(observation)  # checks the layout, starts the features
+            lc = self.residual.lc
+            base = lc.act(observation)
+            if not lc.choice_due(observation):
+                return base
         return self.residual.action(self.correction(observation))
 
     def config(self) -> dict[str, Any]:

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import yaml
 
-from eval.generalise import COMPARED, compare_rows, main
+from eval.generalise import COMPARED, bars, bars_markdown, compare_rows, main
 from langenv.errors import ConfigError
 from langenv.worlds import WorldSplit
 from policies.learned import PPOPolicy, model_files, observation_layout
@@ -90,6 +90,31 @@ def test_paired_intervals_find_a_constructed_gain() -> None:
     assert em0.vs_best == (0.0, 0.0, 0.0)
 
 
+def test_bars_hold_only_with_every_bar() -> None:
+    rng = np.random.default_rng(1)
+    rows = []
+    for k in range(40):
+        c = float(rng.uniform(0.7, 0.9))
+        for policy, dc, dv, am, stop in (
+            ("lc-fill", 0.0, 0.0, 0.1, 0.0),
+            ("ppo", 0.01, -0.01, 0.2, 0.0),
+        ):
+            rows.append({"policy": policy, "exercise": "a", "key": f"a/{k}",
+                         "content_share": c + dc + float(rng.normal(0, 0.002)),
+                         "voice_natural": 0.95 + dv, "abs_am": am, "abs_am_le_1s": 1.0,
+                         "protective_stop": stop, "em_mean_abs": 0.0, "a_dev": 0.0})  # fmt: skip
+    found = bars(rows, "ppo", "lc-fill", n_boot=500)
+    assert [b.group for b in found] == ["a", "all"] and found[-1].holds
+    assert found[-1].content[1] > 0.0 and found[-1].voice[0] == pytest.approx(-0.01)
+    assert "PASS" in bars_markdown(found)
+    for r in rows:
+        if r["policy"] == "ppo" and r["key"] == "a/3":
+            r["abs_am_le_1s"] = 0.0  # one session beyond 1 s where the base had all
+    worse = bars(rows, "ppo", "lc-fill", n_boot=500)[-1]
+    assert not worse.holds and not worse.checks["|AM| <= 1 s"]
+    assert "FAIL: \\|AM\\| <= 1 s" in bars_markdown([worse])
+
+
 def test_unpaired_episodes_are_refused() -> None:
     rows = _rows(0.0)[:-1]  # the learned policy misses an episode
     with pytest.raises(ConfigError, match="same episodes"):
@@ -101,13 +126,28 @@ def test_generalise_on_validation(tiny_general_model: Path, tmp_path: Path) -> N
     args = ["--model", str(tiny_general_model), "--users", "1", "--workers", "1"]
     assert main([*args, "--n-boot", "200", "--out", str(out)]) == 0
     rows = (out / "sessions.csv").read_text().splitlines()
-    assert len(rows) == 1 + 5  # four analytic policies and the learned one, one episode each
+    assert len(rows) == 1 + 6  # five analytic policies and the learned one, one episode each
+    assert "content_share" in rows[0] and "population" in rows[0]
     text = (out / "generalise.md").read_text()
     assert "shoulder_extension" in text and "ppo - lc-em-end" in text
+    assert "against lc-fill" in text and "content - base" in text
     assert all((out / f"{m}.png").is_file() for m in COMPARED)
+    assert (out / "speech.png").is_file()
     cfg = json.loads((out / "config.json").read_text())
     assert cfg["role"] == "validation" and cfg["test_look"] is False
+    assert cfg["base"] == "lc-fill" and set(cfg["bars_hold"]) == {"ppo"}
     assert main([*args, "--out", str(out)]) == 2  # a non-empty --out is refused
+    assert main([*args, "--base", "lc-xyz", "--out", str(tmp_path / "b")]) == 2
+    both = tmp_path / "both"
+    twin = tmp_path / "twin" / "tiny"  # the same model under another name: two learned policies
+    twin.parent.mkdir()
+    for src, dst in zip(model_files(tiny_general_model), model_files(twin), strict=True):
+        dst.write_bytes(src.read_bytes())
+    argv = [*args, "--model", f"{twin}.zip", "--policies", "lc", "--base", "lc"]
+    assert main([*argv, "--population", "both", "--n-boot", "100", "--out", str(both)]) == 0
+    text = (both / "generalise.md").read_text()
+    assert "shoulder_extension (perturbed)" in text and "shoulder_extension (plain)" in text
+    assert "| ppo-tiny |" in text and all((both / f"{m}.png").is_file() for m in COMPARED)
 
 
 def test_a_test_role_says_it_is_a_look(

@@ -379,6 +379,9 @@ def test_pause_and_filler_shares_of_the_speech_time(tmp_path: Path) -> None:
     # speech 0-8 s: clips 3 + 0.5 + 1.5 = 5 s, silence 3 s, filler 0.5 s
     assert row["pause_share"] == pytest.approx(3.0 / 8.0)
     assert row["filler_share"] == pytest.approx(0.5 / 8.0)
+    # content over the motion (0-6 s): 'intro' 0-3 s and 'done' from 6.5 s (after the motion);
+    # the pause vertex and the filler are not content
+    assert row["content_share"] == pytest.approx(3.0 / 6.0)
     assert list(row) == list(METRIC_COLUMNS)
     back = EpisodeLog.load_npz(log.save_npz(tmp_path / "x.npz"))
     assert back.utterances == said and back.utterances[1].is_pause
@@ -386,5 +389,7 @@ def test_pause_and_filler_shares_of_the_speech_time(tmp_path: Path) -> None:
     plain = episode_metrics(hand_log())
     assert plain["pause_share"] == pytest.approx(0.5 / 8.0)
     assert plain["filler_share"] == 0.0
+    # 'intro' 0-3 s and 'done' 3.5-6 s of its 3.5-8 s heard while the motion lasts (0-6 s)
+    assert plain["content_share"] == pytest.approx(5.5 / 6.0)
     with pytest.raises(ConfigError, match=r"Utterance\.length must be finite and >= 0"):
         Utterance("wait", "", 3.0, 5.0, length=-1.0)

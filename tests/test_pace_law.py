@@ -88,9 +88,17 @@ def _law_steps(
     return {k: np.concatenate(v) for k, v in parts.items()}, runs, lasts
 
 
-@pytest.mark.parametrize(("name", "seed"), [("lc", 3), ("lc-noap", 4), ("lc-em", 5)])
+@pytest.mark.parametrize(
+    ("name", "seed"), [("lc", 3), ("lc-noap", 4), ("lc-em", 5), ("fill", 6), ("fill", 8)]
+)
 def test_law_episode_is_the_policy_episode_bit_for_bit(name: str, seed: int) -> None:
-    policy = make_analytic(name)
+    # "fill": the content rule's choices (its phrase action only on the tick a slot ends, the
+    # tick run_law hands to the policy) with the rule's own pauses: a law between choices
+    policy = (
+        LanguageController(name="fill", choice="fill", fill_margin=0.0)
+        if name == "fill"
+        else make_analytic(name)
+    )
     assert isinstance(policy, LanguageController)
     plain = _policy_steps(policy, seed, 30_000)
     fast, runs, _ = _law_steps(policy, seed, 30_000)

@@ -727,6 +727,33 @@ def test_best_steps_takes_the_lowest_score_earliest_on_a_tie(tmp_path: Path) -> 
     assert best_steps(run, "m").steps == 30  # only steps with a checkpoint are eligible
 
 
+def test_best_of_a_phrase_choosers_run_is_chosen_by_content(tmp_path: Path) -> None:
+    from train.export import CONTENT_RULE, best_steps, eval_scores
+
+    am = [[0.1, 0.2], [0.1, 1.5], [0.1, 0.1], [0.2, 0.1]]
+    run = _scored_run(tmp_path, am, [[0.0, 0.0]] * 4)
+    with np.load(run / "eval" / "evaluations.npz") as data:
+        arrays = dict(data)
+    arrays["content_share"] = [[0.80, 0.82], [0.95, 0.95], [0.84, 0.84], [0.86, 0.86]]
+    arrays["voice_natural"] = [[0.97, 0.97], [0.97, 0.97], [0.975, 0.975], [0.90, 0.90]]
+    np.savez(run / "eval" / "evaluations.npz", **arrays)
+    scores = eval_scores(run)
+    assert all(e.speech for e in scores) and scores[1].within == 0.5
+    chosen = best_steps(run, "m")
+    # 20: a session beyond 1 s; 40: its voice 0.08 below the best; of the rest 30 says most
+    assert chosen.steps == 30 and chosen.content_share == pytest.approx(0.84)
+    assert chosen.record({"train": {"eval_seed": 900000}})["rule"] == CONTENT_RULE
+    # with the base's own figures (train.ppo evaluates it before training): against those
+    base = {k: np.asarray(arrays[k][0], float) for k in ("abs_am", "em_mean_abs", "a_dev")}
+    base.update(content_share=np.full(2, 0.83), voice_natural=np.full(2, 0.915))
+    np.savez(run / "eval" / "base.npz", **base)
+    assert best_steps(run, "m").steps == 40  # its voice 0.90 is within 0.02 of the base's
+    base["voice_natural"] = np.full(2, 1.0)
+    np.savez(run / "eval" / "base.npz", **base)
+    with pytest.raises(ValueError, match="no checkpoint holds"):
+        best_steps(run, "m")
+
+
 def test_best_names_what_is_missing(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from train.export import main as export_main
 

@@ -42,9 +42,10 @@ class Skip:
     reason: str
 
 
-TRAIN_BUDGET = (
-    "--total-timesteps 2048 --n-envs 2 --eval-freq 2048 --checkpoint-freq 2048 "
-    "--n-eval-episodes 1 --no-progress-bar --no-tensorboard"
+#: The phrase chooser's recipe counts phrase choices (about 6 a session); one rollout (2 x 512).
+CHOICE_BUDGET = (
+    "--total-timesteps 32 --n-envs 2 --eval-freq 32 --checkpoint-freq 32 --n-eval-episodes 1 "
+    "--no-progress-bar --no-tensorboard"
 )
 FAKE_UR = "--host 127.0.0.1 --fake"
 
@@ -57,16 +58,23 @@ BUDGET: dict[str, Shrink | Skip] = {
     "langctrl compare --policies ac,lc-noap,lc --users synthetic:12 --seed 0 --out out/compare": (
         Shrink((("synthetic:12", "synthetic:1"),))
     ),
-    "langctrl train --config configs/ppo.yaml --seed 3000000 --out runs/ppo": Shrink(
-        (("--out runs/ppo", f"--out runs/ppo {TRAIN_BUDGET}"),), slow=True
+    "langctrl train --config configs/ppo_speech.yaml --seed 3000000 --out runs/speech": Shrink(
+        (("--out runs/speech", f"--out runs/speech {CHOICE_BUDGET}"),), slow=True
     ),
-    "langctrl export runs/ppo --best --out runs/ppo/ppo_aligner": Shrink(slow=True),
-    "langctrl compare --policies lc,lc-em-end,ppo:runs/ppo/ppo_aligner.zip --users synthetic:48 "
-    "--seed 900000 --stat mean --out out/val": Shrink(
-        (("synthetic:48", "synthetic:1"), ("--out", "--no-audio --no-figures --out")), slow=True
+    "langctrl export runs/speech --best --out runs/speech/ppo_speech": Shrink(slow=True),
+    "langctrl generalise --model runs/speech/ppo_speech.zip --users 48 --out out/val": Shrink(
+        (("--users 48", "--users 1 --policies lc,lc-fill --n-boot 100"),), slow=True
     ),
     "langctrl exercises --out out/exercises": Shrink(
         (("--out", "--users synthetic:1 --exercises hand_to_mouth --out"),), slow=True
+    ),
+    "langctrl generalise --model models/ppo_speech.zip --model "
+    "models/speech_seeds/ppo_speech_s1000000.zip --model "
+    "models/speech_seeds/ppo_speech_s2000000.zip --role test --users 48 --population both "
+    "--out out/speech_test": Skip(
+        "the learned phrase chooser's look at the test sets (docs/history.md records it); "
+        "tools/results.py runs it for the README's table, the generalise job is tested on "
+        "validation people"
     ),
     "langctrl exercise list": Shrink(),
     "cp -r langenv/assets/exercises my_exercises": Shrink(),

@@ -51,6 +51,7 @@ def synthetic_rows(
                     "voice_natural": min(1.0, max(0.0, within[p] + rng.normal(0.1, 0.05))),
                     "pause_share": rng.uniform(0.2, 0.4),
                     "filler_share": 0.0 if p != "lc" else rng.uniform(0.0, 0.05),
+                    "content_share": rng.uniform(0.4, 0.7),
                     "p_mean": 1.0 if p == "ac" else rng.uniform(0.9, 1.1),
                     "coop_mean": rng.uniform(0.7, 1.0),
                     "t_motion": t_motion,
@@ -219,14 +220,15 @@ def test_cli_regenerates_summary(tmp_path: Path, capsys: pytest.CaptureFixture[s
 def test_a_table_of_an_older_run_without_the_speech_shares_reads_as_nan(tmp_path: Path) -> None:
     rows = synthetic_rows(np.random.default_rng(1), n_users=2)
     for r in rows:
-        del r["pause_share"], r["filler_share"], r["voice_natural"]
+        del r["pause_share"], r["filler_share"], r["voice_natural"], r["content_share"]
     path = write_sessions_csv(rows, tmp_path / "sessions.csv")
     old = tmp_path / "old.csv"
     lines = path.read_text().splitlines()
     header = lines[0].split(",")
-    old_cols = ("pause_share", "filler_share", "voice_natural")
+    old_cols = ("pause_share", "filler_share", "voice_natural", "content_share")
     keep = [i for i, c in enumerate(header) if c not in old_cols]
     old.write_text("\n".join(",".join(line.split(",")[i] for i in keep) for line in lines) + "\n")
     back = read_sessions_csv(old)
     assert all(math.isnan(float(r["pause_share"])) for r in back)
     assert all(math.isnan(float(r["voice_natural"])) for r in back)
+    assert all(math.isnan(float(r["content_share"])) for r in back)

@@ -47,8 +47,12 @@ def test_shares_of_speech_time_appear_when_the_table_has_them() -> None:
     for r in table:
         r["pause_share"], r["filler_share"] = 0.25, 0.05
     header, body = verdict_table(table, ["ac", "lc-noap", "lc"])
-    assert header[-2:] == ["pauses %", "fillers %"]
+    assert header[-2:] == ["pauses %", "fillers %"]  # rows without a content share
     assert body[2][-2:] == ["25.0", "5.0"]
+    for r in table:
+        r["content_share"] = 0.625
+    header, body = verdict_table(table, ["ac", "lc-noap", "lc"])
+    assert header[-1] == "content %" and body[0][-1] == "62.5"
 
 
 @pytest.mark.parametrize("column", STOP_COLUMNS)

@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from eval.episode import EpisodeLog, Utterance
-from eval.metrics import episode_metrics, voice_trace
+from eval.metrics import content_time, episode_metrics, voice_trace
 from langenv.errors import ConfigError, PhraseGraphError, ScriptError
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.author import author, parse_script
@@ -162,6 +162,11 @@ def test_metrics_hear_the_natural_voice_and_count_its_waits_as_pauses(tmp_path: 
     assert natural["pause_share"] == pytest.approx((0.4 + wait) / 5.0, abs=0.01)
     _v, waiting = voice_trace(log_of("natural"))
     assert waiting.sum() * 0.02 == pytest.approx(wait, abs=0.03)
+    # content heard over the motion (5 s): the stretched voice's words fill both clips' spans;
+    # the natural voice says 'a' in 1.5 / 0.9 s and waits, so its wait is not content
+    assert stretched["content_share"] == pytest.approx((2.5 + 2.1) / 5.0, abs=0.01)
+    assert natural["content_share"] == pytest.approx((1.5 / SLOWEST + 2.1) / 5.0, abs=0.01)
+    assert content_time(log_of("natural"), waiting, 2.0) == pytest.approx(1.5 / SLOWEST, abs=0.02)
     path = log_of("natural").save_npz(tmp_path / "log.npz")
     assert EpisodeLog.load_npz(path).voice == "natural"
     with pytest.raises(ConfigError, match="voice"):

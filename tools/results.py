@@ -114,6 +114,17 @@ DIFF_ROWS = ("|AM| (s)", "mean |EM| (s)", "mean |a-1|", "voice natural (%)", "t_
 PPO = "ppo:models/ppo_aligner.zip"
 QUICK = "--no-audio --no-figures"
 EXERCISES = "langctrl exercises --out out/exercises"  # 48 people per exercise and controller
+#: The learned phrase chooser's test look (issue 38): the shipped model and its two seed siblings
+#: on the test exercises x the 48 test people, perturbed and plain; a look at the test sets,
+#: recorded in docs/history.md (rerunning it gives the same figures).
+SPEECH_LOOK = (
+    "langctrl generalise --model models/ppo_speech.zip "
+    "--model models/speech_seeds/ppo_speech_s1000000.zip "
+    "--model models/speech_seeds/ppo_speech_s2000000.zip "
+    "--role test --users 48 --population both --out out/speech_test"
+)
+SPEECH_MD = "out/speech_test/generalise.md"
+SHIPPED = "ppo-ppo_speech"
 
 #: The results, by key (a key may appear in several pages; its commands run once).
 SECTIONS: dict[str, Section] = {
@@ -172,6 +183,21 @@ SECTIONS: dict[str, Section] = {
             FileSection("out/test_replays/summary.md", "Differences against LC", DIFF_ROWS),
         ),
         needs=SESSIONS,
+    ),
+    "speech-test": Section(
+        (SPEECH_LOOK,),
+        (
+            FileSection(SPEECH_MD, "Every policy"),
+            FileSection(SPEECH_MD, "The bars: "),
+        ),
+    ),
+    "speech-headline": Section(
+        (SPEECH_LOOK,),
+        (
+            FileSection(SPEECH_MD, "Every policy", ("lc", "lc-fill", SHIPPED)),
+            FileSection(SPEECH_MD, "The bars per group", (SHIPPED,)),
+            FileSection(SPEECH_MD, "The bars: ", (SHIPPED,)),
+        ),
     ),
     "fidelity": Section(
         (

@@ -190,6 +190,10 @@ class EvalScore:
         em_mean_abs: Mean over users of the mean ``|EM|`` (s).
         a_dev: Mean over users of the mean ``|a - 1|`` while speaking.
         n_users: Held-out users evaluated.
+        content_share: Mean share of the motion in which words are heard (NaN: not recorded,
+            a run of the alignment recipes).
+        voice_natural: Mean share of the speech heard at a natural voice (NaN likewise).
+        within: Share of the sessions with ``|AM| <= 1 s``.
     """
 
     steps: int
@@ -197,6 +201,16 @@ class EvalScore:
     em_mean_abs: float
     a_dev: float
     n_users: int
+    content_share: float = float("nan")
+    voice_natural: float = float("nan")
+    within: float = float("nan")
+
+    @property
+    def speech(self) -> bool:
+        """Whether the evaluation recorded the speech people hear (a phrase chooser's run)."""
+        import math
+
+        return math.isfinite(self.content_share)
 
     @property
     def score(self) -> float:
@@ -207,6 +221,18 @@ class EvalScore:
         """What an exported config records of the choice."""
         train = run_config.get("train")
         train = train if isinstance(train, dict) else {}
+        if self.speech:
+            return {
+                "rule": CONTENT_RULE,
+                "eval_seed": train.get("eval_seed"),
+                "n_users": self.n_users,
+                "steps": self.steps,
+                "content_share": round(self.content_share, 6),
+                "voice_natural": round(self.voice_natural, 6),
+                "abs_am_le_1s": round(self.within, 6),
+                "abs_am": round(self.abs_am, 6),
+                "em_mean_abs": round(self.em_mean_abs, 6),
+            }
         return {
             "rule": "lowest periodic-evaluation mean |AM| + mean |EM| among checkpoints",
             "eval_seed": train.get("eval_seed"),
@@ -217,6 +243,15 @@ class EvalScore:
             "em_mean_abs": round(self.em_mean_abs, 6),
             "a_dev": round(self.a_dev, 6),
         }
+
+
+CONTENT_RULE = (
+    "highest periodic-evaluation mean content share among checkpoints with a share of "
+    "|AM| <= 1 s no lower than the base's and a mean voice natural no lower than the base's - 0.02"
+)
+"""How ``--best`` chooses among the evaluations of a phrase chooser's run (content recorded),
+against its base's figures on the same people (``RUN/eval/base.npz``, written by ``train.ppo``
+before training; without it, the best figures any checkpoint reached stand for the base's)."""
 
 
 def eval_scores(run: Path) -> list[EvalScore]:
@@ -237,18 +272,23 @@ def eval_scores(run: Path) -> list[EvalScore]:
     if not path.is_file():
         raise FileNotFoundError(f"train.export: not found: {path} (a run with periodic evaluation)")
     with np.load(path) as data:
-        missing = [k for k in ("timesteps", *EVAL_METRICS) if k not in data]
+        missing = [k for k in ("timesteps", *EVAL_METRICS[:3]) if k not in data]
         if missing:
             raise ValueError(
                 f"{path}: no {', '.join(missing)} (recorded by train.ppo's periodic evaluation "
                 "since v0.3.1; retrain, or export with --steps)"
             )
         steps = np.asarray(data["timesteps"], dtype=int)
-        am, em, a_dev = (np.asarray(data[k], dtype=float) for k in EVAL_METRICS)
+        am, em, a_dev = (np.asarray(data[k], dtype=float) for k in EVAL_METRICS[:3])
+        nan = np.full(am.shape, np.nan)
+        content, voice = (
+            np.asarray(data[k], dtype=float) if k in data else nan for k in EVAL_METRICS[3:5]
+        )
     out = []
     for i, n in enumerate(steps):
         if am[i].size == 0 or not np.isfinite(am[i]).all():
             continue
+        speech = bool(np.isfinite(content[i]).all())
         out.append(
             EvalScore(
                 int(n),
@@ -256,9 +296,35 @@ def eval_scores(run: Path) -> list[EvalScore]:
                 float(em[i].mean()),
                 float(np.nanmean(a_dev[i])),
                 int(am[i].size),
+                float(content[i].mean()) if speech else float("nan"),
+                float(voice[i].mean()) if speech else float("nan"),
+                float(np.mean(am[i] <= 1.0)),
             )
         )
     return sorted(out, key=lambda e: e.steps)
+
+
+def base_score(run: Path) -> EvalScore | None:
+    """The base's figures on the held-out users (``RUN/eval/base.npz``), or None."""
+    import numpy as np
+
+    from train.ppo import BASE_FILE
+
+    path = run / "eval" / BASE_FILE
+    if not path.is_file():
+        return None
+    with np.load(path) as data:
+        am = np.asarray(data["abs_am"], dtype=float)
+        return EvalScore(
+            0,
+            float(np.mean(am)),
+            float(np.mean(data["em_mean_abs"])),
+            float(np.mean(data["a_dev"])),  # NaN where it was not recorded
+            int(am.size),
+            float(np.mean(data["content_share"])),
+            float(np.mean(data["voice_natural"])),
+            float(np.mean(am <= 1.0)),
+        )
 
 
 def best_steps(run: Path, name: str) -> EvalScore:
@@ -281,6 +347,34 @@ def best_steps(run: Path, name: str) -> EvalScore:
             f"{run}: no periodic evaluation at the step count of a checkpoint {name}_<steps>_steps"
             ".zip (make eval_freq a multiple of checkpoint_freq)"
         )
+    if all(e.speech for e in eligible):  # a phrase chooser's run: CONTENT_RULE
+        for e in eligible:
+            print(
+                f"{e.steps:>9} steps: content {e.content_share:.4f}, voice natural "
+                f"{e.voice_natural:.4f}, |AM| <= 1 s {e.within:.3f}, mean |AM| {e.abs_am:.3f} s "
+                f"({e.n_users} users)",
+                file=sys.stderr,
+            )
+        base = base_score(run)
+        if base is not None:
+            top, loud = base.within, base.voice_natural
+            print(
+                f"    base: content {base.content_share:.4f}, voice natural "
+                f"{base.voice_natural:.4f}, |AM| <= 1 s {base.within:.3f}",
+                file=sys.stderr,
+            )
+        else:
+            top = max(e.within for e in eligible)
+            loud = max(e.voice_natural for e in eligible)
+        ok = [e for e in eligible if e.within >= top and e.voice_natural >= loud - 0.02]
+        if not ok:
+            raise ValueError(
+                f"{run}: no checkpoint holds the base's share of |AM| <= 1 s ({top:.3f}) and "
+                f"its voice natural - 0.02 ({loud - 0.02:.4f}) on the held-out users"
+            )
+        best = max(ok, key=lambda e: (e.content_share, -e.steps))
+        print(f"chosen: {best.steps} steps (content {best.content_share:.4f})", file=sys.stderr)
+        return best
     for e in eligible:
         print(
             f"{e.steps:>9} steps: mean |AM| {e.abs_am:.3f} s + mean |EM| {e.em_mean_abs:.3f} s "

@@ -495,6 +495,24 @@ class _WrapperChain:
             env = klass(env, **kwargs)
         return env
 
+    @property
+    def monitor_outside(self) -> bool:
+        """Whether the Monitor goes outside these wrappers: a wrapper whose steps are not the
+        env's (``train.choices.ChoicePoints``: one step per phrase choice) says so."""
+        return any(getattr(klass, "monitor_outside", False) for klass, _ in self.chain)
+
+
+def _monitored(env: Any, wrapper: Any) -> Any:
+    """``env`` with a Monitor and ``wrapper``, the Monitor inside it unless it must be outside
+    (:attr:`_WrapperChain.monitor_outside`), so that it counts the agent's steps."""
+    from stable_baselines3.common.monitor import Monitor
+
+    if wrapper is None:
+        return Monitor(env)
+    if getattr(wrapper, "monitor_outside", False):
+        return Monitor(wrapper(env))
+    return wrapper(Monitor(env))
+
 
 @dataclass
 class _Run:
@@ -605,7 +623,6 @@ def _make_envs(run: _Run) -> tuple[Any, Any]:
     """Training VecEnv (normalised) and evaluation VecEnv (normalisation in eval mode)."""
     import gymnasium as gym
     from stable_baselines3.common.env_util import make_vec_env
-    from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import DummyVecEnv
 
     import langenv  # noqa: F401  (registers the env)
@@ -632,7 +649,7 @@ def _make_envs(run: _Run) -> tuple[Any, Any]:
             [(_dotted(k), kw) for k, kw in chain],
             session_kwargs=sessions,
         )
-    elif len(per_env) == 1:
+    elif len(per_env) == 1 and not getattr(run.wrapper, "monitor_outside", False):
         env = make_vec_env(
             a.env_id,
             n_envs=run.n_envs,
@@ -658,7 +675,7 @@ def _make_envs(run: _Run) -> tuple[Any, Any]:
 
         def make_eval_env(j: int) -> Any:
             wrap = _WrapperChain(chain, ((SeedCycle, {"seeds": seeds[j::k] or seeds[:1]}),))
-            return lambda: wrap(Monitor(gym.make(a.env_id, **per_env[j])))
+            return lambda: _monitored(gym.make(a.env_id, **per_env[j]), wrap)
 
         # Not make_vec_env: it seeds the first reset at random even with seed=None, which would
         # override SeedCycle and make the first evaluation episode a random user. A bare
@@ -674,7 +691,6 @@ def _make_world_envs(run: _Run, cls: Any) -> tuple[Any, Any]:
     """Training and validation VecEnvs across the worlds of ``run.worlds``
     (:mod:`langenv.worlds`): training env ``i`` draws its worlds from seed ``seed + i``; the
     periodic evaluation cycles through ``n_eval_episodes`` validation (exercise, user) pairs."""
-    from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import DummyVecEnv
 
     a, split = run.args, run.worlds
@@ -691,10 +707,9 @@ def _make_world_envs(run: _Run, cls: Any) -> tuple[Any, Any]:
         split.pairs("validation", a.n_eval_episodes)  # enough validation users, before training
         from langenv.worlds import WorldEnv
 
-        wrap = run.wrapper if run.wrapper is not None else (lambda e: e)
         n = a.n_eval_episodes
         eval_env = DummyVecEnv(
-            [lambda: wrap(Monitor(WorldEnv(split, "validation", run.env_kwargs, n)))]
+            [lambda: _monitored(WorldEnv(split, "validation", run.env_kwargs, n), run.wrapper)]
         )
         if run.normalize is not None:
             kw = {k: v for k, v in run.normalize.items() if k != "norm_reward"}
@@ -723,13 +738,10 @@ class _WorldFn:
 
 def _seeded_monitored(env: Any, wrapper: Any, seed: int | None, rank: int) -> Any:
     """``env`` as ``make_vec_env`` finishes each of its envs: the action space seeded
-    ``seed + rank``, a Monitor, then ``wrapper``."""
-    from stable_baselines3.common.monitor import Monitor
-
+    ``seed + rank``, a Monitor, then ``wrapper`` (:func:`_monitored`)."""
     if seed is not None:
         env.action_space.seed(seed + rank)
-    env = Monitor(env)
-    return wrapper(env) if wrapper is not None else env
+    return _monitored(env, wrapper)
 
 
 def _exercise_kwargs(env_kwargs: dict[str, Any]) -> list[dict[str, Any]]:
@@ -1447,8 +1459,34 @@ def _learn(
 #: Per-episode metrics the periodic evaluation records in ``eval/evaluations.npz`` beside SB3's
 #: ``timesteps``, ``results`` and ``ep_lengths`` (one row per evaluation, one column per user):
 #: ``|AM|`` at the end (s; NaN when a session did not end by itself), mean ``|EM|`` over its
-#: decisions (s) and mean ``|a - 1|`` over its decisions while speech goes on.
-EVAL_METRICS: tuple[str, ...] = ("abs_am", "em_mean_abs", "a_dev")
+#: decisions (s) and mean ``|a - 1|`` over its decisions while speech goes on; and where the
+#: env reports them at the end (``train.choices.ChoicePoints``: the session's own metrics, its
+#: mean ``|EM|`` over time) ``content_share`` and ``voice_natural`` (NaN otherwise).
+EVAL_METRICS: tuple[str, ...] = ("abs_am", "em_mean_abs", "a_dev", "content_share", "voice_natural")
+
+
+#: The base's figures on the held-out users (``eval/`` of a run; :data:`EVAL_METRICS`, one per
+#: user): a phrase chooser's run evaluates its base once, before training.
+BASE_FILE = "base.npz"
+
+
+def _is_chooser(env: Any) -> bool:
+    """Whether ``env`` (a VecEnv) is a phrase chooser's (``decisions: choices``)."""
+    if not _has_attr(env, "residual_spec"):
+        return False
+    spec = env.get_attr("residual_spec", indices=[0])[0]
+    return getattr(spec, "decisions", "steps") == "choices"
+
+
+class _ZeroCorrection:
+    """A "model" whose action is always 0: the residual's base (for ``evaluate_policy``)."""
+
+    def __init__(self, shape: tuple[int, ...] | None) -> None:
+        self.shape = tuple(shape or ())
+
+    def predict(self, observation: Any, *args: Any, **kwargs: Any) -> tuple[np.ndarray, None]:
+        n = int(np.shape(observation)[0])
+        return np.zeros((n, *self.shape), np.float32), None
 
 
 class _MetricsEvalCallback(EvalCallback):
@@ -1462,6 +1500,38 @@ class _MetricsEvalCallback(EvalCallback):
         self._em_steps: list[float] = []
         self._a_steps: list[float] = []
         self.evaluations_metrics: dict[str, list[list[float]]] = {k: [] for k in EVAL_METRICS}
+
+    def _on_training_start(self) -> None:
+        """Evaluate the base (a zero correction) once on the held-out users, where the env
+        reports the speech people hear: ``eval/base.npz``, what ``train.export --best`` holds
+        the checkpoints against (:data:`BASE_FILE`)."""
+        super()._on_training_start()
+        if self.log_path is None:
+            return
+        path = Path(self.log_path).parent / BASE_FILE
+        if path.is_file() or not _is_chooser(self.eval_env):
+            return
+        self._episode = {k: [] for k in EVAL_METRICS}
+        self._em_steps, self._a_steps = [], []
+        from stable_baselines3.common.evaluation import evaluate_policy
+
+        evaluate_policy(
+            _ZeroCorrection(self.eval_env.action_space.shape),
+            self.eval_env,
+            n_eval_episodes=self.n_eval_episodes,
+            deterministic=True,
+            callback=self._log_success_callback,
+        )
+        if np.isfinite(self._episode["content_share"]).all():
+            arrays: dict[str, Any] = {k: np.asarray(v, float) for k, v in self._episode.items()}
+            np.savez(path, **arrays)
+            print(
+                f"[eval of the base] held-out users: content "
+                f"{np.mean(self._episode['content_share']):.4f}, voice natural "
+                f"{np.mean(self._episode['voice_natural']):.4f}, |AM| <= 1 s "
+                f"{np.mean(np.asarray(self._episode['abs_am']) <= 1.0):.3f}",
+                file=sys.stderr,
+            )
 
     def _on_step(self) -> bool:
         self._episode = {k: [] for k in EVAL_METRICS}
@@ -1478,10 +1548,20 @@ class _MetricsEvalCallback(EvalCallback):
             self.logger.record("eval/abs_am_median", float(np.nanmedian(self._episode["abs_am"])))
             self.logger.record("eval/em_mean_abs", em)
             self.logger.record("eval/a_dev", a_dev)
+            speech = ""
+            if np.isfinite(self._episode["content_share"]).any():
+                content = float(np.nanmean(self._episode["content_share"]))
+                voice = float(np.nanmean(self._episode["voice_natural"]))
+                within = float(np.mean(np.asarray(self._episode["abs_am"]) <= 1.0))
+                self.logger.record("eval/content_share", content)
+                self.logger.record("eval/voice_natural", voice)
+                speech = (
+                    f", content {content:.4f}, voice natural {voice:.4f}, |AM| <= 1 s {within:.3f}"
+                )
             print(
                 f"[eval @ {self.num_timesteps} steps] held-out users: mean |AM| {am:.3f} s, "
                 f"median |AM| {np.nanmedian(self._episode['abs_am']):.3f} s, mean |EM| "
-                f"{em:.3f} s, mean |a-1| {a_dev:.3f}, return {self.last_mean_reward:.2f}",
+                f"{em:.3f} s, mean |a-1| {a_dev:.3f}{speech}, return {self.last_mean_reward:.2f}",
                 file=sys.stderr,
             )
         return ok
@@ -1509,9 +1589,14 @@ class _MetricsEvalCallback(EvalCallback):
         if locals_["done"]:
             am = info.get("am")
             self._episode["abs_am"].append(abs(float(am)) if am is not None else math.nan)
-            self._episode["em_mean_abs"].append(float(np.mean(self._em_steps)))
+            em = info.get("em_mean_abs")  # the session's own, where the env reports it
+            em = float(em) if em is not None else float(np.mean(self._em_steps))
+            self._episode["em_mean_abs"].append(em)
             a_dev = float(np.mean(self._a_steps)) if self._a_steps else math.nan
             self._episode["a_dev"].append(a_dev)
+            for key in ("content_share", "voice_natural"):
+                value = info.get(key)
+                self._episode[key].append(float(value) if value is not None else math.nan)
             self._em_steps, self._a_steps = [], []
 
 

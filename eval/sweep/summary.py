@@ -28,7 +28,7 @@ from eval.stats import bootstrap_ci
 __all__ = ["MAIN_METRICS", "coordinate_rows", "write_summary"]
 
 #: Metrics of the markdown table and the figures.
-MAIN_METRICS = ("abs_am", "em_mean_abs", "a_within_0_1", "coop_mean")
+MAIN_METRICS = ("abs_am", "em_mean_abs", "a_within_0_1", "content_share", "coop_mean")
 #: Bootstrap resamples per interval.
 N_BOOT = 1000
 _FIELDS = ("coordinate", "value", "policy", "metric", "n", "median", "ci_lo", "ci_hi")

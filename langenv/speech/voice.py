@@ -41,6 +41,7 @@ __all__ = [
     "Voice",
     "check_voice",
     "voice_rate",
+    "words_heard",
 ]
 
 Voice = Literal["stretch", "natural"]
@@ -226,3 +227,47 @@ def voice_rate(
         v[idx] = np.where(speaking, rate, 1.0)
         waiting[idx] = ~speaking
     return v, waiting
+
+
+def words_heard(
+    t: np.ndarray, waiting: np.ndarray, spans: Sequence[tuple[float, float]], until: float
+) -> float:
+    """Seconds in ``[t[0], until)`` in which words of the given clips are heard.
+
+    The clips' words span ``[t_start, t_end)`` each (the silence after a clip is not part of
+    it); inside them the voice is silent where it waits (``waiting``, from :func:`voice_rate`).
+    Each sample holds its state until the next one (zero-order hold; the last one for the
+    interval before it), as in the evaluation's metrics; the spans' ends are exact.
+
+    Args:
+        t: Sample times (s), shape ``(n,)``, ``n >= 2``, strictly increasing.
+        waiting: Whether the voice waits at each sample, shape ``(n,)``, bool.
+        spans: ``(t_start, t_end)`` of the clips whose words count (s), not overlapping.
+        until: End of the window (s).
+
+    Returns:
+        The seconds, ``>= 0``.
+    """
+    t = np.asarray(t, dtype=np.float64)
+    waiting = np.asarray(waiting, dtype=bool)
+    if t.ndim != 1 or t.size < 2 or waiting.shape != t.shape:
+        raise ConfigError(
+            f"t and waiting must have the same shape (n,), n >= 2; got {t.shape}, {waiting.shape}"
+        )
+    t0 = float(t[0])
+    cut = [(max(float(a), t0), min(float(b), until)) for a, b in spans]
+    cut = [(a, b) for a, b in cut if b > a]
+    said = float(sum(b - a for a, b in cut))
+    if not cut or not waiting.any():
+        return said
+    ends = np.append(t[1:], t[-1] + (t[-1] - t[-2]))
+    silent = 0.0
+    for a, b in cut:  # the waits inside the words' spans, each sample's overlap exactly
+        lo = max(int(np.searchsorted(t, a, side="right")) - 1, 0)
+        hi = int(np.searchsorted(t, b, side="left"))
+        idx = np.arange(lo, hi)
+        idx = idx[waiting[idx]]
+        if idx.size:
+            overlap = np.minimum(ends[idx], b) - np.maximum(t[idx], a)
+            silent += float(np.sum(np.clip(overlap, 0.0, None)))
+    return max(0.0, said - silent)

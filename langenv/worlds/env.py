@@ -38,7 +38,7 @@ class WorldEnv(gym.Env[np.ndarray, np.ndarray]):
 
     The attributes ``choice_mode``, ``max_children``, ``decision_hz`` and ``paces`` are the
     (common) ones of its envs, so ``train.wrappers.ResidualLCWrapper`` wraps it as it wraps one
-    env. ``world`` describes the current episode's world.
+    env. ``world`` describes the current episode's world, ``current`` is its env.
     """
 
     metadata = {"render_modes": []}  # noqa: RUF012
@@ -113,6 +113,12 @@ class WorldEnv(gym.Env[np.ndarray, np.ndarray]):
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         return self._env.step(action)
+
+    @property
+    def current(self) -> Any:
+        """The ``LangCtrlEnv`` of the current episode (unwrapped): what a wrapper that steps
+        it tick by tick or in compiled runs (``run_law``) drives."""
+        return self._env.unwrapped
 
     def close(self) -> None:
         for env in self.envs.values():

@@ -1,0 +1,322 @@
+"""The learned phrase chooser's env: one step per phrase choice, the speech people hear as reward.
+
+:class:`ChoicePoints` wraps ``LangCtrl-v0`` (at ``decision_hz=500``, a tick per step) or a
+:class:`~langenv.worlds.WorldEnv` of such envs, so that the agent acts only where the next
+phrase is chosen among several children (a semi-MDP over the phrase boundaries). Between two
+choices the base controller (:class:`~policies.analytic.LanguageController`, usually the content
+rule ``lc-fill``) drives the env alone: where its action is its pace law, the env applies the law
+in compiled code (:meth:`LangCtrlEnv.run_law <langenv.env.LangCtrlEnv.run_law>`), elsewhere (in
+a pause it shortens) a Python step per tick. At a choice the agent's correction ``r`` moves the
+base's target duration (:class:`~policies.learned.ResidualLC`: ``u = u_base + choice_scale r_2``),
+and the observation is the env's plus :data:`policies.learned.FEATURES`, as ``PPOPolicy`` sees it
+at evaluation. With ``r = 0`` the episode is the base's, tick for tick.
+
+Reward, once, when the episode ends (weights are keyword arguments; each term in ``info``):
+
+* ``reward_content = w_content * content_share``: the share of the motion's duration in which a
+  phrase's words are heard, as the voice renders them (the metric of :mod:`eval.metrics`,
+  computed here from the recorded pace and the timeline's utterances with
+  :func:`langenv.speech.voice.words_heard`);
+* ``reward_voice = w_voice * voice_natural``: the share of the speech time in which the voice is
+  heard within 0.1 of its natural rate;
+* the alignment terms: ``reward_am = -w_am |AM| - w_am_fine ln(1 + |AM| / am_scale)``,
+  ``reward_am_far = -w_am_far`` when ``|AM| > 1 s``, ``reward_em = -w_em`` mean ``|EM|``;
+  a protective stop or a cut-off episode pays ``-w_stop`` instead of the alignment terms.
+
+The final step's ``info`` also holds the metrics themselves (``content_share``,
+``voice_natural``, ``em_mean_abs``, ``am``), which the periodic evaluation of
+:mod:`train.ppo` records.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from langenv.errors import ConfigError
+from langenv.pacing import PaceLaw
+from langenv.speech.voice import voice_rate, words_heard
+from policies.learned import ResidualLC, ResidualSpec
+
+__all__ = ["EPISODE_S", "ChoicePoints", "session_speech"]
+
+EPISODE_S = 60.0
+"""Longest episode (s of simulated time), as ``eval.compare`` runs one."""
+_NATURAL = 0.1  # the voice counts as natural within this of its natural rate
+_EPS = 1e-9
+
+
+def session_speech(
+    t: np.ndarray,
+    a: np.ndarray,
+    speech_done: np.ndarray,
+    utterances: list[Any],
+    graph: Any,
+    t_motion: float,
+) -> tuple[float, float]:
+    """``(content_share, voice_natural)`` of a session, as :func:`eval.metrics.episode_metrics`
+    measures them, from its trace and the speech timeline's utterances.
+
+    Args:
+        t: Sample times (s), shape ``(n,)``.
+        a: Speech pace at those times.
+        speech_done: Whether the speech is over at each sample (bool).
+        utterances: The timeline's utterances (``SpeechTimeline.utterances()``).
+        graph: The phrase graph spoken (its ``voice``, fillers and pauses).
+        t_motion: When the motion ended (s).
+    """
+    clips = [u for u in utterances if u.length is None]  # not a pause vertex
+    if graph.voice == "natural":
+        waits = clips[:-1] if bool(speech_done[-1]) else clips  # the last clip follows a
+        v, waiting = voice_rate(t, a, [(u.t_start, u.t_end) for u in waits])
+    else:
+        v, waiting = a, np.zeros(t.shape, dtype=bool)
+    w = np.append(np.diff(t), t[-1] - t[-2])
+    speaking = ~speech_done
+    total = float(np.sum(w * speaking))
+    natural = (np.abs(v - 1.0) <= _NATURAL + _EPS) & speaking
+    voice = float(np.sum(w * natural) / total) if total > 0.0 else math.nan
+    span = t_motion - float(t[0])
+    spans = [(u.t_start, u.t_end) for u in clips if u.phrase not in graph.fillers]
+    content = min(1.0, words_heard(t, waiting, spans, t_motion) / span) if span > 0 else math.nan
+    return content, voice
+
+
+class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
+    """The env as the learned phrase chooser meets it (module docstring).
+
+    Args:
+        env: ``LangCtrl-v0`` built with ``decision_hz=500`` (possibly wrapped), or a
+            :class:`~langenv.worlds.WorldEnv` of such envs.
+        choice_scale: Largest change of the base's target-duration action (see
+            :class:`~policies.learned.ResidualSpec`).
+        k_c: The base's cooperation gain of the audio law (``lc-fill``: 0).
+        choice: The base's phrase rule (``"fill"``: ``lc-fill``'s; ``"mid"``: the paper's).
+        fill_margin: The content rule's margin (s).
+        fill_anticipate: How much the content rule trusts the person's pace so far.
+        pause_scale: The base's pause target over ``t_x`` in pauses with a choice after them.
+        k_em: The base's misalignment feedback on the physical pace (1/s).
+        w_content: Weight of the content share (module docstring).
+        w_voice: Weight of the voice natural share.
+        w_am: Weight of ``|AM|`` (1/s).
+        w_am_fine: Weight of ``ln(1 + |AM| / am_scale)``.
+        am_scale: Scale of that term (s), > 0.
+        w_am_far: Penalty when ``|AM| > 1 s``.
+        w_em: Weight of the mean ``|EM|`` (1/s).
+        w_stop: Penalty for a protective stop or a cut-off episode, instead of the alignment
+            terms.
+
+    Raises:
+        ConfigError: if the env does not step one tick at a time, or for a bad setting.
+    """
+
+    #: Train.ppo puts the Monitor outside this wrapper (its steps are the agent's choices).
+    monitor_outside: ClassVar[bool] = True
+
+    def __init__(
+        self,
+        env: gym.Env[np.ndarray, np.ndarray],
+        choice_scale: float = 0.5,
+        k_c: float = 0.0,
+        choice: str = "fill",
+        fill_margin: float = 0.25,
+        fill_anticipate: float = 1.0,
+        pause_scale: float = 0.25,
+        k_em: float = 0.0,
+        w_content: float = 10.0,
+        w_voice: float = 5.0,
+        w_am: float = 1.0,
+        w_am_fine: float = 0.5,
+        am_scale: float = 0.1,
+        w_am_far: float = 5.0,
+        w_em: float = 1.0,
+        w_stop: float = 10.0,
+    ) -> None:
+        super().__init__(env)
+        inner: Any = env.unwrapped
+        if int(inner.decision_hz) != 500:
+            raise ConfigError(
+                f"ChoicePoints: the env must decide at 500 Hz (a tick per step), got "
+                f"decision_hz={inner.decision_hz}"
+            )
+        weights = {
+            "w_content": w_content,
+            "w_voice": w_voice,
+            "w_am": w_am,
+            "w_am_fine": w_am_fine,
+            "w_am_far": w_am_far,
+            "w_em": w_em,
+            "w_stop": w_stop,
+        }
+        for name, value in weights.items():
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ConfigError(f"ChoicePoints: {name} must be finite and >= 0, got {value!r}")
+        if not (math.isfinite(am_scale) and am_scale > 0.0):
+            raise ConfigError(f"ChoicePoints: am_scale must be finite and > 0, got {am_scale!r}")
+        self.weights = {k: float(v) for k, v in weights.items()}
+        self.am_scale = float(am_scale)
+        self.residual_spec = ResidualSpec(
+            choice_mode=inner.choice_mode,
+            max_children=int(inner.max_children),
+            pace_scale=0.0,
+            audio_scale=0.0,
+            choice_scale=float(choice_scale),
+            decision_hz=500,
+            k_em=float(k_em),
+            k_c=float(k_c),
+            choice=choice,  # type: ignore[arg-type]
+            fill_margin=float(fill_margin),
+            fill_anticipate=float(fill_anticipate),
+            pause_scale=float(pause_scale),
+            decisions="choices",
+        )
+        self.core = ResidualLC(self.residual_spec, inner.paces.limits)
+        base = self.core.lc
+        self.law = PaceLaw(base.gains.k_c, base.gains.k_a, base.k_em, base.em_clip, base.limits)
+        n_obs = int(np.prod(env.observation_space.shape or (0,))) + self.core.n_features
+        self.observation_space = spaces.Box(-1.0, 1.0, (n_obs,), np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, (self.residual_spec.action_dim,), np.float32)
+        self._limit = round(EPISODE_S * 500)
+        self._reset_trace()
+
+    # ------------------------------------------------------------------ the episode
+    def _plant(self) -> Any:
+        """The ``LangCtrlEnv`` of the current episode."""
+        inner: Any = self.env.unwrapped
+        return getattr(inner, "current", inner)
+
+    def _reset_trace(self) -> None:
+        self._chunks: list[tuple[np.ndarray, ...]] = []  # (t, a, em, motion_done, speech_done)
+        self._rows: list[tuple[float, float, float, bool, bool]] = []  # ticks not yet in a chunk
+        self._ticks = 0
+        self._done = False
+        self._final: tuple[float, dict[str, Any]] | None = None
+
+    def _record(self, info: dict[str, Any]) -> None:
+        self._rows.append(
+            (
+                float(info["time"]),
+                float(info["a"]),
+                float(info["em"]),
+                bool(info["motion_done"]),
+                bool(info["speech_done"]),
+            )
+        )
+
+    def _flush(self) -> None:
+        if self._rows:
+            cols = list(zip(*self._rows, strict=True))
+            self._chunks.append(tuple(np.asarray(c) for c in cols))
+            self._rows = []
+
+    def _trace(self) -> tuple[np.ndarray, ...]:
+        self._flush()
+        return tuple(np.concatenate([c[k] for c in self._chunks]) for k in range(5))
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        obs, info = self.env.reset(seed=seed, options=options)
+        self._reset_trace()
+        self._record(info)
+        aug = self.core.start(obs)
+        obs, reward, info = self._advance(obs, info, False)
+        if self._done:  # over before any choice: the next step only returns the reward
+            self._final = (reward, info)
+            return aug.astype(np.float32), info
+        return self.core.observe(obs).astype(np.float32), info
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        if self._final is not None:
+            reward, info = self._final
+            self._final = None
+            obs = self.core.observe(self._plant().observation()).astype(np.float32)
+            return obs, reward, bool(info["terminated"]), not info["terminated"], info
+        if self._done:
+            raise ConfigError("ChoicePoints.step after the episode ended: call reset()")
+        act = self.core.action(np.asarray(action, dtype=np.float64))
+        obs, _, terminated, _, info = self._plant().step(act)
+        self._ticks += 1
+        self._record(info)
+        obs, reward, info = self._advance(obs, info, terminated)
+        out = self.core.observe(obs).astype(np.float32)
+        if not self._done:
+            return out, reward, False, False, info
+        return out, reward, bool(info["terminated"]), not info["terminated"], info
+
+    def _advance(
+        self, obs: np.ndarray, info: dict[str, Any], terminated: bool
+    ) -> tuple[np.ndarray, float, dict[str, Any]]:
+        """Let the base drive the env to the next choice (reward 0) or to the episode's end
+        (the reward of the module docstring; ``info["terminated"]`` says which end)."""
+        plant = self._plant()
+        base = self.core.lc
+        while not terminated and self._ticks < self._limit:
+            act = base.act(obs)
+            if base.choice_due(obs):
+                return obs, 0.0, info
+            if act[2] == 0.0 and plant.runs_compiled:  # the base is its law until Python
+                run = plant.run_law(self.law, self._limit - self._ticks - 1)
+                if run.steps:
+                    self._flush()
+                    rows = run.info
+                    self._chunks.append(
+                        (
+                            rows["time"],
+                            rows["a"],
+                            rows["em"],
+                            rows["motion_done"].astype(bool),
+                            rows["speech_done"].astype(bool),
+                        )
+                    )
+                    self._ticks += run.steps
+                if run.last is not None:
+                    obs, _, terminated, _, info = run.last
+                    self._ticks += 1
+                    self._record(info)
+                    continue
+                if self._ticks >= self._limit:
+                    break
+                obs = plant.observation()
+                act = base.act(obs)
+                if base.choice_due(obs):
+                    return obs, 0.0, info
+            obs, _, terminated, _, info = plant.step(act)
+            self._ticks += 1
+            self._record(info)
+        self._done = True
+        info = dict(info, terminated=terminated)
+        return obs, self._final_reward(info, terminated), info
+
+    def _final_reward(self, info: dict[str, Any], terminated: bool) -> float:
+        """The episode's reward (module docstring); its terms and metrics go into ``info``."""
+        plant = self._plant()
+        t, a, em, md, sd = self._trace()
+        keep = np.append(np.diff(t) > 0.0, True)  # the trace strictly increasing
+        t, a, em, md, sd = t[keep], a[keep], em[keep], md[keep], sd[keep]
+        t_motion = info.get("t_motion")
+        t_motion = float(t_motion) if t_motion is not None else float(t[-1])
+        content, voice = session_speech(t, a, sd, plant.speech.utterances(), plant.graph, t_motion)
+        w = np.append(np.diff(t), t[-1] - t[-2]) * ~(md & sd)
+        em_mean = float(np.sum(w * np.abs(em)) / np.sum(w)) if np.sum(w) > 0 else 0.0
+        wt = self.weights
+        terms = {
+            "reward_content": wt["w_content"] * (content if math.isfinite(content) else 0.0),
+            "reward_voice": wt["w_voice"] * (voice if math.isfinite(voice) else 0.0),
+            "reward_em": -wt["w_em"] * em_mean,
+        }
+        am = info.get("am")
+        if terminated and am is not None:
+            am = abs(float(am))
+            terms["reward_am"] = -wt["w_am"] * am - wt["w_am_fine"] * math.log1p(am / self.am_scale)
+            terms["reward_am_far"] = -wt["w_am_far"] if am > 1.0 else 0.0
+        else:
+            terms["reward_am"] = -wt["w_stop"]
+            terms["reward_am_far"] = 0.0
+        info.update(terms)
+        info.update(content_share=content, voice_natural=voice, em_mean_abs=em_mean)
+        return float(sum(terms.values()))
