@@ -9,7 +9,8 @@ internals). At ``decision_hz=500`` the LC policy is exactly the paper's controll
 Variants (not in the paper): ``lc-em`` (misalignment feedback on ``p``), ``lc-end`` (a terminal
 phase), ``lc-em-end`` (both: the base of the learned aligner up to issue 27) and ``lc-fill``,
 whose phrase choice aims at *content*: the longest wording that still lets the speech end with
-the motion (:func:`fill_choice`), instead of the paper's middle of the range.
+the motion (:func:`fill_choice`), instead of the paper's middle of the range; ``lc-fill-end`` is
+``lc-fill`` with ``lc-end``'s terminal phase.
 """
 
 from __future__ import annotations
@@ -372,6 +373,22 @@ FILL_PAUSE_SCALE = 0.25
 #: The cooperation gain of its audio law (the paper's ``k_c`` is 10): 0, the speech pace follows
 #: the alignment alone; a resisting person hears words, not a slowed or waiting voice.
 FILL_K_C = 0.0
+#: ``lc-fill-end``'s terminal-phase horizon (s of ``t_x``): ``lc-end``'s, so that a person who
+#: speeds up at the end does not leave the words committed for a slower motion behind.
+FILL_TERMINAL = 1.0
+
+
+def _fill(name: str, terminal: float = 0.0) -> Callable[[int | None], LanguageController]:
+    return _lc(
+        name,
+        choice="fill",
+        fill_margin=FILL_MARGIN,
+        fill_anticipate=FILL_ANTICIPATE,
+        pause_scale=FILL_PAUSE_SCALE,
+        gains=AlignerGains(k_c=FILL_K_C),
+        terminal=terminal,
+    )
+
 
 Analytic = AdmittanceController | LanguageController
 
@@ -392,14 +409,11 @@ ANALYTIC: Mapping[str, tuple[str, Callable[[int | None], Analytic]]] = MappingPr
         "lc-fill": (
             "LC whose phrase choice aims at content: the longest wording that still ends with "
             "the motion",
-            _lc(
-                "lc-fill",
-                choice="fill",
-                fill_margin=FILL_MARGIN,
-                fill_anticipate=FILL_ANTICIPATE,
-                pause_scale=FILL_PAUSE_SCALE,
-                gains=AlignerGains(k_c=FILL_K_C),
-            ),
+            _fill("lc-fill"),
+        ),
+        "lc-fill-end": (
+            "lc-fill with lc-end's 1 s terminal phase",
+            _fill("lc-fill-end", terminal=FILL_TERMINAL),
         ),
     }
 )
@@ -413,7 +427,7 @@ def make_analytic(name: str, decision_hz: int | None = None) -> Analytic:
 
     Args:
         name: The controller (``"ac"``, ``"lc-noap"``, ``"lc"``, ``"lc-em"``, ``"lc-end"``,
-            ``"lc-em-end"``, ``"lc-fill"``).
+            ``"lc-em-end"``, ``"lc-fill"``, ``"lc-fill-end"``).
         decision_hz: Decision rate; default 500 for the aligners (exactly the paper's loop) and 25
             for AC (its commands are constant, so the rate does not change what it does).
 

@@ -136,7 +136,10 @@ class ResidualSpec:
             :class:`policies.analytic.LanguageController`); 0: the base is the paper's LC. While
             the base is in its terminal or finishing phase, the pace corrections are off (the
             base ends speech and motion together to the millisecond; the correction acts on the
-            alignment before that and on the phrase choice).
+            alignment before that and on the phrase choice). A phrase chooser
+            (``decisions="choices"``) may be given one at evaluation (its choices are the
+            network's, the paces its base's); :class:`train.choices.ChoicePoints` trains only
+            without one.
         k_em: Extra feedback of the base-pace misalignment on the base's physical pace (1/s;
             see :class:`policies.analytic.LanguageController`); 0: the paper's LC, 1: ``lc-em``.
         gate_em: The correction's gate (s, >= 0; 0: always on). While the misalignment at base
@@ -217,11 +220,6 @@ class ResidualSpec:
                 raise ConfigError(
                     "ResidualSpec: decisions='choices' acts on the phrase only: pace_scale and "
                     "audio_scale must be 0"
-                )
-            if self.terminal != 0.0:
-                raise ConfigError(
-                    "ResidualSpec: decisions='choices' needs a base without a terminal phase "
-                    "(terminal = 0): between choices the env applies the base's law itself"
                 )
         self.base()  # the base's settings are checked where they are used
 

@@ -21,6 +21,7 @@ from policies.analytic import (
     FILL_K_C,
     FILL_MARGIN,
     FILL_PAUSE_SCALE,
+    FILL_TERMINAL,
     LanguageController,
     fill_choice,
     make_analytic,
@@ -85,12 +86,49 @@ def test_lc_fill_is_registered_with_its_tuned_settings() -> None:
             LanguageController(**bad)  # type: ignore[arg-type]
 
 
+def test_lc_fill_end_is_lc_fill_with_a_terminal_phase() -> None:
+    fill, end = make_analytic("lc-fill"), make_analytic("lc-fill-end")
+    assert isinstance(fill, LanguageController) and isinstance(end, LanguageController)
+    assert (fill.terminal, end.terminal) == (0.0, FILL_TERMINAL) and FILL_TERMINAL > 0.0
+    same = ("choice", "fill_margin", "fill_anticipate", "pause_scale", "gains", "k_em")
+    assert all(getattr(fill, k) == getattr(end, k) for k in same)
+
+
+def test_a_chooser_on_a_terminal_base_is_lc_fill_end_at_zero_correction() -> None:
+    """A phrase chooser deployed on ``lc-fill-end``'s base (``terminal`` in its config): at
+    ``r = 0`` its every action is ``lc-fill-end``'s, terminal phase included."""
+    import gymnasium as gym
+
+    import langenv
+    from policies.learned import ResidualLC
+
+    spec = ResidualSpec(decisions="choices", decision_hz=500, pace_scale=0.0, audio_scale=0.0,
+                        choice_mode="target", k_c=FILL_K_C, choice="fill",
+                        fill_margin=FILL_MARGIN, fill_anticipate=FILL_ANTICIPATE,
+                        pause_scale=FILL_PAUSE_SCALE, terminal=FILL_TERMINAL)  # fmt: skip
+    core, ref = ResidualLC(spec), make_analytic("lc-fill-end")
+    env = gym.make(langenv.ENV_ID, decision_hz=500, choice_mode="target", max_episode_steps=30000)
+    obs, _ = env.reset(seed=3)
+    core.start(obs)
+    ref.reset()
+    phases, done = set(), False
+    while not done:
+        a_ref = ref.act(obs)
+        phases.add(ref.phase(np.asarray(obs).tolist()))
+        np.testing.assert_array_equal(core.action(np.zeros(3)), a_ref)
+        obs, _, terminated, truncated, _ = env.step(a_ref)
+        core.observe(obs)
+        done = terminated or truncated
+    assert terminated and "terminal" in phases
+
+
 def test_choices_decisions_need_a_phrase_only_target_residual_at_500_hz() -> None:
     ok = dict(decisions="choices", decision_hz=500, pace_scale=0.0, audio_scale=0.0)
     ResidualSpec(**ok)  # type: ignore[arg-type]
-    for bad in ({"decision_hz": 25}, {"pace_scale": 0.1}, {"terminal": 1.0}):
+    for bad in ({"decision_hz": 25}, {"pace_scale": 0.1}):
         with pytest.raises(ConfigError, match="choices"):
             ResidualSpec(**{**ok, **bad})  # type: ignore[arg-type]
+    assert ResidualSpec(**ok, terminal=1.0).base().terminal == 1.0  # type: ignore[arg-type]
     with pytest.raises(ConfigError, match="decisions"):
         ResidualSpec(decisions="ticks")  # type: ignore[arg-type]
 
