@@ -126,16 +126,16 @@ def test_generalise_on_validation(tiny_general_model: Path, tmp_path: Path) -> N
     args = ["--model", str(tiny_general_model), "--users", "1", "--workers", "1"]
     assert main([*args, "--n-boot", "200", "--out", str(out)]) == 0
     rows = (out / "sessions.csv").read_text().splitlines()
-    assert len(rows) == 1 + 6  # five analytic policies and the learned one, one episode each
+    assert len(rows) == 1 + 7  # six analytic policies and the learned one, one episode each
     assert "content_share" in rows[0] and "population" in rows[0]
     text = (out / "generalise.md").read_text()
     assert "shoulder_extension" in text and "ppo - lc-em-end" in text
-    assert "against lc-fill" in text and "content - base" in text
+    assert "against lc-fill-end" in text and "content - base" in text
     assert all((out / f"{m}.png").is_file() for m in COMPARED)
     assert (out / "speech.png").is_file()
     cfg = json.loads((out / "config.json").read_text())
     assert cfg["role"] == "validation" and cfg["test_look"] is False
-    assert cfg["base"] == "lc-fill" and set(cfg["bars_hold"]) == {"ppo"}
+    assert cfg["base"] == "lc-fill-end" and set(cfg["bars_hold"]) == {"ppo"}
     assert main([*args, "--out", str(out)]) == 2  # a non-empty --out is refused
     assert main([*args, "--base", "lc-xyz", "--out", str(tmp_path / "b")]) == 2
     both = tmp_path / "both"

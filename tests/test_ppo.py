@@ -212,6 +212,26 @@ def test_choice_only_export_keeps_the_base_paces(smoke_run: SmokeRun, tmp_path: 
 
 @pytest.mark.slow
 @pytest.mark.xdist_group("ppo_smoke_run")
+def test_terminal_export_gives_the_base_a_terminal_phase(
+    smoke_run: SmokeRun, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--terminal S: the exported model's base has a terminal phase of S s, recorded."""
+    from train.export import main as export_main
+
+    stem = tmp_path / "t"
+    argv = [str(smoke_run.out), "--steps", "2048", "--terminal", "1", "--out", str(stem)]
+    assert export_main(argv) == 0
+    config = yaml.safe_load(model_files(stem)[2].read_text())
+    assert config["residual"]["terminal"] == config["terminal_at_export"] == 1.0
+    assert PPOPolicy.load(model_files(stem)[0]).residual.lc.terminal == 1.0
+    bad = [str(smoke_run.out), "--steps", "2048", "--terminal", "-1", "--out", str(tmp_path / "b")]
+    assert export_main(bad) != 0
+    assert "--terminal" in capsys.readouterr().err
+    assert not model_files(tmp_path / "b")[0].exists()
+
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("ppo_smoke_run")
 def test_finetune_stage_starts_from_the_checkpoint(smoke_run: SmokeRun, tmp_path: Path) -> None:
     """A fine-tune config (inherit, pace corrections off), started from a checkpoint."""
     tuned = tmp_path / "tuned"

@@ -25,6 +25,11 @@ its evaluation ineligible. The exported config records the choice (``selected_by
 config's residual gets ``pace_scale = audio_scale = 0``, so the paces are the base controller's
 and the network only moves the next-phrase target (``choice_only: true`` records it). The models
 shipped from attempt 12 to 14 were exported this way (``docs/history.md``).
+
+``--terminal S`` gives the exported model's base controller a terminal phase of ``S`` s
+(:class:`policies.analytic.LanguageController`'s ``terminal``; ``terminal_at_export`` records
+it): the shipped phrase chooser, trained on ``lc-fill``, is deployed on ``lc-fill-end``'s base
+with ``--terminal 1`` (``docs/learned.md``).
 """
 
 from __future__ import annotations
@@ -64,6 +69,8 @@ class ExportArgs:
         name: The run's model name; None: ``train.name`` of ``RUN/run_config.yaml``.
         choice_only: Keep only the phrase-choice correction (pace corrections off).
         overwrite: Replace existing ``OUT.*`` files.
+        terminal: The base's terminal-phase horizon in the exported config (s, >= 0); None:
+            the run's.
     """
 
     run: Path
@@ -72,6 +79,7 @@ class ExportArgs:
     name: str | None = None
     choice_only: bool = False
     overwrite: bool = False
+    terminal: float | None = None
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -106,6 +114,14 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="keep only the phrase-choice correction (the paces stay the base controller's)",
     )
+    p.add_argument(
+        "--terminal",
+        type=float,
+        default=None,
+        metavar="S",
+        help="give the exported model's base a terminal phase of S s (the shipped phrase "
+        "chooser: 1, lc-fill-end's base; default: the run's)",
+    )
     p.add_argument("--overwrite", action="store_true", help="replace existing OUT.* files")
     return p
 
@@ -121,6 +137,7 @@ def parse_args(argv: Sequence[str] | None = None) -> ExportArgs:
         name=ns.name,
         choice_only=ns.choice_only,
         overwrite=ns.overwrite,
+        terminal=ns.terminal,
     )
 
 
@@ -165,6 +182,8 @@ def export(args: ExportArgs) -> Path:
         residual["pace_scale"] = 0.0
         residual["audio_scale"] = 0.0
         config["choice_only"] = True
+    if args.terminal is not None:
+        _set_terminal(config, run_config, args.terminal)
     config["exported_from"] = sources[0].relative_to(args.run).as_posix()
     if isinstance(config.get("train"), dict):
         config["train"] = recorded_args(config["train"])
@@ -178,6 +197,19 @@ def export(args: ExportArgs) -> Path:
     targets[2].write_text(yaml.safe_dump(config, sort_keys=False))
     PPOPolicy.load(targets[0])
     return targets[0]
+
+
+def _set_terminal(config: dict[str, Any], run_config: Path, terminal: float) -> None:
+    """Give the exported config's base a terminal phase (``--terminal``)."""
+    import math
+
+    if not (math.isfinite(terminal) and terminal >= 0.0):
+        raise ValueError(f"train.export: --terminal must be finite and >= 0, got {terminal!r}")
+    residual = config.get("residual")
+    if not isinstance(residual, dict):
+        raise ValueError(f"{run_config}: no residual section, so no base to give a terminal phase")
+    residual["terminal"] = float(terminal)
+    config["terminal_at_export"] = float(terminal)
 
 
 @dataclass(frozen=True)
