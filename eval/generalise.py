@@ -9,9 +9,9 @@ Run::
 The split (exercises and user seeds of each role, the users' perturbations) is the one recorded
 with the (first) model (``worlds`` in ``MODEL_config.yaml``, written by ``python -m train.ppo``
 from a config with a ``worlds`` section), or ``--split CONFIG`` (a config with one). Every
-policy of ``--policies`` (default ``ac,lc-noap,lc,lc-em-end,lc-fill,lc-fill-end``) and each learned one
-(``ppo:MODEL``; several ``--model``: ``ppo-STEM``) runs on every exercise of the role times its
-first ``--users`` user seeds, the same episodes for every policy: paired. The people are
+policy of ``--policies`` (default ``ac,lc-noap,lc,lc-em-end,lc-fill,lc-fill-end``) and each
+learned one (``ppo:MODEL``; several ``--model``: ``ppo-STEM``) runs on every exercise of the
+role times its first ``--users`` user seeds, the same episodes for every policy: paired. The people are
 :class:`~langenv.users.PerturbedUser` of the split's perturbations (``--population
 perturbed``, the default), the plain synthetic population (``plain``, or ``--no-perturb``), or
 both (``both``: each exercise and user twice, the groups of the tables are then ``EXERCISE

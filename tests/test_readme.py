@@ -63,7 +63,7 @@ BUDGET: dict[str, Shrink | Skip] = {
     ),
     # A 1024-choice run on one validation person holds no checkpoint to the base's bars, so
     # --best refuses it (exit 2, tested in test_ppo); the export itself is run on the last one.
-    "langctrl export runs/speech --best --out runs/speech/best": Shrink(
+    "langctrl export runs/speech --best --terminal 1 --out runs/speech/best": Shrink(
         (("--best", "--steps 1024"),), slow=True
     ),
     "langctrl generalise --model runs/speech/best.zip --users 48 --out out/val": Shrink(

@@ -194,7 +194,7 @@ SECTIONS: dict[str, Section] = {
     "speech-headline": Section(
         (SPEECH_LOOK,),
         (
-            FileSection(SPEECH_MD, "Every policy", ("lc", "lc-fill", SHIPPED)),
+            FileSection(SPEECH_MD, "Every policy", ("lc", "lc-fill", "lc-fill-end", SHIPPED)),
             FileSection(SPEECH_MD, "The bars per group", (SHIPPED,)),
             FileSection(SPEECH_MD, "The bars: ", (SHIPPED,)),
         ),
