@@ -6,16 +6,15 @@ Run::
     python -m eval.generalise --model M1.zip --model M2.zip --role test --users 48 \
         --population both --out out/test_look_1
 
-The split (exercises and user seeds of each role, the users' perturbations) is the one recorded
-with the (first) model (``worlds`` in ``MODEL_config.yaml``, written by ``python -m train.ppo``
-from a config with a ``worlds`` section), or ``--split CONFIG`` (a config with one). Every
-policy of ``--policies`` (default ``ac,lc-noap,lc,lc-em-end,lc-fill,lc-fill-end``) and each
-learned one (``ppo:MODEL``; several ``--model``: ``ppo-STEM``) runs on every exercise of the
-role times its first ``--users`` user seeds, the same episodes for every policy: paired. The people are
-:class:`~langenv.users.PerturbedUser` of the split's perturbations (``--population
-perturbed``, the default), the plain synthetic population (``plain``, or ``--no-perturb``), or
-both (``both``: each exercise and user twice, the groups of the tables are then ``EXERCISE
-(population)``).
+The split (exercises and user seeds of each role, the users' perturbations) is the one recorded with
+the (first) model (``worlds`` in ``MODEL_config.yaml``, written by ``python -m train.ppo`` from a
+config with a ``worlds`` section), or ``--split CONFIG`` (a config with one). Every policy of
+``--policies`` (default ``ac,lc-noap,lc,lc-em-end,lc-fill,lc-fill-end``) and each learned one
+(``ppo:MODEL``; several ``--model``: ``ppo-STEM``) runs on every exercise of the role times its
+first ``--users`` user seeds, the same episodes for every policy: paired. The people are
+:class:`~langenv.users.PerturbedUser` of the split's perturbations (``--population perturbed``, the
+default), the plain synthetic population (``plain``, or ``--no-perturb``), or both (``both``: each
+exercise and user twice, the groups of the tables are then ``EXERCISE (population)``).
 
 **The bars** (:func:`bars`): each learned policy against ``--base`` (default ``lc-fill-end``,
 the best analytic policy, chosen on the validation worlds: the most sessions within 1 s, then the
