@@ -67,7 +67,7 @@ BUDGET: dict[str, Shrink | Skip] = {
         (("--best", "--steps 1024"),), slow=True
     ),
     "langctrl generalise --model runs/speech/best.zip --users 48 --out out/val": Shrink(
-        (("--users 48", "--users 1 --policies lc,lc-fill --n-boot 100"),), slow=True
+        (("--users 48", "--users 1 --policies lc,lc-fill-end --n-boot 100"),), slow=True
     ),
     "langctrl exercises --out out/exercises": Shrink(
         (("--out", "--users synthetic:1 --exercises hand_to_mouth --out"),), slow=True
