@@ -9,6 +9,7 @@ a pipe by the exchange before (which the disk cache would then keep under the wr
 
 from __future__ import annotations
 
+import atexit
 import multiprocessing
 import sys
 import textwrap
@@ -115,6 +116,32 @@ def test_a_worker_that_ends_inside_an_odd_byte_is_an_audio_error(
     finally:
         if engine._proc is not None:
             ESpeakEngine._stop(engine._proc)
+
+
+def test_one_shot_workers_leave_nothing_behind(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Without fork (Windows) a worker serves one request and ends: each is reaped and
+    forgotten, and no exit handler is added per request."""
+    from langenv.speech import audio
+
+    script = tmp_path / "one_shot_worker.py"
+    script.write_text(
+        "import json, sys\n"
+        "out = sys.stdout.buffer\n"
+        "out.write(json.dumps({'sr': 22050, 'version': 'fake', 'one_shot': True}).encode())\n"
+        "out.write(b'\\n'); out.flush()\n"
+        "sys.stdin.buffer.readline()\n"
+        "out.write(b'{\"n\": 3}\\n' + bytes(6)); out.flush()\n"
+    )
+    monkeypatch.setattr(espeak_worker, "__file__", str(script))
+    handlers = atexit._ncallbacks()  # CPython's count of exit handlers
+    before = dict(audio._WORKERS)
+    engine = ESpeakEngine()
+    for _ in range(4):
+        assert _say(engine, SHORT).size == 3
+        assert audio._WORKERS == before and engine._proc is None
+    assert atexit._ncallbacks() == handlers
 
 
 def test_a_garbled_greeting_is_an_audio_error(

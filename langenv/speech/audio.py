@@ -86,6 +86,23 @@ def default_cache_dir() -> Path:
     return Path.home() / ".cache" / "langctrl" / "tts"
 
 
+#: The workers this process started and has not ended, by the pid that started them: the one
+#: exit handler ends them (one handler, however many workers come and go: on Windows, without
+#: fork, a worker serves one request; elsewhere a worker ends after a failed exchange).
+_WORKERS: dict[subprocess.Popen[bytes], int] = {}
+
+
+def _stop_workers() -> None:
+    """At exit, end the workers this process started (not a forked parent's)."""
+    pid = os.getpid()
+    for proc, owner in list(_WORKERS.items()):
+        if owner == pid:
+            ESpeakEngine._stop(proc)
+
+
+atexit.register(_stop_workers)
+
+
 class ESpeakEngine:
     """eSpeak NG behind a worker process that says every text from the same clean state.
 
@@ -132,7 +149,7 @@ class ESpeakEngine:
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
         )
-        atexit.register(self._stop, proc)
+        _WORKERS[proc] = os.getpid()
         try:  # the worker is used only once its greeting is read (an interrupt ends it)
             hello = self._read_header(proc)
             if "error" in hello:
@@ -147,6 +164,7 @@ class ESpeakEngine:
     @staticmethod
     def _stop(proc: subprocess.Popen[bytes]) -> None:
         """End a worker: close its input (it exits at end of input) and reap it."""
+        _WORKERS.pop(proc, None)
         if proc.poll() is None and proc.stdin is not None:
             try:
                 proc.stdin.close()
@@ -158,6 +176,7 @@ class ESpeakEngine:
     def _end(proc: subprocess.Popen[bytes]) -> None:
         """End a worker whose pipes may be out of step (an exchange that did not finish): kill
         it and reap it, so that nothing it wrote is ever read as another text's answer."""
+        _WORKERS.pop(proc, None)
         try:
             proc.kill()
             proc.wait(timeout=5)
@@ -223,6 +242,7 @@ class ESpeakEngine:
                 raise
             if self._one_shot:
                 proc.wait()
+                _WORKERS.pop(proc, None)
                 for pipe in (proc.stdin, proc.stdout):
                     pipe.close()
             else:
