@@ -7,6 +7,7 @@ compiled ETC on such graphs, the named errors of graph files and scripts.
 from __future__ import annotations
 
 import re
+from itertools import pairwise
 from pathlib import Path
 
 import pytest
@@ -389,6 +390,31 @@ def test_a_filler_before_the_last_phrase_is_said_after_the_wait() -> None:
     _compiled_agrees(g)
 
 
+def test_a_filler_before_an_optional_line_and_the_last_phrase_is_said_after_the_wait() -> None:
+    """``{okay|so} [Almost there.]`` then ``Done.``: the filler leads to the optional line and
+    to the last phrase. On its way to the end it is said after the wait, with the last phrase
+    ("Okay." then 15 s of silence then "Done." had been the speech); on its way to the optional
+    line it is said as before."""
+    phrases = [
+        Phrase("a", "Go.", None, ("okay", "r")),
+        Phrase("okay", "Okay.", None, ("r", "t"), "filler"),
+        Phrase("r", "Almost there.", None, ("t",)),
+        Phrase("t", "Done.", None, ()),
+    ]
+    g = PhraseGraph(phrases, "a", {"a": 1.0, "okay": 0.5, "r": 1.0, "t": 0.9}, pause=0.3,
+                    final_wait=True)  # fmt: skip
+    assert g.children("a") == ("okay", "okay#end#wait", "r")
+    assert g.children("okay") == ("r",) and g.children("okay#end") == ("t",)
+    assert g.origin("okay#end") == "okay" and g.duration["okay#end"] == 0.5
+    for motion in (6.0, 20.0):
+        said = _said(g, motion)
+        assert said[-1][0] == "t" and said[-1][2] == pytest.approx(motion, abs=0.01)
+        for (u, _, end), (v, start, _) in pairwise(said):
+            if g.kind(u) == "filler":  # never a wait after a filler: the clip pause only
+                assert v in ("r", "t") and start - end == pytest.approx(0.3, abs=0.01)
+    _compiled_agrees(g)
+
+
 def test_members_of_a_repeat_that_lead_to_one_another_are_named(
     tmp_path: Path, clips: ClipLibrary
 ) -> None:
@@ -405,7 +431,13 @@ def test_members_of_a_repeat_that_lead_to_one_another_are_named(
 
 # ------------------------------------------------ random scripts: the wait and the compiled ETC
 _WORDS = ("Go on", "Keep going", "Nice and slow", "Almost there", "Good job", "Lift it")
-_ENDINGS = ("Done.", "{okay|good} Done.", "Done. | All done.", "[Nearly.]\nDone.")
+_ENDINGS = (
+    "Done.",
+    "{okay|good} Done.",
+    "Done. | All done.",
+    "[Nearly.]\nDone.",
+    "{okay|good} [Nearly.]\nDone.",
+)
 
 
 @st.composite

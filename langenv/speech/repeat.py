@@ -283,7 +283,7 @@ def expand(
         for u, ph in phrases.items()
     }
     table.update(extra)
-    opened = _add_waits(table, make) if final_wait else set()
+    opened = _add_waits(table, dur, make) if final_wait else set()
     return table, {u: d for u, d in dur.items() if u in table}, frozenset(opened)
 
 
@@ -293,24 +293,19 @@ def is_gap(vertex: str) -> bool:
     return bool(sep) and bool(head) and tail.startswith("gap") and tail[3:].isdigit()
 
 
-def _add_waits(table: dict[str, Any], make: Any) -> set[str]:
+def _add_waits(table: dict[str, Any], dur: dict[str, float], make: Any) -> set[str]:
     """Open silences before every final phrase (in place); returns the opened pauses.
 
     The silence goes before the words that end the speech: a final phrase, or a filler that
     leads only to them (``{okay|so} And you're done.`` is said as one piece after the wait, not
-    "Okay", a silence, "And you're done."). A pause all of whose children end the speech is
-    opened itself; a pause that may also lead elsewhere keeps its bounds (its silence is not the
-    last one on those other ways) and is followed by the wait on its way to the end."""
-    ending = {u for u, ph in table.items() if not ph.next and not ph.is_pause}
-    grew = True
-    while grew:  # fillers that lead only to the end (chains of fillers included)
-        more = {
-            u
-            for u, ph in table.items()
-            if ph.kind == "filler" and ph.next and u not in ending and set(ph.next) <= ending
-        }
-        ending |= more
-        grew = bool(more)
+    "Okay", a silence, "And you're done."). A filler that leads both to the end and to other
+    words is split (:func:`_split_fillers`), so that on its way to the end it too is said after
+    the wait. A pause all of whose children end the speech is opened itself; a pause that may
+    also lead elsewhere keeps its bounds (its silence is not the last one on those other ways)
+    and is followed by the wait on its way to the end."""
+    ending = _ending_words(table)
+    while _split_fillers(table, dur, ending, make):
+        ending = _ending_words(table)
     last_pauses = {u for u, ph in table.items() if ph.is_pause and set(ph.next) <= ending}
     opened: set[str] = set(last_pauses)
     for t in [u for u in table if u in ending]:
@@ -326,3 +321,45 @@ def _add_waits(table: dict[str, Any], make: Any) -> set[str]:
         table[wait] = make(wait, None, None, (t,), "pause", (0.0, WAIT_PLAN))
         opened.add(wait)
     return opened
+
+
+def _ending_words(table: dict[str, Any]) -> set[str]:
+    """The words that end the speech: final phrases and the fillers that lead only to them
+    (chains of fillers included)."""
+    ending = {u for u, ph in table.items() if not ph.next and not ph.is_pause}
+    grew = True
+    while grew:
+        more = {
+            u
+            for u, ph in table.items()
+            if ph.kind == "filler" and ph.next and u not in ending and set(ph.next) <= ending
+        }
+        ending |= more
+        grew = bool(more)
+    return ending
+
+
+def _split_fillers(
+    table: dict[str, Any], dur: dict[str, float], ending: set[str], make: Any
+) -> bool:
+    """Split each filler ``F`` that leads both to ending words and to others (``{okay|so}
+    [Almost there.]`` before the last phrase) into ``F`` (to the others) and ``F#end`` (the
+    same words, to the ending ones), a sibling of ``F`` at each of its parents (in place);
+    returns whether one was split."""
+    split = False
+    for f in [u for u, ph in table.items() if ph.kind == "filler" and u not in ending]:
+        ph = table[f]
+        ends = tuple(v for v in ph.next if v in ending)
+        if not ends:
+            continue
+        twin = f"{f}{SEP}end"
+        table[f] = make(f, ph.text, ph.audio, tuple(v for v in ph.next if v not in ending),
+                        ph.kind, ph.bounds)  # fmt: skip
+        table[twin] = make(twin, ph.text, ph.audio, ends, ph.kind, ph.bounds)
+        dur[twin] = dur[f]
+        for u, parent in list(table.items()):
+            if f in parent.next and u != twin:
+                kids = tuple(w for v in parent.next for w in ((v, twin) if v == f else (v,)))
+                table[u] = make(u, parent.text, parent.audio, kids, parent.kind, parent.bounds)
+        split = True
+    return split
