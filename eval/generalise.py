@@ -122,6 +122,26 @@ def _group(row: dict[str, Any]) -> str:
     return str(row.get("group", row["exercise"]))
 
 
+def _paired_groups(
+    rows: list[dict[str, Any]], policies: Sequence[str]
+) -> list[tuple[str, list[dict[str, Any]], int]]:
+    """Each group (and ``"all"``) with its rows and episode count, checked paired.
+
+    Raises:
+        ConfigError: when ``policies`` did not run the same episodes in a group.
+    """
+    from langenv.errors import ConfigError
+
+    out = []
+    for group in [*sorted({_group(r) for r in rows}), "all"]:
+        sub = [r for r in rows if group == "all" or _group(r) == group]
+        keys = [sorted(r["key"] for r in sub if r["policy"] == p) for p in policies]
+        if any(k != keys[0] for k in keys):
+            raise ConfigError(f"{group}: {', '.join(policies)} did not run the same episodes")
+        out.append((group, sub, len(keys[0])))
+    return out
+
+
 def _column(rows: list[dict[str, Any]], policy: str, metric: str) -> np.ndarray:
     mine = sorted((r for r in rows if r["policy"] == policy), key=lambda r: r["key"])
     return np.array([float(r[metric]) for r in mine], dtype=np.float64)
@@ -148,19 +168,12 @@ def compare_rows(
     Raises:
         ConfigError: when the policies did not run the same episodes.
     """
-    from langenv.errors import ConfigError
-
-    groups = sorted({_group(r) for r in rows})
+    policies = [learned, *analytic]
+    groups = _paired_groups(rows, policies)
     out = []
     for metric, (stat, _label) in COMPARED.items():
-        for group in [*groups, "all"]:
-            sub = [r for r in rows if group == "all" or _group(r) == group]
-            keys = {
-                p: sorted(r["key"] for r in sub if r["policy"] == p) for p in [learned, *analytic]
-            }
-            if any(k != keys[learned] for k in keys.values()):
-                raise ConfigError(f"{group}: the policies did not run the same episodes")
-            cols = {p: _column(sub, p, metric) for p in keys}
+        for group, sub, n in groups:
+            cols = {p: _column(sub, p, metric) for p in policies}
             fn = np.nanmedian if stat == "median" else np.nanmean
             values = {
                 p: float(fn(c)) if np.isfinite(c).any() else math.nan for p, c in cols.items()
@@ -171,7 +184,6 @@ def compare_rows(
             vs_ref = (math.nan, math.nan, math.nan)
             if REFERENCE in cols:
                 vs_ref = _diff(cols[learned], cols[REFERENCE], stat, n_boot, seed)
-            n = len(keys[learned])
             out.append(Comparison(metric, group, values, best, vs_best, vs_ref, n))
     return out
 
@@ -233,14 +245,8 @@ def bars(
     Raises:
         ConfigError: when the two did not run the same episodes.
     """
-    from langenv.errors import ConfigError
-
     out = []
-    for group in [*sorted({_group(r) for r in rows}), "all"]:
-        sub = [r for r in rows if group == "all" or _group(r) == group]
-        keys = {p: sorted(r["key"] for r in sub if r["policy"] == p) for p in (learned, base)}
-        if keys[learned] != keys[base]:
-            raise ConfigError(f"{group}: {learned} and {base} did not run the same episodes")
+    for group, sub, n in _paired_groups(rows, (learned, base)):
         col = {p: {m: _column(sub, p, m) for m in COMPARED} for p in (learned, base)}
         mine, theirs = col[learned], col[base]
         out.append(
@@ -248,7 +254,7 @@ def bars(
                 learned,
                 base,
                 group,
-                len(keys[learned]),
+                n,
                 (float(np.mean(mine["abs_am_le_1s"])), float(np.mean(theirs["abs_am_le_1s"]))),
                 _diff(mine["content_share"], theirs["content_share"], "mean", n_boot, seed),
                 _diff(mine["voice_natural"], theirs["voice_natural"], "mean", n_boot, seed),

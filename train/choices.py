@@ -40,6 +40,7 @@ from gymnasium import spaces
 from langenv.errors import ConfigError
 from langenv.pacing import PaceLaw
 from langenv.speech.voice import voice_rate, words_heard
+from policies.analytic import FILL_ANTICIPATE, FILL_K_C, FILL_MARGIN, FILL_PAUSE_SCALE
 from policies.learned import ResidualLC, ResidualSpec
 
 __all__ = ["EPISODE_S", "ChoicePoints", "session_speech"]
@@ -121,11 +122,11 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
         self,
         env: gym.Env[np.ndarray, np.ndarray],
         choice_scale: float = 0.5,
-        k_c: float = 0.0,
+        k_c: float = FILL_K_C,
         choice: str = "fill",
-        fill_margin: float = 0.25,
-        fill_anticipate: float = 1.0,
-        pause_scale: float = 0.25,
+        fill_margin: float = FILL_MARGIN,
+        fill_anticipate: float = FILL_ANTICIPATE,
+        pause_scale: float = FILL_PAUSE_SCALE,
         k_em: float = 0.0,
         w_content: float = 10.0,
         w_voice: float = 5.0,
