@@ -176,9 +176,7 @@ def export(args: ExportArgs) -> Path:
     if chosen is not None:
         config["selected_by"] = chosen.record(config)
     if args.choice_only:
-        residual = config.get("residual")
-        if not isinstance(residual, dict):
-            raise ValueError(f"{run_config}: no residual section, so no correction to restrict")
+        residual = _residual(config, run_config, "no correction to restrict")
         residual["pace_scale"] = 0.0
         residual["audio_scale"] = 0.0
         config["choice_only"] = True
@@ -205,11 +203,17 @@ def _set_terminal(config: dict[str, Any], run_config: Path, terminal: float) -> 
 
     if not (math.isfinite(terminal) and terminal >= 0.0):
         raise ValueError(f"train.export: --terminal must be finite and >= 0, got {terminal!r}")
-    residual = config.get("residual")
-    if not isinstance(residual, dict):
-        raise ValueError(f"{run_config}: no residual section, so no base to give a terminal phase")
+    residual = _residual(config, run_config, "no base to give a terminal phase")
     residual["terminal"] = float(terminal)
     config["terminal_at_export"] = float(terminal)
+
+
+def _residual(config: dict[str, Any], run_config: Path, why: str) -> dict[str, Any]:
+    """The run config's ``residual`` section, or a ValueError naming the file and ``why``."""
+    residual = config.get("residual")
+    if not isinstance(residual, dict):
+        raise ValueError(f"{run_config}: no residual section, so {why}")
+    return residual
 
 
 @dataclass(frozen=True)
