@@ -526,6 +526,7 @@ def run_episode(job: Job) -> dict[str, Any]:
 
     import langenv
     from eval.episode import EpisodeRecorder
+    from eval.legs import graph_legs
     from eval.metrics import episode_metrics
     from eval.plots import session_figure
     from langenv.exercise.script import speak
@@ -586,6 +587,7 @@ def run_episode(job: Job) -> dict[str, Any]:
     graph = base.graph
     texts = {u: (ph.text or u) for u, ph in graph.phrases.items() if not ph.is_pause}
     end_t = float(info["time"])
+    leg_of, spoken_legs = graph_legs(graph)
     log = rec.build(
         ret,
         texts=texts,
@@ -596,6 +598,9 @@ def run_episode(job: Job) -> dict[str, Any]:
         phrase_graph=graph_ref,
         path=base.motion.trajectory.sample(200),
         voice=graph.voice,
+        leg_of=leg_of,
+        leg_names=_leg_names(base),
+        spoken_legs=spoken_legs,
     )
     stem = Path(job.out_dir) / f"{policy.name}_{job.user}"
     if job.save_log:
@@ -646,6 +651,13 @@ def _run_law(
         ret += float(reward)
         rec.append(_with_scene(info, base))
     return ret, terminated, info
+
+
+def _leg_names(base: Any) -> tuple[str, ...]:
+    """The names of the legs the env's motion goes through: its exercise's, unless a
+    trajectory of other legs replaced the exercise's path (then none)."""
+    names = tuple(base.exercise.leg_names)
+    return names if len(base.motion.trajectory.waypoint_s) == len(names) else ()
 
 
 def _with_scene(info: dict[str, Any], base: Any) -> dict[str, Any]:

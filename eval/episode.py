@@ -16,7 +16,7 @@ import os
 import tempfile
 import zipfile
 from collections.abc import Collection, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -46,8 +46,8 @@ SCENE_TRACES: tuple[str, ...] = ("qpos", "f_user")
 _TRACES = (*FLOAT_TRACES, *FLAG_TRACES)  # what EpisodeRecorder.append reads from info, in order
 _TRACE_KEYS_TIME = tuple("time" if name == "t" else name for name in _TRACES)  # info has no "t"
 
-_NPZ_FORMAT = 2
-_NPZ_FORMATS = (1, 2)  # format 1: no scene traces, no phrase graph
+_NPZ_FORMAT = 3
+_NPZ_FORMATS = (1, 2, 3)  # format 1: no scene traces, no phrase graph; 2: no legs
 
 
 @dataclass(frozen=True)
@@ -62,6 +62,8 @@ class Utterance:
         length: For a pause vertex, the length chosen for it (s at a = 1, ``>= 0``); None for
             a clip.
         filler: True for a filler clip ("okay", "so").
+        leg: The leg of the exercise the vertex speaks about (its graph's ``leg``); empty in an
+            unmarked graph.
     """
 
     phrase: str
@@ -70,6 +72,7 @@ class Utterance:
     t_end: float
     length: float | None = None
     filler: bool = False
+    leg: str = ""
 
     def __post_init__(self) -> None:
         if not isinstance(self.phrase, str) or not self.phrase:
@@ -96,6 +99,8 @@ class Utterance:
                 raise ConfigError(f"Utterance.length must be finite and >= 0, got {self.length!r}")
             object.__setattr__(self, "length", length)
         object.__setattr__(self, "filler", bool(self.filler))
+        if not isinstance(self.leg, str):
+            raise ConfigError(f"Utterance.leg must be a str, got {type(self.leg).__name__}")
 
     @property
     def is_pause(self) -> bool:
@@ -143,6 +148,11 @@ class EpisodeLog:
             absolute path; empty when unknown. With the utterances it re-renders the speech.
         voice: How the graph voices the speech pace (:data:`langenv.speech.voice.VOICES`):
             ``"stretch"`` (the paper's; recorded sessions) or ``"natural"``.
+        leg: The leg the motion is in at each sample (``info["leg"]``: its index in
+            ``leg_names``), shape ``(n,)``, int64, never decreasing; None when not recorded.
+        leg_names: The names of the motion's legs, in order (the exercise's); empty when unknown.
+        spoken_legs: The legs the phrase graph has words for (a phrase vertex marked with the
+            leg), in script order; empty for an unmarked graph.
 
     Raises:
         ConfigError: (a ``ValueError``) naming the field, if a trace has the wrong shape, differing
@@ -171,6 +181,9 @@ class EpisodeLog:
     path: np.ndarray | None = None
     phrase_graph: str = ""
     voice: str = "stretch"
+    leg: np.ndarray | None = None
+    leg_names: tuple[str, ...] = ()
+    spoken_legs: tuple[str, ...] = ()
 
     _scalars: ClassVar[tuple[str, ...]] = ("t_motion", "t_speech", "ret")
 
@@ -182,6 +195,7 @@ class EpisodeLog:
         n = self._check_float_traces()
         self._check_flag_traces(n)
         self._check_scene_traces(n)
+        self._check_legs(n)
         if not isinstance(self.phrase_graph, str):
             raise ConfigError(
                 f"EpisodeLog.phrase_graph must be a str, got {type(self.phrase_graph).__name__}"
@@ -288,6 +302,23 @@ class EpisodeLog:
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
 
+    def _check_legs(self, n: int) -> None:
+        for name in ("leg_names", "spoken_legs"):
+            names = tuple(getattr(self, name))
+            if not all(isinstance(x, str) and x for x in names):
+                raise ConfigError(f"EpisodeLog.{name} must be leg names, got {names!r}")
+            object.__setattr__(self, name, names)
+        if self.leg is None:
+            return
+        raw = np.asarray(self.leg)
+        if raw.shape != (n,) or not np.all(np.isfinite(raw)) or not np.all(raw == np.round(raw)):
+            raise ConfigError(f"EpisodeLog.leg must be ({n},) leg indices like t, got {raw.shape}")
+        arr = raw.astype(np.int64)
+        if (arr < 0).any() or (np.diff(arr) < 0).any():
+            raise ConfigError("EpisodeLog.leg must be >= 0 and never decrease (the guide's leg)")
+        arr.setflags(write=False)
+        object.__setattr__(self, "leg", arr)
+
     @property
     def has_scene(self) -> bool:
         """Whether the log holds the joint positions and forces that replay the scene."""
@@ -328,12 +359,15 @@ class EpisodeLog:
                 [np.nan if u.length is None else u.length for u in utt], dtype=np.float64
             ),
             "utt_filler": np.array([u.filler for u in utt], dtype=bool),
+            "utt_leg": np.array([u.leg for u in utt], dtype=np.str_),
+            "leg_names": np.array(self.leg_names, dtype=np.str_),
+            "spoken_legs": np.array(self.spoken_legs, dtype=np.str_),
         }
         for name in (*FLOAT_TRACES, *FLAG_TRACES):
             payload[name] = getattr(self, name)
         payload["phrase_graph"] = np.array(self.phrase_graph)
         payload["voice"] = np.array(self.voice)
-        for name in (*SCENE_TRACES, "path"):
+        for name in (*SCENE_TRACES, "path", "leg"):
             if getattr(self, name) is not None:
                 payload[name] = getattr(self, name)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
@@ -368,6 +402,7 @@ class EpisodeLog:
                 fillers = (
                     data["utt_filler"] if "utt_filler" in data.files else np.zeros(n_utt, bool)
                 )
+                legs = data["utt_leg"] if "utt_leg" in data.files else [""] * n_utt
                 utterances = tuple(
                     Utterance(
                         str(ph),
@@ -376,9 +411,16 @@ class EpisodeLog:
                         float(s1),
                         None if np.isnan(ln) else float(ln),
                         bool(fl),
+                        str(lg),
                     )
-                    for ph, tx, (s0, s1), ln, fl in zip(
-                        data["utt_phrase"], data["utt_text"], spans, lengths, fillers, strict=True
+                    for ph, tx, (s0, s1), ln, fl, lg in zip(
+                        data["utt_phrase"],
+                        data["utt_text"],
+                        spans,
+                        lengths,
+                        fillers,
+                        legs,
+                        strict=True,
                     )
                 )
                 traces = {name: data[name] for name in (*FLOAT_TRACES, *FLAG_TRACES)}
@@ -386,6 +428,10 @@ class EpisodeLog:
                 scene = {n: data[n] for n in (*SCENE_TRACES, "path") if n in data.files}
                 graph = str(data["phrase_graph"]) if "phrase_graph" in data.files else ""
                 voice = str(data["voice"]) if "voice" in data.files else "stretch"
+                named = {
+                    key: tuple(str(x) for x in data[key]) if key in data.files else ()
+                    for key in ("leg_names", "spoken_legs")
+                }
                 return cls(
                     policy=str(data["policy"]),
                     user=str(data["user"]),
@@ -397,6 +443,8 @@ class EpisodeLog:
                     **scene,
                     phrase_graph=graph,
                     voice=voice,
+                    leg=data["leg"] if "leg" in data.files else None,
+                    **named,
                 )
         except SessionDataError:
             raise
@@ -424,7 +472,8 @@ class EpisodeRecorder:
     Feed it the env's ``info`` dict after ``reset`` and after every ``step`` (keys ``time`` or
     ``t``, ``cooperation``, ``hand_speed``, ``p``, ``a``, ``t_x``, ``t_a``, ``em``,
     ``motion_done``, ``speech_done``, optionally ``phrase``, ``in_pause``, ``t_motion``,
-    ``t_speech``, and the scene keys ``qpos`` and ``f_user``, in every sample or in none).
+    ``t_speech``, and the motion's ``leg`` and the scene keys ``qpos`` and ``f_user``, in every
+    sample or in none).
     Unless :meth:`build` is given the exact utterances (preferred: the speech
     timeline's ``utterances()``), they are read off the ``phrase`` key: each run of consecutive
     samples with the same non-empty phrase id, not ``in_pause``, is one utterance, from the time of
@@ -441,6 +490,7 @@ class EpisodeRecorder:
     _rows: list[list[float]] = field(default_factory=list, init=False, repr=False)
     _phrases: list[str | None] = field(default_factory=list, init=False, repr=False)
     _scene: dict[str, list[np.ndarray]] = field(default_factory=dict, init=False, repr=False)
+    _legs: list[int] = field(default_factory=list, init=False, repr=False)
     _last: dict[str, Any] = field(default_factory=dict, init=False, repr=False)
 
     def append(self, info: Mapping[str, Any]) -> None:
@@ -458,6 +508,8 @@ class EpisodeRecorder:
         for name in SCENE_TRACES:
             if name in info:
                 self._scene.setdefault(name, []).append(np.array(info[name], np.float32))
+        if "leg" in info:
+            self._legs.append(int(info["leg"]))
         phrase = None if info.get("in_pause") else info.get("phrase")
         self._phrases.append(str(phrase) if phrase else None)
         self._last = dict(info)
@@ -491,6 +543,8 @@ class EpisodeRecorder:
         self._rows.extend(np.stack(columns, axis=1).tolist())
         for name, rows in scene.items():
             self._scene.setdefault(name, []).extend(rows)
+        if "leg" in info:
+            self._legs.extend(np.asarray(info["leg"]).astype(np.int64).tolist())
         said = None if in_pause else phrase
         self._phrases.extend([str(said) if said else None] * n)
         self._last.update((key, float(c[-1])) for key, c in zip(keys, columns, strict=True))
@@ -511,6 +565,9 @@ class EpisodeRecorder:
         phrase_graph: str = "",
         path: np.ndarray | None = None,
         voice: str = "stretch",
+        leg_of: Mapping[str, str | None] | None = None,
+        leg_names: Sequence[str] = (),
+        spoken_legs: Sequence[str] = (),
     ) -> EpisodeLog:
         """The log of the recorded samples.
 
@@ -527,10 +584,14 @@ class EpisodeRecorder:
             phrase_graph: The phrase graph spoken (see :attr:`EpisodeLog.phrase_graph`).
             path: The exercise path drawn in videos, shape ``(m, 3)`` (m).
             voice: How the graph voices the speech pace (see :attr:`EpisodeLog.voice`).
+            leg_of: Vertex id -> the leg it speaks about (:meth:`PhraseGraph.leg
+                <langenv.speech.graph.PhraseGraph.leg>`), for the utterances' ``leg``.
+            leg_names: The motion's legs (:attr:`EpisodeLog.leg_names`).
+            spoken_legs: The legs the graph has words for (:attr:`EpisodeLog.spoken_legs`).
 
         Raises:
             ConfigError: if fewer than two samples were recorded, a completion time is unknown,
-                or a scene key was given in some samples only.
+                or a scene key or ``leg`` was given in some samples only.
         """
         if len(self) < 2:
             raise ConfigError(f"EpisodeRecorder.build needs >= 2 samples, got {len(self)}")
@@ -552,6 +613,13 @@ class EpisodeRecorder:
             ]
         else:
             said = self._phrase_runs(t, texts)
+        if leg_of:
+            said = [replace(u, leg=leg_of.get(u.phrase) or "") for u in said]
+        if self._legs and len(self._legs) != len(self):
+            raise ConfigError(
+                f"EpisodeRecorder.build: info had key 'leg' in {len(self._legs)} of "
+                f"{len(self)} samples (give it in every sample or in none)"
+            )
 
         def end_time(given: float | None, key: str, flag: str) -> float:
             if given is not None:
@@ -587,6 +655,9 @@ class EpisodeRecorder:
             path=path,
             phrase_graph=phrase_graph,
             voice=voice,
+            leg=np.array(self._legs, np.int64) if self._legs else None,
+            leg_names=tuple(leg_names),
+            spoken_legs=tuple(spoken_legs),
         )
 
     def _phrase_runs(self, t: np.ndarray, texts: Mapping[str, str]) -> list[Utterance]:

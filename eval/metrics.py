@@ -33,6 +33,12 @@ column             window       definition
                                 not a filler, a pause, the silence after a clip or the natural
                                 voice's wait (:func:`content_time`); words said after the motion
                                 ended do not count
+``sm_max_abs``     --           largest ``|SM_k|`` (s): when leg ``k``'s first words start minus
+                                when the motion enters leg ``k``, over the legs after the first
+                                whose words were said (:mod:`eval.legs`); NaN for an unmarked
+                                graph
+``legs_in_step``   --           share (0-1) of those legs whose words start within 1 s of the leg
+                                (words never said: not in step); NaN for an unmarked graph
 =================  ===========  ===========================================================
 
 Cooperation is averaged over the motion only because after the motion ends the hand rests and
@@ -48,6 +54,7 @@ from typing import Literal
 import numpy as np
 
 from eval.episode import EpisodeLog
+from eval.legs import leg_metrics
 from langenv.errors import ConfigError
 from langenv.speech.voice import voice_rate, words_heard
 
@@ -121,6 +128,12 @@ METRICS: dict[str, MetricSpec] = {
     "content_share": MetricSpec(
         "content", "%", 1, "share of the motion's duration in which words are heard", False
     ),
+    "sm_max_abs": MetricSpec(
+        "max |SM|", "s", 2, "largest |start of a leg's words - start of the leg|", True
+    ),
+    "legs_in_step": MetricSpec(
+        "legs in step", "%", 1, "share of legs whose words start within 1 s of the leg", False
+    ),
 }
 """Specification of every numeric metric, in column order."""
 
@@ -131,10 +144,10 @@ METRIC_COLUMNS: tuple[str, ...] = ("policy", "user", *NUMERIC_METRICS)
 """All columns of a session row (``sessions.csv``), in order."""
 
 OPTIONAL_METRICS: frozenset[str] = frozenset(
-    {"pause_share", "filler_share", "voice_natural", "content_share"}
+    {"pause_share", "filler_share", "voice_natural", "content_share", "sm_max_abs", "legs_in_step"}
 )
 """Metrics that tables of older runs lack (langctrl 0.4 and before; ``voice_natural`` and
-``content_share``: 0.5): read as NaN."""
+``content_share``: 0.5; ``sm_max_abs`` and ``legs_in_step``: after 0.5.0): read as NaN."""
 
 
 def time_weights(t: np.ndarray) -> np.ndarray:
@@ -347,6 +360,7 @@ def episode_metrics(log: EpisodeLog) -> dict[str, float | str]:
         "t_speech": log.t_speech,
         "return": log.ret,
         "content_share": _content_share(log, waiting),
+        **leg_metrics(log),
     }
     return row
 

@@ -62,7 +62,8 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
       up to a leg's end, and the next leg as soon as the hand's 6-D pose is within 0.1 of the
       leg's end pose (3.5 cm before it), without slowing down; the last leg ends the motion the
       same way, and the hand then brakes to rest. Nominal session without resistance: 10.1 s,
-      plateaus at 0.125 m/s with short V-shaped dips at the corners.
+      plateaus at 0.125 m/s with short V-shaped dips at the corners. ``info["leg"]`` is the
+      index of the leg being guided (the exercise's order, from 0; it stays at the last leg).
     * The velocity command sent to the arm follows ``v_ref`` changing at most at 0.14 m/s^2 (a
       UR's ``speedL`` acceleration, fitted to the recordings' dips and final ramps); a speed
       governor keeps a hand that a person pushes along from overshooting the corners.
@@ -748,6 +749,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             "cooperation": m.cooperation,
             "hand_speed": m.hand_speed,
             "progress": m.progress,
+            "leg": m.state.leg,
             "phrase": self.speech.phrase,
             "in_pause": self.speech.in_pause,
             "motion_done": m.motion_done,
@@ -774,7 +776,7 @@ class LawSteps:
         steps: Steps finished in compiled code (not counting ``last``'s).
         info: Per step (``steps`` rows) the info values ``time``, ``cooperation``,
             ``hand_speed``, ``p``, ``a``, ``t_x``, ``t_a``, ``em``, ``motion_done`` and
-            ``speech_done`` (these two as 0/1), the joint positions ``qpos`` (rad, shape ``(steps, nq)``) and
+            ``speech_done`` (these two as 0/1), ``leg`` (the leg's index), the joint positions ``qpos`` (rad, shape ``(steps, nq)``) and
             the person's force ``f_user`` (N, shape ``(steps, 3)``).
         rewards: Each step's reward, shape ``(steps,)``.
         phrase: The phrase (``info["phrase"]``) during these steps (they never cross a boundary).

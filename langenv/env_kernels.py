@@ -85,10 +85,11 @@ LAW = Layout(
 
 ROW_FIELDS = (
     "time", "cooperation", "hand_speed", "p", "a", "t_x", "t_a", "em", "motion_done",
-    "speech_done",
+    "speech_done", "leg",
 )  # fmt: skip
 """The info values :func:`run_law` records after each step, in its rows' first columns (then the
 joint positions and the person's force)."""
+_N_ROW = len(ROW_FIELDS)
 
 R_DONE, R_PYTHON, R_CONTROL, R_STOP, R_OVER = 0, 1, 2, 3, 4
 """:func:`run`'s answers (see there)."""
@@ -275,8 +276,9 @@ def run_law(
         row[7] = t_a - t_x
         row[8] = 0.0 if math.isnan(ws[_T.t_end]) else 1.0
         row[9] = 1.0 if es[_E.phrase] < 0.0 else 0.0
+        row[10] = ws[_T.leg]
         for j in range(n_q):
-            row[10 + j] = qpos[j]
+            row[_N_ROW + j] = qpos[j]
         for j in range(3):
-            row[10 + n_q + j] = es[_E.f_user + j]
+            row[_N_ROW + n_q + j] = es[_E.f_user + j]
     return rows.shape[0], R_DONE, 0

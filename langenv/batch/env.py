@@ -573,7 +573,7 @@ def _empty(key: str, value: Any, n: int) -> np.ndarray:
 
 _FLOAT_KEYS = (
     "time", "t_x", "t_a", "em", "p", "a", "cooperation", "hand_speed", "progress",
-    "path_deviation", "max_hand_speed", "reward_em", "reward_pace",
+    "path_deviation", "max_hand_speed", "reward_em", "reward_pace", "leg",
 )  # fmt: skip
 
 

@@ -97,10 +97,10 @@ arrays (a float64 row)."""
 INFO = (
     "time", "t_x", "t_a", "em", "p", "a", "cooperation", "hand_speed", "progress", "in_pause",
     "motion_done", "speech_done", "t_motion", "t_speech", "path_deviation", "max_hand_speed",
-    "reward_em", "reward_pace", "reward", "phrase",
+    "reward_em", "reward_pace", "reward", "phrase", "leg",
 )  # fmt: skip
 """The columns of :func:`observe`'s info rows (flags as 0/1, ``t_motion``/``t_speech`` NaN while
-going on, ``phrase`` the vertex's index or -1)."""
+going on, ``phrase`` the vertex's index or -1, ``leg`` the motion's leg index)."""
 
 _S = SESSION.at
 _C = CONTROL.at
@@ -255,4 +255,5 @@ def observe(
         row[16], row[17] = r_em, r_pace
         row[18] = rk.total(r_em, r_pace, 0.0)
         row[19] = u
+        row[20] = ws[_T.leg]
     _ = _N_INFO

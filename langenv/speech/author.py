@@ -28,6 +28,11 @@ A *script* says what the robot may say, one line per step of the exercise, in or
   silent, then says it so that it ends with the motion (``final_wait: true`` in the YAML; no line
   needed). ``@final-wait off`` (before the first step) makes the graph end as the paper's did,
   the last phrase said straight after the one before it.
+* ``@leg NAME`` on its own line starts the lines spoken for the exercise's leg ``NAME`` (the
+  names in the exercise file): the speech keeps each leg's words in step with that leg of the
+  motion. Marks follow the exercise's order, each leg once; when a script has marks, every step
+  comes after one (a pause line right after a mark belongs to that leg). A script without marks
+  is aligned with the motion at its end only.
 * ``@pause S`` (once, before the first step) sets the silence after every clip (default 1 s).
 * ``@voice natural`` (before the first step) voices the script as a person speaks: each clip at
   its natural rate or faster, waiting in silence at its end when the person is slow, instead of
@@ -48,6 +53,7 @@ import json
 import os
 import re
 import tempfile
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -81,6 +87,7 @@ class Vertex:
         bounds: A pause's ``(min, max)`` (s).
         line, column: Where the script wrote it (1-based).
         next: Ids of the vertices that may follow.
+        leg: The leg whose lines it is in (``@leg``); None in a script without marks.
     """
 
     id: str
@@ -90,6 +97,7 @@ class Vertex:
     line: int
     column: int
     next: list[str] = field(default_factory=list)
+    leg: str | None = None
 
 
 @dataclass(frozen=True)
@@ -115,7 +123,8 @@ class ScriptRepeat:
 @dataclass
 class Script:
     """A parsed script: its vertices in order (the first is the start), the clip pause, the
-    voice, its repeats and whether the last phrase waits for the motion."""
+    voice, its repeats, whether the last phrase waits for the motion, and its ``@leg`` marks
+    (leg name -> ``(line, column)``, in script order; empty: a script without marks)."""
 
     path: Path
     pause: float
@@ -123,6 +132,12 @@ class Script:
     voice: str = "stretch"
     repeats: list[ScriptRepeat] = field(default_factory=list)
     final_wait: bool = True
+    marks: dict[str, tuple[int, int]] = field(default_factory=dict)
+
+    @property
+    def legs(self) -> tuple[str, ...]:
+        """The legs the script marks, in script order."""
+        return tuple(self.marks)
 
     @property
     def start(self) -> str:
@@ -290,6 +305,7 @@ class _Builder:
     def __init__(self, path: Path) -> None:
         self.path = path
         self.vertices: dict[str, Vertex] = {}
+        self.leg: str | None = None  # the leg of the lines being read (the last @leg mark)
 
     def add(self, kind: str, text: str | None, bounds: tuple[float, float] | None, line: int,
             col: int, parents: list[str]) -> str:  # fmt: skip
@@ -299,7 +315,7 @@ class _Builder:
         vid, k = base, 2
         while vid in self.vertices:
             vid, k = f"{base}_{k}", k + 1
-        self.vertices[vid] = Vertex(vid, kind, text, bounds, line, col)
+        self.vertices[vid] = Vertex(vid, kind, text, bounds, line, col, leg=self.leg)
         for p in parents:
             nxt = self.vertices[p].next
             if vid not in nxt:
@@ -340,20 +356,28 @@ def _union(*lists: list[str]) -> list[str]:
     return list(dict.fromkeys(v for lst in lists for v in lst))
 
 
-def parse_script(source: str, path: str | Path = "<script>") -> Script:
+def parse_script(
+    source: str, path: str | Path = "<script>", legs: Sequence[str] | None = None
+) -> Script:
     """Parse a script (see the module docstring).
 
     Args:
         source: The script's text.
         path: Its file, named in errors.
+        legs: The exercise's leg names, in order, that ``@leg`` marks must name (None: any
+            names, unchecked against an exercise).
 
     Raises:
         ScriptError: naming the file, line and column: unbalanced or nested brackets, an empty
             alternative, ``[]`` or filler, a bad ``(pause ...)`` or ``@pause``, an unknown
             ``@`` directive, a first step that is not a single phrase, two pauses that can
-            follow each other, a script that can end with a pause, a script with no steps.
+            follow each other, a script that can end with a pause, a script with no steps; a
+            ``@leg`` mark inside a line, without one name, naming a leg twice, a leg ``legs``
+            lacks or out of their order, and a step before the first mark of a script with
+            marks.
     """
     path = Path(path)
+    marks: dict[str, tuple[int, int]] = {}
     b = _Builder(path)
     settings: dict[str, object] = {
         "@pause": DEFAULT_PAUSE,
@@ -367,6 +391,10 @@ def parse_script(source: str, path: str | Path = "<script>") -> Script:
         if not text.strip() or text.lstrip().startswith("#"):
             continue
         line = _Line(path, number, text)
+        _no_mark_inside(line, text)
+        if text.split()[0] == _MARK:
+            _mark(line, text, b, marks, legs)
+            continue
         if text.lstrip().startswith("@"):
             _directive(line, text, bool(frontier), settings)
             continue
@@ -404,7 +432,70 @@ def parse_script(source: str, path: str | Path = "<script>") -> Script:
     assert isinstance(pause, float)
     wait = settings["@final-wait"]
     assert isinstance(wait, bool)
-    return Script(path, pause, b.vertices, str(settings["@voice"]), repeats, wait)
+    return Script(path, pause, b.vertices, str(settings["@voice"]), repeats, wait, marks)
+
+
+_MARK = "@leg"
+_MARK_RE = re.compile(r"@leg\b")
+
+
+def _no_mark_inside(line: _Line, text: str) -> None:
+    """Refuse a ``@leg`` mark that does not start its line."""
+    start = len(text) - len(text.lstrip())
+    for m in _MARK_RE.finditer(text):
+        if m.start() != start:
+            raise line.error(
+                m.start() + 1,
+                "a @leg mark stands on its own line, before the lines of its leg (e.g. "
+                "'@leg out' above them)",
+            )
+
+
+def _mark(
+    line: _Line,
+    text: str,
+    b: _Builder,
+    marks: dict[str, tuple[int, int]],
+    legs: Sequence[str] | None,
+) -> None:
+    """Apply one ``@leg NAME`` line: the lines after it are ``NAME``'s."""
+    col = len(text) - len(text.lstrip()) + 1
+    parts = text.split()
+    if len(parts) != 2:
+        raise line.error(col, f"@leg takes one leg name, e.g. '@leg out', got {text.strip()!r}")
+    name = parts[1]
+    at = text.index(name, col - 1 + len(_MARK)) + 1
+    if name in marks:
+        raise line.error(
+            at, f"leg {name!r} is marked twice (first on line {marks[name][0]}); mark each leg once"
+        )
+    if legs is not None:
+        _check_mark_order(line, at, name, marks, tuple(legs))
+    if b.vertices and not marks:
+        first = next(iter(b.vertices.values()))
+        raise ScriptError(
+            f"{line.path}:{first.line}:{first.column}: this step comes before the first @leg mark "
+            f"(line {line.number}); in a script with marks every step follows one: put a mark "
+            "above it (e.g. '@leg NAME' with the exercise's first leg)"
+        )
+    marks[name] = (line.number, at)
+    b.leg = name
+
+
+def _check_mark_order(
+    line: _Line, at: int, name: str, marks: dict[str, tuple[int, int]], legs: tuple[str, ...]
+) -> None:
+    """Refuse a mark naming a leg the exercise lacks, or out of the exercise's order."""
+    if name not in legs:
+        raise line.error(at, f"{name!r} is not a leg of the exercise; its legs: {', '.join(legs)}")
+    if marks:
+        prev = next(reversed(marks))
+        if legs.index(name) < legs.index(prev):
+            raise line.error(
+                at,
+                f"leg {name!r} is marked after {prev!r}, which the exercise does later; marks "
+                f"follow the exercise's order ({', '.join(legs)})",
+            )
 
 
 def _repeat(line: _Line, m: re.Match[str], text: str, made: list[str], b: _Builder) -> ScriptRepeat:
@@ -499,6 +590,8 @@ def graph_yaml(script: Script, source_name: str) -> str:
         f"final_wait: {'true' if script.final_wait else 'false'}"
         "   # the last phrase waits for the motion"
     )
+    if script.marks:
+        out.append(f"legs: [{_ids(script.legs)}]   # the exercise's legs the lines speak about")
     if script.repeats:
         out.append("repeats:   # lines the speech may say again while the motion lasts")
         for r in script.repeats:
@@ -511,6 +604,8 @@ def graph_yaml(script: Script, source_name: str) -> str:
     ]
     for v in script.vertices.values():
         out.append(f"  {_id(v.id)}:   # line {v.line}")
+        if v.leg is not None:
+            out.append(f"    leg: {_id(v.leg)}")
         if v.kind == "pause":
             assert v.bounds is not None
             out.append(f"    pause: [{_num(v.bounds[0])}, {_num(v.bounds[1])}]")
@@ -523,9 +618,15 @@ def graph_yaml(script: Script, source_name: str) -> str:
 
 
 def author(
-    script_path: str | Path, out: str | Path, clips: ClipLibrary | None = None
+    script_path: str | Path,
+    out: str | Path,
+    clips: ClipLibrary | None = None,
+    legs: Sequence[str] | None = None,
 ) -> PhraseGraph:
     """Write the phrase graph of a script to ``out`` and return it, loaded and validated.
+
+    ``legs``: the exercise's leg names that the script's ``@leg`` marks must name, in order
+    (None: unchecked).
 
     The YAML is written to a temporary file beside ``out`` and loaded from there (every clip
     synthesised and timed, the TTS cache used); only a valid graph replaces ``out``.
@@ -541,7 +642,7 @@ def author(
     except (OSError, UnicodeDecodeError) as exc:
         reason = getattr(exc, "strerror", None) or exc
         raise PhraseGraphError(f"{script_path}: cannot read script: {reason}") from None
-    script = parse_script(source, script_path)
+    script = parse_script(source, script_path, legs)
     text = graph_yaml(script, script_path.name)
     if not out.parent.is_dir():
         raise ScriptError(f"{out}: directory {out.parent} does not exist")

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
@@ -98,8 +98,8 @@ SHIPPED_GRAPHS: Mapping[str, Path] = MappingProxyType(
 """The shipped phrase graphs of the default exercise, by name (the one place names resolve):
 ``default`` (also ``lc``, LC's graph), ``study`` (the study's LC graph), ``lc-noap`` and ``ac``."""
 
-_TOP_KEYS = frozenset({"start", "pause", "phrases", "voice", "repeats", "final_wait"})
-_PHRASE_KEYS = frozenset({"text", "audio", "next", "filler", "pause"})
+_TOP_KEYS = frozenset({"start", "pause", "phrases", "voice", "repeats", "final_wait", "legs"})
+_PHRASE_KEYS = frozenset({"text", "audio", "next", "filler", "pause", "leg"})
 _MAX_PAUSE = 10.0
 
 
@@ -227,6 +227,10 @@ class PhraseGraph:
         final_wait: Whether the last phrase waits for the motion (:mod:`langenv.speech.repeat`);
             off by default, as in the paper and in a graph file without the key; a script turns
             it on unless it says ``@final-wait off``.
+        legs: The names of the exercise's legs the script speaks about, in script order (a
+            script's ``@leg`` marks); empty: an unmarked graph, aligned at the end only.
+        leg_of: The leg of each of the graph's own vertices (every vertex, when ``legs`` is
+            given; None or empty otherwise).
 
     The vertices given are the graph's *own*; :attr:`phrases` holds them unrolled (repeats and
     the wait before the last phrase, :mod:`langenv.speech.repeat`), which is what the timeline
@@ -252,6 +256,8 @@ class PhraseGraph:
         path: str | Path | None = None,
         repeats: Mapping[str, Repeat] | Iterable[Repeat] = (),
         final_wait: bool = False,
+        legs: Sequence[str] = (),
+        leg_of: Mapping[str, str] | None = None,
     ) -> None:
         self.path: Path | None = None if path is None else Path(path)
         label = str(self.path) if self.path is not None else "<phrase graph>"
@@ -306,6 +312,8 @@ class PhraseGraph:
             problems += repeat_problems(label, table, reps)
         if not isinstance(final_wait, bool):
             problems.append(f"{label}: final_wait must be true or false, got {final_wait!r}")
+        leg_of = dict(leg_of or {})
+        problems += _leg_problems(label, table, tuple(legs), leg_of)
         if problems:
             raise PhraseGraphError("\n".join(problems))
 
@@ -328,6 +336,9 @@ class PhraseGraph:
         )
         self.opened: frozenset[str] = opened
         """The pauses open above their bounds: the silences before the last phrase."""
+        self.legs: tuple[str, ...] = tuple(legs)
+        """The legs the script speaks about, in script order (empty: an unmarked graph)."""
+        self._leg_of = _unrolled_legs(table, leg_of, reps) if legs else {}
         self._build_tables(table)
 
     def _build_tables(self, table: Mapping[str, Phrase]) -> None:
@@ -417,6 +428,7 @@ class PhraseGraph:
         final_wait = data.get("final_wait", False)
         if not isinstance(final_wait, bool):
             problems.append(f"{path}: 'final_wait' must be true or false, got {final_wait!r}")
+        legs, leg_of = _parse_legs(path, data, problems)
         if problems:
             raise PhraseGraphError("\n".join(problems))
         problems = _structure_problems(str(path), phrases, start)
@@ -449,6 +461,8 @@ class PhraseGraph:
             path=path,
             repeats=repeats,
             final_wait=final_wait,
+            legs=legs,
+            leg_of=leg_of,
         )
 
     def with_voice(self, voice: str) -> PhraseGraph:
@@ -470,9 +484,21 @@ class PhraseGraph:
             path=self.path,
             repeats=self.repeats,
             final_wait=self.final_wait,
+            legs=self.legs,
+            leg_of={u: self._leg_of[u] for u in self.source_phrases} if self.legs else None,
         )
 
     # ------------------------------------------------------------------ structure
+    def leg(self, u: str) -> str | None:
+        """The leg vertex ``u`` speaks about (an unrolled vertex: its source's; a repeat's gap:
+        its phrases'; a wait: its final phrase's); None in an unmarked graph.
+
+        Raises:
+            PhraseGraphError: if ``u`` is not a vertex of this graph.
+        """
+        self.children(u)  # validates u
+        return self._leg_of.get(u)
+
     def children(self, u: str) -> tuple[str, ...]:
         """Ids of the phrases that may follow ``u`` (empty for a terminal phrase)."""
         try:
@@ -762,6 +788,64 @@ def _nearest(kids: tuple[str, ...], mid: Mapping[str, float], x: float) -> str:
         if err < best_err:
             best, best_err = v, err
     return best
+
+
+def _leg_problems(
+    label: str, table: Mapping[str, Phrase], legs: tuple[str, ...], leg_of: Mapping[str, str]
+) -> list[str]:
+    """What is wrong with a graph's legs and its vertices' legs, one message each."""
+    if not all(isinstance(n, str) and n for n in legs):
+        return [f"{label}: 'legs' must be a list of leg names, got {list(legs)!r}"]
+    twice = sorted({n for n in legs if legs.count(n) > 1})
+    if twice:
+        return [f"{label}: 'legs' lists {twice} twice"]
+    if not legs:
+        return [f"{label}: vertices have a 'leg' but the graph has no 'legs'"] if leg_of else []
+    out = [
+        f"{label}: 'leg' given for {u!r}, which is not a vertex" for u in leg_of if u not in table
+    ]
+    for u, ph in table.items():
+        leg = leg_of.get(u)
+        if leg is None:
+            out.append(f"{label}: {ph.kind} {u!r}: no 'leg' (the graph has legs {list(legs)})")
+        elif leg not in legs:
+            out.append(f"{label}: {ph.kind} {u!r}: leg {leg!r} is not one of {list(legs)}")
+    return out
+
+
+def _unrolled_legs(
+    table: Mapping[str, Phrase], own: Mapping[str, str], repeats: Mapping[str, Repeat]
+) -> dict[str, str]:
+    """The leg of every unrolled vertex: its source's (``P#k``, ``F#end``, ``T#wait``), a gap
+    its repeat's phrases'."""
+    out: dict[str, str] = {}
+    for u in table:
+        if is_gap(u):
+            out[u] = own[repeats[u.rpartition(SEP)[0]].phrases[0]]
+        else:
+            out[u] = own[u.split(SEP, 1)[0]]
+    return out
+
+
+def _parse_legs(
+    path: Path, data: Mapping[str, Any], problems: list[str]
+) -> tuple[tuple[str, ...], dict[str, str]]:
+    """The graph file's ``legs`` and each vertex's ``leg`` (problems appended)."""
+    raw = data.get("legs", [])
+    if not isinstance(raw, list) or not all(isinstance(n, str) and n for n in raw):
+        problems.append(f"{path}: 'legs' must be a list of leg names, got {raw!r}")
+        raw = []
+    leg_of: dict[str, str] = {}
+    phrases = data.get("phrases")
+    for pid, spec in phrases.items() if isinstance(phrases, dict) else ():
+        leg = spec.get("leg") if isinstance(spec, dict) else None
+        if leg is None:
+            continue
+        if not isinstance(leg, str) or not leg:
+            problems.append(f"{path}: vertex {pid!r}: 'leg' must be a leg name, got {leg!r}")
+        else:
+            leg_of[str(pid)] = leg
+    return tuple(raw), leg_of
 
 
 def _is_number(x: object) -> bool:
