@@ -46,6 +46,7 @@ __all__ = [
     "WAYPOINT_TOL",
     "GuidedRun",
     "guided_run",
+    "leg_times",
     "path_problems",
 ]
 
@@ -71,12 +72,15 @@ class GuidedRun:
         etc: The fast motion ETC from rest at the start (s).
         max_path_error: Largest distance of the hand from the path (m).
         max_speed: Largest hand speed (m/s).
+        leg_times: Time the hand spends in each leg (s, from the guide's switch into it to the
+            switch out of it, the last leg to the motion's end); empty if it did not finish.
     """
 
     time: float | None
     etc: float
     max_path_error: float
     max_speed: float
+    leg_times: tuple[float, ...] = ()
 
 
 def guided_run(exercise: Exercise, params: AdmittanceParams | None = None) -> GuidedRun:
@@ -87,7 +91,20 @@ def guided_run(exercise: Exercise, params: AdmittanceParams | None = None) -> Gu
     params = params if params is not None else exercise.admittance()
     run = simulate_virtual(exercise.trajectory, params, t_max=DURATION_RANGE[1] * 1.5)
     etc = FastETC(Guide(exercise.trajectory, params), VariableAdmittance(params)).nominal()
-    return GuidedRun(run.done_time, float(etc), run.max_path_error, run.max_speed)
+    legs = (
+        ()
+        if run.done_time is None
+        else leg_times(run.t, run.leg, len(exercise.legs), run.done_time)
+    )
+    return GuidedRun(run.done_time, float(etc), run.max_path_error, run.max_speed, legs)
+
+
+def leg_times(t: np.ndarray, leg: np.ndarray, n_legs: int, end: float) -> tuple[float, ...]:
+    """Time spent in each of ``n_legs`` legs (s) by a motion whose leg index at the times ``t``
+    is ``leg`` and which ended at ``end``: from the first sample in a leg to the first in the
+    next (the last: to ``end``); 0 for a leg it never reached."""
+    starts = [float(t[np.argmax(leg >= k)]) if (leg >= k).any() else end for k in range(n_legs)]
+    return tuple(max(0.0, b - a) for a, b in zip(starts, [*starts[1:], end], strict=True))
 
 
 def path_problems(

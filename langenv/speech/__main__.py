@@ -102,7 +102,8 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="E",
         default=None,
         help="check the script's words against this exercise's motion times (a shipped name or "
-        "an exercise YAML) and print 'warning:' lines where they fall short (default: no check)",
+        "an exercise YAML) and print 'warning:' lines where they fall short, and its @leg marks "
+        "against the exercise's legs (an unknown leg is an error) (default: no check)",
     )
 
     r = sub.add_parser(
@@ -259,10 +260,17 @@ def _author(args: argparse.Namespace) -> int:
         from langenv.exercise import resolve_exercise
 
         exercise = resolve_exercise(args.exercise)  # a bad exercise before anything is written
-    graph = author(args.script, out, _clips(args))
+    legs = exercise.leg_names if exercise is not None else None
+    graph = author(args.script, out, _clips(args), legs)
     print(f"wrote {out} from {args.script}")
     print(_summary(graph))
     print(format_coverage(coverage(graph)))
+    if exercise is None and not graph.legs:
+        print(
+            f"warning: {out.name}: no @leg marks: its words are aligned with the motion at its "
+            "end only, not with each leg; mark each leg's lines ('@leg NAME' above them) to keep "
+            "them in step"
+        )
     if exercise is not None:
         from langenv.script_fit import fit_report
 

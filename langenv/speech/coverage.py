@@ -24,7 +24,15 @@ from langenv.errors import ConfigError
 from langenv.pacing import PaceLimits
 from langenv.speech.graph import PhraseGraph
 
-__all__ = ["NATURAL", "Coverage", "coverage", "format_coverage", "speech_lengths"]
+__all__ = [
+    "NATURAL",
+    "Coverage",
+    "coverage",
+    "format_coverage",
+    "leg_lengths",
+    "natural_lengths",
+    "speech_lengths",
+]
 
 NATURAL = 0.1
 """Audio paces within ``1 ± NATURAL`` count as a natural voice (the study's 0.1)."""
@@ -57,6 +65,30 @@ def speech_lengths(graph: PhraseGraph, u: str | None = None) -> Intervals:
         spans = [(lo + a, hi + b) for w in kids for a, b in sets[w]]
         sets[v] = _merge(spans)
     return sets[graph.start if u is None else u]
+
+
+def leg_lengths(graph: PhraseGraph, leg: str) -> Intervals:
+    """Every length of the words of leg ``leg`` at a = 1 (s), as merged intervals: along each
+    path, the slots of its vertices marked with ``leg`` (pauses at their planned bounds), from
+    the start of the leg's first vertex to the start of the next leg's (the end of the speech
+    for the last); a path that skips the leg's lines gives 0."""
+    sets: dict[str, Intervals] = {}
+    for v in reversed(graph.order):
+        mine = graph.leg(v) == leg
+        kids = graph.children(v)
+        if not kids:
+            d = graph.duration[v] if mine else 0.0
+            sets[v] = ((d, d),)
+            continue
+        lo, hi = graph.plan_range(v) if mine else (0.0, 0.0)
+        sets[v] = _merge([(lo + a, hi + b) for w in kids for a, b in sets[w]])
+    return sets[graph.start]
+
+
+def natural_lengths(speech: Intervals) -> Intervals:
+    """The motion durations speech of these lengths at a = 1 can match at a natural voice
+    (``|a - 1| <= NATURAL``), merged."""
+    return _merge([(a / (1.0 + NATURAL), b / (1.0 - NATURAL)) for a, b in speech])
 
 
 @dataclass(frozen=True)
