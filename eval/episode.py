@@ -428,10 +428,10 @@ class EpisodeLog:
                 scene = {n: data[n] for n in (*SCENE_TRACES, "path") if n in data.files}
                 graph = str(data["phrase_graph"]) if "phrase_graph" in data.files else ""
                 voice = str(data["voice"]) if "voice" in data.files else "stretch"
-                named = {
-                    key: tuple(str(x) for x in data[key]) if key in data.files else ()
+                leg_names, spoken = (
+                    tuple(str(x) for x in data[key]) if key in data.files else ()
                     for key in ("leg_names", "spoken_legs")
-                }
+                )
                 return cls(
                     policy=str(data["policy"]),
                     user=str(data["user"]),
@@ -444,7 +444,8 @@ class EpisodeLog:
                     phrase_graph=graph,
                     voice=voice,
                     leg=data["leg"] if "leg" in data.files else None,
-                    **named,
+                    leg_names=leg_names,
+                    spoken_legs=spoken,
                 )
         except SessionDataError:
             raise

@@ -23,7 +23,11 @@ def _line(name: str, end: object, **kw: object) -> Leg:
 
 
 def _ex(*legs: Leg, speed: float = 0.125, switch_tol: float = 0.035) -> Exercise:
-    return Exercise("crafted", "Crafted", START, legs, speed=speed, switch_tol=switch_tol)
+    """A crafted exercise; it speaks the study's graph (unmarked: the default graph's @leg marks
+    name the study's legs, which a crafted exercise lacks)."""
+    return Exercise(
+        "crafted", "Crafted", START, legs, speed=speed, switch_tol=switch_tol, graph="study"
+    )
 
 
 def _kinds(ex: Exercise, model: Path | None = None) -> dict[str, set[str | None]]:

@@ -3,14 +3,16 @@
 :func:`check_exercise` runs the path's checks (:mod:`langenv.exercise.path_checks`: continuity,
 turns, bends at the nominal speed, the guided motion and its ETC at cooperation 1), the arm's
 (:mod:`langenv.exercise.reach`: IK with the tool orientation, joint margins, manipulability,
-contacts) and loads the script's phrase graphs. A legal file that is unsafe is refused with the
-same detail as a malformed one: an :class:`~langenv.errors.ExerciseError` whose ``problems`` say
-which leg, which point and why.
+contacts) and loads the script's phrase graphs, whose ``@leg`` marks must name the exercise's
+legs in its order (:func:`leg_problems`: the graph file's line and column). A legal file that
+is unsafe is refused with the same detail as a malformed one: an
+:class:`~langenv.errors.ExerciseError` whose ``problems`` say which leg, which point and why.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,7 +21,7 @@ from langenv.exercise.path_checks import GuidedRun, path_problems
 from langenv.exercise.reach import ReachReport, reach_problems
 from langenv.exercise.spec import Exercise, Problem
 
-__all__ = ["CheckReport", "check_exercise", "exercise_problems"]
+__all__ = ["CheckReport", "check_exercise", "exercise_problems", "leg_problems"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -102,7 +104,49 @@ def _script_problems(exercise: Exercise) -> list[Problem]:
     for key in ("graph", "single"):
         ref = getattr(exercise, key)
         try:
-            PhraseGraph.load(graph_path(ref))
+            graph = PhraseGraph.load(graph_path(ref))
         except LangEnvError as exc:
             out.append(Problem("bad_graph", None, None, f"script.{key}: {exc}"))
+            continue
+        out += [
+            Problem("unknown_leg", leg, None, f"script.{key}: {where}: {why}")
+            for leg, where, why in leg_problems(graph.legs, exercise.leg_names, graph_path(ref))
+        ]
     return out
+
+
+def leg_problems(
+    legs: Sequence[str], names: Sequence[str], path: Path
+) -> list[tuple[str, str, str]]:
+    """A phrase graph's legs (``legs``, from the file ``path``) against an exercise's leg
+    names: each leg the exercise lacks, or out of its order, as ``(leg, FILE:LINE:COL, why)``
+    with where the file names it."""
+    out: list[tuple[str, str, str]] = []
+    last = -1
+    for leg in legs:
+        if leg not in names:
+            why = f"{leg!r} is not a leg of the exercise; its legs: {', '.join(names)}"
+        elif names.index(leg) < last:
+            order = ", ".join(names)
+            why = f"leg {leg!r} comes after a later leg; legs follow the exercise's order ({order})"
+        else:
+            last = names.index(leg)
+            continue
+        out.append((leg, _where(path, leg), why))
+    return out
+
+
+def _where(path: Path, leg: str) -> str:
+    """``FILE:LINE:COL`` of ``leg`` in the graph file's ``legs`` list (``FILE`` if not found)."""
+    import yaml
+
+    try:
+        root = yaml.compose(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, yaml.YAMLError):
+        return str(path)
+    for key, value in getattr(root, "value", ()):
+        if getattr(key, "value", None) == "legs" and isinstance(value, yaml.SequenceNode):
+            for item in value.value:
+                if item.value == leg:
+                    return f"{path}:{item.start_mark.line + 1}:{item.start_mark.column + 1}"
+    return str(path)

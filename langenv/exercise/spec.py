@@ -93,6 +93,8 @@ PROBLEM_KINDS = MappingProxyType(
         "degenerate": "a zero-length line, an arc whose start lies on its axis, a zero angle",
         "spline_fit": "a spline not fitted with lines and arcs within its tolerance",
         "bad_graph": "the script's phrase graph is missing or invalid",
+        "unknown_leg": "the script's phrase graph marks a leg the exercise does not have, or "
+        "marks legs out of the exercise's order",
         "gap": "a leg that does not end at its stated waypoint (where the next one starts)",
         "curvature": "a bend too tight to follow at the nominal speed",
         "path_error": "the guided hand would leave the path by more than the tolerance",
