@@ -42,6 +42,11 @@ def test_motion_times_are_the_population_s_and_cached(
     assert len(pop) == 48 and list(pop) == sorted(pop)
     assert 9.0 < flexion_times.nominal < pop[0] + 1.0  # resisting people are slower
     assert flexion_times.q05 <= flexion_times.q95 <= pop[-1]
+    legs = flexion_times.legs  # each leg's times: the motion's, cut where the guide switches
+    assert len(legs) == 3 and all(len(leg.population) == 48 for leg in legs)
+    assert sum(leg.nominal for leg in legs) == pytest.approx(flexion_times.nominal, abs=1e-9)
+    assert sum(leg.population[-1] for leg in legs) >= pop[-1] - 1e-9  # slowest of each leg
+    assert sum(leg.population[0] for leg in legs) <= pop[0] + 1e-9
     import langenv.script_fit as fit
 
     monkeypatch.setattr(fit, "_population", lambda *a: pytest.fail("simulated again"))
