@@ -43,7 +43,10 @@ class CompiledSteps:
         self.order: tuple[str, ...] = tuple(graph.phrases)
         self.index = {u: i for i, u in enumerate(self.order)}
         self.mid, self.slot, self.kid_ptr, self.kids = graph.packed(self.order)
-        self._graph = (self.mid, self.slot, self.kid_ptr, self.kids)
+        self.lg = env.leg_plan.packed(
+            [graph.segment(u) for u in self.order], [graph.is_gate(u) for u in self.order]
+        )
+        self._graph = (self.mid, self.slot, self.kid_ptr, self.kids, self.lg)
         self._head: tuple[np.ndarray, ...] | None = None
         self.es = es if es is not None else ek.ENV_STEPS.zeros()
         ek.ENV_STEPS.pack(self.es, {**env.paces.limits.settings(), "dt": env.dt})
@@ -84,7 +87,7 @@ class CompiledSteps:
         return done, answer, code, em_int, pace_int
 
     def arrays(self) -> tuple[np.ndarray, ...]:
-        """The arrays :func:`~langenv.env_kernels.run` takes first (``ws`` ... ``kids``), in
+        """The arrays :func:`~langenv.env_kernels.run` takes first (``ws`` ... ``lg``), in
         order; ``es`` as it is (see :meth:`load`)."""
         return self._arrays(self.env.user.force_table()[0])
 
@@ -102,7 +105,8 @@ class CompiledSteps:
         u = speech.phrase
         pos, t, a, mark, slot, in_pause = speech.state_values()
         self.es[_LOADED] = (
-            paces.p, paces.a, paces.p_dot, env.time, env.t_a, em_int, pace_int, env.max_speed,
+            paces.p, paces.a, paces.p_dot, env.time, env.t_a, env.t_h, em_int, pace_int,
+            env.max_speed,
             pos, t, a, mark, -1.0 if u is None else self.index[u], slot, in_pause,
             env.coop_index, step, env.pause_factor,
         )  # fmt: skip
@@ -114,11 +118,11 @@ class CompiledSteps:
         env, es = self.env, self.es
         paces, motion = env.paces, env.motion
         (
-            paces.p, paces.a, paces.p_dot, time, t_a, em_int, pace_int, max_speed,
+            paces.p, paces.a, paces.p_dot, time, t_a, t_h, em_int, pace_int, max_speed,
             pos, t, sa, mark, _, slot, _, coop_i, _, _,
         ) = es[_LOADED].tolist()  # fmt: skip
         env.speech.take_state(pos, t, sa, mark, slot)
-        env.take_times(time, t_a, max_speed, int(coop_i))
+        env.take_times(time, t_a, t_h, max_speed, int(coop_i))
         motion.f_user = es[_E.f_user : _E.f_user + 3].copy()
         motion.compiled_tick.sync()
         return em_int, pace_int

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -31,6 +31,7 @@ from langenv.robot.io_arm import IOArm, MeasuredUser
 from langenv.safety import SafetyLimits
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.graph import PhraseGraph, graph_path
+from langenv.speech.legs import LegPlan, leg_plan
 from langenv.speech.timeline import SpeechTimeline
 from langenv.users import CallableUser, ReplayUser, SyntheticUser, User
 
@@ -307,6 +308,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             safety,
         )
         self.paces = PaceActuator(paces if paces is not None else PaceLimits())
+        self._legs = self._leg_plan(self.graph)
         self.speech = SpeechTimeline(self.graph)
         self.dt = self.motion.dt
         if not math.isclose(self.dt * PHYSICS_HZ, 1.0, rel_tol=1e-9):
@@ -325,11 +327,29 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self._renderer: Any = None
         self.time = 0.0
         self.t_a = 0.0
+        self.t_h = 0.0
+        self._hz: Sequence[float] = (0.0,)
         self.t_speech_end: float | None = None
         self.am = 0.0
         self._terminated = False
         self._am_paid = False
         self._reset_episode_state()
+
+    def _leg_plan(self, graph: PhraseGraph) -> LegPlan:
+        """The plan of ``graph``'s legs on the exercise (:mod:`langenv.speech.legs`)."""
+        names = self.exercise.leg_names
+        n_legs = len(self.motion.trajectory.waypoint_s)
+        if graph.segment_names and n_legs != len(names):
+            raise ConfigError(
+                f"{graph.path}: a script marked with legs needs the exercise's own path "
+                f"({len(names)} legs), got a trajectory of {n_legs}"
+            )
+        return leg_plan(graph, names, self.motion.etc.nominal_rest, self.exercise.name)
+
+    @property
+    def leg_plan(self) -> LegPlan:
+        """The phrase graph's segments on the exercise's legs (one for an unmarked graph)."""
+        return self._legs
 
     def use_phrase_graph(self, graph: PhraseGraph) -> None:
         """Speak ``graph`` from the next :meth:`reset` on, instead of the one given at
@@ -347,6 +367,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
                 f"use_phrase_graph: the graph has {graph.max_children} choices at most, the "
                 f"env's observation {self.max_children}"
             )
+        self._legs = self._leg_plan(graph)
         self.graph = graph
         self.speech = SpeechTimeline(graph)
         durations = {u: (graph.t_min(u), graph.t_max(u)) for u in graph.phrases}
@@ -541,10 +562,14 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         """The pause rule's target over ``t_x`` for this step (the target action's factor)."""
         return self._pause_factor
 
-    def take_times(self, time: float, t_a: float, max_speed: float, coop_index: int) -> None:
-        """Take the env's time, ``t_a``, the step's highest hand speed and the cooperation
-        samples' count back after compiled ticks (:class:`~langenv.compiled_steps.CompiledSteps`)."""
-        self.time, self.t_a, self._max_speed, self._coop_i = time, t_a, max_speed, coop_index
+    def take_times(
+        self, time: float, t_a: float, t_h: float, max_speed: float, coop_index: int
+    ) -> None:
+        """Take the env's time, ``t_a``, ``t_h``, the step's highest hand speed and the
+        cooperation samples' count back after compiled ticks
+        (:class:`~langenv.compiled_steps.CompiledSteps`)."""
+        self.time, self.t_a, self.t_h = time, t_a, t_h
+        self._max_speed, self._coop_i = max_speed, coop_index
 
     @property
     def runs_compiled(self) -> bool:
@@ -626,6 +651,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     def _reset_episode_state(self) -> None:
         self.time = 0.0
         self.t_a = 0.0
+        self.t_h = 0.0
         self.t_speech_end = None
         self.am = 0.0
         self._terminated = False
@@ -651,8 +677,8 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             self._terminated = True
             return 0.0, 0.0
         if not speech.done:
-            t_x = motion.t_x
-            speech.step(self.dt, a, self._choose, t_x, t_x * self._pause_factor)
+            hz = self._horizons()
+            speech.step(self.dt, a, self._choose, hz, pause_factor=self._pause_factor)
         self.time += self.dt
         self._coop_hist[self._coop_i % self._coop_hist.size] = motion.cooperation
         self._coop_i += 1
@@ -661,7 +687,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             end = speech.t_end
             self.t_speech_end = end if end is not None else self.time
         motion_on, speech_on = not motion.motion_done, not speech.done
-        em, pace = reward.integrands(self.t_a, a, motion.t_x, p, motion_on, speech_on)
+        em, pace = reward.integrands(self.t_a, a, self.t_h, p, motion_on, speech_on)
         if not motion_on and not speech_on:
             self._end_episode()
         return em, pace
@@ -698,14 +724,32 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         if len(candidates) == 1:
             return candidates[0]
         if self.choice_mode == "target":
-            target = self.motion.t_x * 2.0 ** (CHOICE_OCTAVES * float(self._choice_u[0]))
+            h = self._hz[self.graph.segment(candidates[0])]
+            target = h * 2.0 ** (CHOICE_OCTAVES * float(self._choice_u[0]))
             mids = [0.5 * (self.graph.t_min(c) + self.graph.t_max(c)) for c in candidates]
             return candidates[int(np.argmin([abs(target - m) for m in mids]))]
         scores = self._choice_u[: len(candidates)]
         return candidates[int(np.argmax(scores))]
 
+    def _horizons(self) -> float | Sequence[float]:
+        """The motion's time to the end of each of the graph's segments (kept for the step's
+        choices); a number for one segment: its ``t_x``."""
+        m = self.motion
+        if self._legs.segments == 1:
+            self._hz = (m.t_x,)
+            return m.t_x
+        self._hz = self._legs.horizons(m.t_x, m.t_leg, m.state.leg)
+        return self._hz
+
     def _update_speech_eta(self) -> None:
-        self.t_a = self.speech.eta(self.motion.t_x)
+        """``t_a`` and ``t_h``: the speech's and the motion's times to the end of the horizon
+        segment (the later of the motion's and the speech's plan's; :mod:`langenv.speech.legs`)."""
+        hz = self._horizons()
+        if isinstance(hz, float):
+            self.t_a, self.t_h = self.speech.eta(hz), hz
+            return
+        last = max(self._legs.motion_segment(self.motion.state.leg), self.speech.horizon_segment())
+        self.t_a, self.t_h = self.speech.eta(hz, last), hz[last]
 
     def _observation(self) -> np.ndarray:
         """The observation (layout and scales: :mod:`langenv.observation`)."""
@@ -717,7 +761,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         oldest = hist.item(i % n) if i >= n else 1.0
         self._encoder.encode(
             self._obs,
-            t_x=m.t_x,
+            t_x=self.t_h,
             t_a=self.t_a,
             p=self.paces.p,
             a=a,
@@ -741,9 +785,9 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         stop = m.safety_stop
         return {
             "time": self.time,
-            "t_x": m.t_x,
+            "t_x": self.t_h,
             "t_a": self.t_a,
-            "em": self.t_a - m.t_x,
+            "em": self.t_a - self.t_h,
             "p": self.paces.p,
             "a": self.paces.a,
             "cooperation": m.cooperation,

@@ -31,6 +31,7 @@ from langenv.pacing import PACE_LAW, PACE_SETTINGS, PACE_STATE
 from langenv.pacing_kernels import law_commands
 from langenv.pacing_kernels import step as pace_step
 from langenv.speech.graph_kernels import eta, fill
+from langenv.speech.legs_kernels import gate, horizon, motion_segment, segment
 from langenv.speech.timeline import TIMELINE_STATE
 from langenv.users.table_kernels import against_motion, magnitude
 
@@ -52,6 +53,7 @@ __all__ = [
 ENV_TIMES = (
     Field("time", doc="the env's time since the reset (s)"),
     Field("t_a", doc="the speech ETC after the last tick (s)"),
+    Field("t_h", doc="the motion's time to the end of the horizon segment after the last tick (s)"),
     Field("em_int", doc="the step's misalignment integral so far (s^2)"),
     Field("pace_int", doc="the step's pace objective integral so far (s)"),
     Field("max_speed", doc="the step's highest hand speed so far (m/s)"),
@@ -122,6 +124,7 @@ def run(
     slot: np.ndarray,
     kid_ptr: np.ndarray,
     kids: np.ndarray,
+    lg: np.ndarray,
     p_cmd: float,
     a_cmd: float,
     n: int,
@@ -173,23 +176,32 @@ def run(
             return i + 1, R_STOP, stop
         t_x = ws[_T.t_x]
         t_a = 0.0
+        t_h = t_x
         if u >= 0:
             es[_E.speech_a] = a
             es[_E.speech_pos] += adv
             es[_E.speech_t] += dt
             pos = es[_E.speech_pos]
+            t_leg, leg = ws[_T.t_leg], int(ws[_T.leg])
             if slot[u, 1] < slot[u, 2]:  # an open pause: its length planned again
-                length = fill(u, pos + t_x * es[_E.pause_factor], mid, slot, kid_ptr, kids)
+                h = horizon(lg, segment(lg, u), t_x, t_leg, leg)
+                f = 1.0 if gate(lg, u) else es[_E.pause_factor]
+                length = fill(u, pos + h * f, mid, slot, kid_ptr, kids, lg)
                 es[_E.slot] = length if length > pos else pos
                 es[_E.mark] = es[_E.slot]
-            t_a = eta(u, es[_E.slot] - pos, t_x, mid, slot, kid_ptr, kids)
+            last = motion_segment(lg, leg)
+            j = segment(lg, kids[kid_ptr[u]]) if kid_ptr[u + 1] > kid_ptr[u] else segment(lg, u)
+            last = j if j > last else last
+            t_a = eta(u, es[_E.slot] - pos, t_x, t_leg, leg, last, mid, slot, kid_ptr, kids, lg)
+            t_h = horizon(lg, last, t_x, t_leg, leg)
         es[_E.time] = t + dt
         ci = int(es[_E.coop_i])
         hist[ci % size] = ws[_T.c]
         es[_E.coop_i] = ci + 1
         es[_E.t_a] = t_a
+        es[_E.t_h] = t_h
         motion_on, speech_on = math.isnan(ws[_T.t_end]), u >= 0
-        em, pace = rk.integrands(pow_fn, t_a, a, t_x, p_new, motion_on, speech_on)
+        em, pace = rk.integrands(pow_fn, t_a, a, t_h, p_new, motion_on, speech_on)
         es[_E.em_int] += em * dt
         es[_E.pace_int] += pace * dt
         es[_E.max_speed] = speed if speed > es[_E.max_speed] else es[_E.max_speed]
@@ -221,6 +233,7 @@ def run_law(
     slot: np.ndarray,
     kid_ptr: np.ndarray,
     kids: np.ndarray,
+    lg: np.ndarray,
     law: np.ndarray,
     rows: np.ndarray,
     rewards: np.ndarray,
@@ -253,7 +266,7 @@ def run_law(
         motion_on = math.isnan(ws[_T.t_end])
         p_cmd, a_cmd = law_commands(
             law[_L.k_ca], law[_L.k_em], law[_L.em_clip], law[_L.law_p_max], law[_L.law_a_max],
-            law[_L.c_min], t_scale, es[_E.p_max], es[_E.a_max], ws[_T.t_x], es[_E.t_a],
+            law[_L.c_min], t_scale, es[_E.p_max], es[_E.a_max], es[_E.t_h], es[_E.t_a],
             ws[_T.c], motion_on,
         )  # fmt: skip
         es[_E.em_int] = 0.0
@@ -261,7 +274,7 @@ def run_law(
         es[_E.max_speed] = 0.0
         _, answer, code = run(
             ws, path, aw, ai, jac, xpos, xmat, qpos, qvel, ctrl, qfrc, prm, tab, ptr, es, hist,
-            table, mid, slot, kid_ptr, kids, p_cmd, a_cmd, 1,
+            table, mid, slot, kid_ptr, kids, lg, p_cmd, a_cmd, 1,
         )  # fmt: skip
         if answer != R_DONE:
             return k, answer, code
@@ -270,7 +283,7 @@ def run_law(
         )
         rewards[k] = rk.total(r_em, r_pace, 0.0)
         row = rows[k]
-        t_x, t_a = ws[_T.t_x], es[_E.t_a]
+        t_x, t_a = es[_E.t_h], es[_E.t_a]
         row[0], row[1], row[2] = es[_E.time], ws[_T.c], ws[_T.hand_speed]
         row[3], row[4], row[5], row[6] = es[_E.p], es[_E.a], t_x, t_a
         row[7] = t_a - t_x

@@ -108,6 +108,8 @@ class GuidedArm:
         self.f_user = np.zeros(3)
         self._f_measured = np.zeros(3)
         self.t_x: float = 0.0
+        self.t_leg: float = 0.0
+        """The motion's time to the current leg's switch (s; once done: the braking time)."""
         self._dv_max = params.max_acceleration * arm.dt
         self.t_motion_end: float | None = None
         self.time: float = 0.0
@@ -138,7 +140,7 @@ class GuidedArm:
             "path_point": self._path_point, "hand_velocity": self._hand_velocity,
             "hand_speed": self._hand_speed, "path_deviation": self.path_deviation,
             "countdown": self.monitor.countdown,
-            "tangent": self.guide.tangent(st, self.arm.hand_position()),
+            "tangent": self.guide.tangent(st, self.arm.hand_position()), "t_leg": self.t_leg,
         }  # fmt: skip
 
     def tick_settings(self) -> dict[str, Any]:
@@ -165,6 +167,7 @@ class GuidedArm:
         r, c, t_x, time, t_end = ws[_FILTER_TO_END].tolist()
         self.coop.r, self.coop.c = r, c
         self.t_x, self.time = t_x, time
+        self.t_leg = float(ws[_T.t_leg])
         if t_end == t_end:  # not NaN
             self.t_motion_end = t_end
         self._hand_speed, self.path_deviation = ws[_HAND].tolist()
@@ -257,6 +260,12 @@ class GuidedArm:
         return self.guide.tangent(self.state, self.arm.hand_position())
 
     # ------------------------------------------------------------------ loop
+    def _estimate(self) -> None:
+        """``t_x`` and ``t_leg`` from the current state (:meth:`FastETC.times
+        <langenv.control.motion_etc.FastETC.times>`)."""
+        t_leg, rest = self.etc.times(self.state, self.arm.hand_position(), self._v_ref, self._v_cmd)
+        self.t_x, self.t_leg = t_leg + rest, t_leg
+
     def reset(self) -> None:
         """Put the hand at rest at the trajectory's start; clear filters and timers."""
         self.arm.reset(self.trajectory.position(0.0))
@@ -268,7 +277,7 @@ class GuidedArm:
         self._f_measured = np.zeros(3)
         self.time = 0.0
         self.t_motion_end = None
-        self.t_x = self.etc.etc(self.state, self.arm.hand_position(), self._v_ref, self._v_cmd)
+        self._estimate()
         self.safety_stop = None
         self.monitor.reset()
         self._path_point = self.trajectory.position(self.state.s).tolist()
@@ -350,8 +359,9 @@ class GuidedArm:
             if not moving and self.t_motion_end is None:
                 self.t_motion_end = self.time + (self.dt if was_moving else 0.0)
             self.t_x = vec.norm(self._v_cmd) / self.params.max_acceleration
+            self.t_leg = self.t_x
         else:
-            self.t_x = self.etc.etc(self.state, self.arm.hand_position(), self._v_ref, self._v_cmd)
+            self._estimate()
         self._measure_hand()
         self.time += self.dt
         fault = self.arm.fault

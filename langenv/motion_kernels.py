@@ -29,7 +29,7 @@ from langenv.control.command import COMMAND_SETTINGS, COMMAND_STATE
 from langenv.control.command_kernels import cap_speed, follow
 from langenv.control.cooperation import COOPERATION_SETTINGS, COOPERATION_STATE
 from langenv.control.cooperation_kernels import update as cooperation_update
-from langenv.control.etc_kernels import estimate
+from langenv.control.etc_kernels import estimate_parts
 from langenv.control.guide import GUIDE_SETTINGS, GUIDE_STATE, LEG
 from langenv.control.path_kernels import locate, point
 from langenv.kernels import inline, kernel, mjc
@@ -64,6 +64,7 @@ MOTION_STATE = (
     Field("hand_speed", doc="its norm (m/s)"),
     Field("path_deviation", doc="the hand's distance from T(s) (m)"),
     Field("tangent", 3, doc="the guide's direction of progress at the hand after the tick"),
+    Field("t_leg", doc="the motion's time to the current leg's switch after the tick (s)"),
 )
 """The guided arm's own state (what :class:`~langenv.motion.GuidedArm` exposes)."""
 MOTION_SETTINGS = (Field("dt", doc="the tick (s)"),)
@@ -238,11 +239,12 @@ def observe(
         if not moving and math.isnan(ws[_T.t_end]):
             ws[_T.t_end] = ws[_T.time] + (ws[_T.dt] if ws[_T.was_moving] != 0.0 else 0.0)
         ws[_T.t_x] = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2) / ws[_T.max_acc]
+        ws[_T.t_leg] = ws[_T.t_x]
         e = _T.end_tangent
         ws[tan], ws[tan + 1], ws[tan + 2] = ws[e], ws[e + 1], ws[e + 2]
     else:
         v = _T.v_ref
-        ws[_T.t_x] = estimate(
+        t_leg, rest = estimate_parts(
             prm,
             tab,
             path,
@@ -253,6 +255,8 @@ def observe(
             (ws[v], ws[v + 1], ws[v + 2]),
             (c0, c1, c2),
         )
+        ws[_T.t_x] = t_leg + rest
+        ws[_T.t_leg] = t_leg
         b0, b1, b2 = guide.tangent(
             path, legs_at(ws), ws[_T.s], int(ws[_T.leg]), xpos[0], xpos[1], xpos[2]
         )

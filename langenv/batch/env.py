@@ -432,6 +432,7 @@ class LangCtrlVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
                     "slot",
                     "kid_ptr",
                     "kids",
+                    "lg",
                 ),
                 arrays,
                 strict=True,

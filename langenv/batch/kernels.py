@@ -64,6 +64,7 @@ _ARRAYS = (
     ("slot", "the graph's slots (n, 3)"),
     ("kid_ptr", "the graph's children offsets (int64)"),
     ("kids", "the graph's children (int64)"),
+    ("lg", "the graph's legs (:meth:`LegPlan.packed <langenv.speech.legs.LegPlan.packed>`)"),
     ("tails", "the observation's child blocks per vertex (float32)"),
     ("dur", "each vertex's clip length at a = 1 (s)"),
 )
@@ -137,6 +138,7 @@ def _run_one(s: np.ndarray, c: np.ndarray) -> None:
         f8_2(s[_S.slot_at], n_v, 3),
         i8(s[_S.kid_ptr_at], s[_S.kid_ptr_n]),
         i8(s[_S.kids_at], s[_S.kids_n]),
+        f8(s[_S.lg_at], s[_S.lg_n]),
         c[_C.p_cmd],
         c[_C.a_cmd],
         int(c[_C.left]),
@@ -217,7 +219,7 @@ def observe(
         kid_ptr = i8(s[_S.kid_ptr_at], s[_S.kid_ptr_n])
         dur = f8(s[_S.dur_at], n_v)
         tails = f4_2(s[_S.tails_at], n_v + 1, s[_S.tails_n] // (n_v + 1))
-        t_x, t_a, p, a = ws[_T.t_x], es[_E.t_a], es[_E.p], es[_E.a]
+        t_x, t_a, p, a = es[_E.t_h], es[_E.t_a], es[_E.p], es[_E.a]
         coop = ws[_T.c]
         ci = int(es[_E.coop_i])
         n = hist.shape[0]

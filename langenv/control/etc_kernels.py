@@ -24,7 +24,10 @@ __all__ = [
     "ETC_LEG",
     "ETC_PARAMS",
     "estimate",
+    "estimate_parts",
     "finish",
+    "finish_parts",
+    "nominal_rest",
     "ramp_end",
     "simulate",
     "table2",
@@ -212,6 +215,16 @@ def to_switch(prm: np.ndarray, dist: float, u0: float, w0: float) -> tuple[float
 @kernel
 def finish(prm: np.ndarray, tab: np.ndarray, k: int, q: float, u: float, w: float) -> float:
     """Time to finish the exercise from the 1-D state ``(q, u, w)`` on leg ``k`` (s)."""
+    t, rest = finish_parts(prm, tab, k, q, u, w)
+    return t + rest
+
+
+@kernel
+def finish_parts(
+    prm: np.ndarray, tab: np.ndarray, k: int, q: float, u: float, w: float
+) -> tuple[float, float]:
+    """:func:`finish` in two parts: the time to leg ``k``'s switch, and the rest of the
+    exercise after it (s)."""
     t = 0.0
     length = prm[_LEG0 + _NL * k + _L.length]
     if q > length:
@@ -235,7 +248,16 @@ def finish(prm: np.ndarray, tab: np.ndarray, k: int, q: float, u: float, w: floa
         t += math.ceil(tp / dt - 1e-9) * dt  # the switch comes on the next tick
     nu = int(prm[_P.rest_n])
     rest = int(prm[_P.rest_offset]) + k * nu * nu
-    return t + table2(tab, rest, prm[_P.rest_u0], prm[_P.rest_du], nu, u, w)
+    return t, table2(tab, rest, prm[_P.rest_u0], prm[_P.rest_du], nu, u, w)
+
+
+@kernel
+def nominal_rest(prm: np.ndarray, tab: np.ndarray, k: int) -> float:
+    """The rest of the exercise after leg ``k``'s switch at the guided plateau speed (s)."""
+    nu = int(prm[_P.rest_n])
+    rest = int(prm[_P.rest_offset]) + k * nu * nu
+    ui = prm[_P.u_inf]
+    return table2(tab, rest, prm[_P.rest_u0], prm[_P.rest_du], nu, ui, ui)
 
 
 @kernel
@@ -260,15 +282,33 @@ def estimate(
         v: The admittance's reference velocity (m/s).
         c: The velocity command (m/s).
     """
+    t_leg, rest = estimate_parts(prm, tab, path, leg, s, done, x, v, c)
+    return t_leg + rest
+
+
+@kernel
+def estimate_parts(
+    prm: np.ndarray,
+    tab: np.ndarray,
+    path: np.ndarray,
+    leg: int,
+    s: float,
+    done: bool,
+    x: tuple[float, float, float],
+    v: tuple[float, float, float],
+    c: tuple[float, float, float],
+) -> tuple[float, float]:
+    """:func:`estimate` in two parts: the time to the current leg's switch (once done: the
+    braking time) and the rest of the exercise after it (0 once done) (s)."""
     if done:
-        return math.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]) * prm[_P.inv_acc]
+        return math.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]) * prm[_P.inv_acc], 0.0
     s_end = prm[_LEG0 + _NL * leg + _L.end]
     i, t = locate(path, s, s >= s_end)
     xd0, xd1, xd2, b0, b1, b2, _, _, _, _ = frame(path, i, t)
     q = s_end - s - ((x[0] - xd0) * b0 + (x[1] - xd1) * b1 + (x[2] - xd2) * b2)
     u = v[0] * b0 + v[1] * b1 + v[2] * b2
     w = c[0] * b0 + c[1] * b1 + c[2] * b2
-    return finish(prm, tab, leg, q, u, w)
+    return finish_parts(prm, tab, leg, q, u, w)
 
 
 @kernel

@@ -443,23 +443,39 @@ class FastETC:
         Returns:
             Time (s); after the last leg the braking time left, ``0.0`` once at rest.
         """
+        t_leg, rest = self.times(state, x, v_ref, v_cmd)
+        return t_leg + rest
+
+    def times(
+        self,
+        state: GuideState,
+        x: np.ndarray,
+        v_ref: np.ndarray,
+        v_cmd: np.ndarray | None = None,
+    ) -> tuple[float, float]:
+        """:meth:`etc` in two parts (their sum): the time to the current leg's switch (once
+        done: the braking time) and the rest of the exercise after it (0 once done) (s)."""
         w_vec = v_ref if v_cmd is None else v_cmd
         x0, x1, x2 = x.tolist()
         v0, v1, v2 = v_ref.tolist()
         c0, c1, c2 = w_vec.tolist()
-        return float(
-            etc_kernel.estimate(
-                self.prm,
-                self.tab,
-                self.path,
-                state.leg,
-                state.s,
-                state.done,
-                (x0, x1, x2),
-                (v0, v1, v2),
-                (c0, c1, c2),
-            )
+        t_leg, rest = etc_kernel.estimate_parts(
+            self.prm,
+            self.tab,
+            self.path,
+            state.leg,
+            state.s,
+            state.done,
+            (x0, x1, x2),
+            (v0, v1, v2),
+            (c0, c1, c2),
         )
+        return float(t_leg), float(rest)
+
+    def nominal_rest(self, leg: int) -> float:
+        """The rest of the exercise after leg ``leg``'s switch at the guided plateau speed (s):
+        what :class:`~langenv.speech.legs.LegPlan` counts after a segment's last leg."""
+        return float(etc_kernel.nominal_rest(self.prm, self.tab, leg))
 
     def nominal(self) -> float:
         """Estimated time of the whole exercise from rest at the start (s)."""

@@ -49,6 +49,7 @@ COMPILED = (
     "robot/force_sensor_kernels.py",
     "users/noise_kernels.py",
     "users/table_kernels.py",
+    "speech/legs_kernels.py",
     "speech/graph_kernels.py",
     "safety_kernels.py",
     "pacing_kernels.py",

@@ -45,6 +45,7 @@ import numpy as np
 
 from langenv.errors import AudioError, ConfigError, PhraseGraphError
 from langenv.speech.audio import ClipLibrary
+from langenv.speech.legs import add_gates, leg_problems, segment_of, unrolled_legs
 from langenv.speech.repeat import (
     SEP,
     WAIT_MAX,
@@ -227,10 +228,11 @@ class PhraseGraph:
         final_wait: Whether the last phrase waits for the motion (:mod:`langenv.speech.repeat`);
             off by default, as in the paper and in a graph file without the key; a script turns
             it on unless it says ``@final-wait off``.
-        legs: The names of the exercise's legs the script speaks about, in script order (a
-            script's ``@leg`` marks); empty: an unmarked graph, aligned at the end only.
-        leg_of: The leg of each of the graph's own vertices (every vertex, when ``legs`` is
-            given; None or empty otherwise).
+        legs: The names of the exercise's legs the script speaks about, in order
+            (:mod:`langenv.speech.legs`); empty (the default): an unmarked graph, aligned with
+            the whole motion as in the paper.
+        leg_of: The leg of each of the graph's own vertices (required for all of them when
+            ``legs`` is given).
 
     The vertices given are the graph's *own*; :attr:`phrases` holds them unrolled (repeats and
     the wait before the last phrase, :mod:`langenv.speech.repeat`), which is what the timeline
@@ -256,7 +258,7 @@ class PhraseGraph:
         path: str | Path | None = None,
         repeats: Mapping[str, Repeat] | Iterable[Repeat] = (),
         final_wait: bool = False,
-        legs: Sequence[str] = (),
+        legs: Iterable[str] = (),
         leg_of: Mapping[str, str] | None = None,
     ) -> None:
         self.path: Path | None = None if path is None else Path(path)
@@ -312,8 +314,10 @@ class PhraseGraph:
             problems += repeat_problems(label, table, reps)
         if not isinstance(final_wait, bool):
             problems.append(f"{label}: final_wait must be true or false, got {final_wait!r}")
-        leg_of = dict(leg_of or {})
-        problems += _leg_problems(label, table, tuple(legs), leg_of)
+        legs = tuple(legs)
+        own_legs = dict(leg_of or {})
+        if not problems:
+            problems += leg_problems(label, table, legs, own_legs)
         if problems:
             raise PhraseGraphError("\n".join(problems))
 
@@ -327,19 +331,48 @@ class PhraseGraph:
         """The graph's repeats by name."""
         self.final_wait: bool = final_wait
         """Whether the last phrase waits for the motion."""
+        self.legs: tuple[str, ...] = legs
+        """The exercise's legs the script speaks about, in order (empty: an unmarked graph)."""
+        self.leg_of: Mapping[str, str] = MappingProxyType(own_legs)
+        """The leg of each of the graph's own vertices (empty: an unmarked graph)."""
         own = {pid: float(duration[pid]) for pid, ph in table.items() if not ph.is_pause}
         table, clip_len, opened = expand(table, own, reps, final_wait, Phrase)
+        gates = self._segment(table, reps, own_legs)
+        if gates:
+            opened = opened | gates[1]
+        self._gates: frozenset[str] = frozenset(gates[0]) if gates else frozenset()
         self.phrases: Mapping[str, Phrase] = MappingProxyType(table)
-        """Every vertex the speech may say, repeats and waits unrolled, by id."""
+        """Every vertex the speech may say, repeats, waits and gates unrolled, by id."""
         self.duration: Mapping[str, float] = MappingProxyType(
             {pid: 0.0 if ph.is_pause else clip_len[pid] for pid, ph in table.items()}
         )
         self.opened: frozenset[str] = opened
-        """The pauses open above their bounds: the silences before the last phrase."""
-        self.legs: tuple[str, ...] = tuple(legs)
-        """The legs the script speaks about, in script order (empty: an unmarked graph)."""
-        self._leg_of = _unrolled_legs(table, leg_of, reps) if legs else {}
+        """The pauses open above their bounds: the silences before the last phrase and the
+        gates between legs (:mod:`langenv.speech.legs`)."""
         self._build_tables(table)
+
+    def _segment(
+        self, table: dict[str, Phrase], reps: Mapping[str, Repeat], own: Mapping[str, str]
+    ) -> tuple[set[str], set[str]] | None:
+        """Each unrolled vertex's segment and leg, and the gates between segments (in place;
+        :mod:`langenv.speech.legs`); None for an unmarked graph (one segment)."""
+        if not self.legs:
+            self._seg = dict.fromkeys(table, 0)
+            self._leg: dict[str, str | None] = dict.fromkeys(table)
+            self.segment_names: tuple[str, ...] = ()
+            return None
+        rep_legs = {r.name: own[r.phrases[0]] for r in reps.values()}
+        leg = unrolled_legs(table, own, rep_legs)
+        seg = segment_of(table, self.legs, leg, _topological_order(table))
+        names = tuple(n for n in self.legs if any(leg[u] == n and not table[u].is_pause
+                                                  for u in table))  # fmt: skip
+        self.segment_names = names
+        """The legs with words, in order: the segments (empty for an unmarked graph)."""
+        gates = add_gates(table, seg, names, Phrase)
+        self._seg = seg
+        self._leg = {u: leg[u] if u in leg and not table[u].is_pause else names[seg[u]]
+                     for u in table}  # fmt: skip
+        return gates
 
     def _build_tables(self, table: Mapping[str, Phrase]) -> None:
         """The order, slots, ``t_min``/``t_max`` and the choice rule's mids of the vertices."""
@@ -361,20 +394,15 @@ class PhraseGraph:
         # a pause's nominal slot (its planned middle length) is what plans beyond the next pause
         # assume
         self._slot = {pid: 0.5 * (lo + hi) for pid, (lo, hi) in self._plan.items()}
-        t_min: dict[str, float] = {}
-        t_max: dict[str, float] = {}
-        for pid in reversed(self.order):
-            # a plan says a repeat once: a gap (another saying) is a choice, not part of the range
-            kids = tuple(v for v in self._children[pid] if not is_gap(v)) or self._children[pid]
-            lo, hi = self._plan[pid]
-            if kids:
-                t_min[pid] = lo + min(t_min[v] for v in kids)
-                t_max[pid] = hi + max(t_max[v] for v in kids)
-            else:
-                t_min[pid] = lo
-                t_max[pid] = hi
-        self._t_min = t_min
-        self._t_max = t_max
+        # plans stop at a segment's end: a gate's children begin the next one
+        self._plan_kids = {
+            u: () if u in self._gates else kids for u, kids in self._children.items()
+        }
+        self._t_min, self._t_max = self._ranges(self._plan_kids)
+        self._whole = (
+            (self._t_min, self._t_max) if not self._gates else self._ranges(self._children)
+        )
+        t_min, t_max = self._t_min, self._t_max
         self._mid = {pid: 0.5 * (t_min[pid] + t_max[pid]) for pid in table}
         self.max_children: int = max(len(k) for k in self._children.values())
         """Largest number of children of any vertex (0 for a single-phrase graph)."""
@@ -384,6 +412,24 @@ class PhraseGraph:
             p for p, ph in table.items() if ph.kind == "filler"
         )
         """Ids of the filler vertices."""
+
+    def _ranges(
+        self, children: Mapping[str, tuple[str, ...]]
+    ) -> tuple[dict[str, float], dict[str, float]]:
+        """``t_min``/``t_max`` of every vertex to the end of the walk ``children`` allows."""
+        t_min: dict[str, float] = {}
+        t_max: dict[str, float] = {}
+        for pid in reversed(self.order):
+            # a plan says a repeat once: a gap (another saying) is a choice, not part of the range
+            kids = tuple(v for v in children[pid] if not is_gap(v)) or children[pid]
+            lo, hi = self._plan[pid]
+            if kids:
+                t_min[pid] = lo + min(t_min[v] for v in kids)
+                t_max[pid] = hi + max(t_max[v] for v in kids)
+            else:
+                t_min[pid] = lo
+                t_max[pid] = hi
+        return t_min, t_max
 
     # ------------------------------------------------------------------ loading
     @classmethod
@@ -425,10 +471,10 @@ class PhraseGraph:
         start, pause, voice, phrases = _parse(path, data)
         assert isinstance(data, dict)
         repeats, problems = parse_repeats(path, data.get("repeats"))
+        legs, leg_of = _parse_legs(path, data, problems)
         final_wait = data.get("final_wait", False)
         if not isinstance(final_wait, bool):
             problems.append(f"{path}: 'final_wait' must be true or false, got {final_wait!r}")
-        legs, leg_of = _parse_legs(path, data, problems)
         if problems:
             raise PhraseGraphError("\n".join(problems))
         problems = _structure_problems(str(path), phrases, start)
@@ -485,20 +531,10 @@ class PhraseGraph:
             repeats=self.repeats,
             final_wait=self.final_wait,
             legs=self.legs,
-            leg_of={u: self._leg_of[u] for u in self.source_phrases} if self.legs else None,
+            leg_of=self.leg_of,
         )
 
     # ------------------------------------------------------------------ structure
-    def leg(self, u: str) -> str | None:
-        """The leg vertex ``u`` speaks about (an unrolled vertex: its source's; a repeat's gap:
-        its phrases'; a wait: its final phrase's); None in an unmarked graph.
-
-        Raises:
-            PhraseGraphError: if ``u`` is not a vertex of this graph.
-        """
-        self.children(u)  # validates u
-        return self._leg_of.get(u)
-
     def children(self, u: str) -> tuple[str, ...]:
         """Ids of the phrases that may follow ``u`` (empty for a terminal phrase)."""
         try:
@@ -552,15 +588,54 @@ class PhraseGraph:
         except KeyError:
             raise PhraseGraphError(f"{self._label}: no phrase {u!r}") from None
 
+    def leg(self, u: str) -> str | None:
+        """The leg of the exercise vertex ``u`` speaks about (a pause or gate: the leg whose
+        silence it is); None for an unmarked graph."""
+        try:
+            return self._leg[u]
+        except KeyError:
+            raise PhraseGraphError(f"{self._label}: no phrase {u!r}") from None
+
+    def segment(self, u: str) -> int:
+        """The segment of ``u`` (:mod:`langenv.speech.legs`; 0 for an unmarked graph)."""
+        try:
+            return self._seg[u]
+        except KeyError:
+            raise PhraseGraphError(f"{self._label}: no phrase {u!r}") from None
+
+    def is_gate(self, u: str) -> bool:
+        """Whether ``u``'s children begin the next segment (the silence before a leg's words)."""
+        return u in self._gates
+
+    @property
+    def segments(self) -> int:
+        """Number of segments (1 for an unmarked graph)."""
+        return max(1, len(self.segment_names))
+
+    def choice_segment(self, u: str) -> int:
+        """The segment of ``u``'s children (whose mids a choice at ``u``'s end compares with
+        the motion's time to that segment's end); ``u``'s own for a terminal."""
+        kids = self.children(u)
+        return self._seg[kids[0]] if kids else self._seg[u]
+
+    def speech_range(self, u: str | None = None) -> tuple[float, float]:
+        """Shortest and longest speech from the start of ``u`` (default: start) to the end of
+        the whole speech, at a = 1 (s); ``(t_min(u), t_max(u))`` for an unmarked graph."""
+        v = self.start if u is None else u
+        self.children(v)  # validates v
+        return self._whole[0][v], self._whole[1][v]
+
     def t_min(self, u: str) -> float:
-        """Shortest speech from the start of ``u`` to the end, pauses included, at a = 1 (s)."""
+        """Shortest speech from the start of ``u`` to the end of its segment's lines (the end of
+        the speech for an unmarked graph), pauses included, at a = 1 (s)."""
         try:
             return self._t_min[u]
         except KeyError:
             raise PhraseGraphError(f"{self._label}: no phrase {u!r}") from None
 
     def t_max(self, u: str) -> float:
-        """Longest speech from the start of ``u`` to the end, pauses included, at a = 1 (s)."""
+        """Longest speech from the start of ``u`` to the end of its segment's lines, pauses
+        included, at a = 1 (s)."""
         try:
             return self._t_max[u]
         except KeyError:
@@ -584,33 +659,66 @@ class PhraseGraph:
             raise PhraseGraphError(f"{self._label}: phrase {u!r} is terminal: nothing to choose")
         return _nearest(kids, self._mid, t_x)
 
-    def eta(self, u: str, remaining_in_u: float, t_x: float) -> float:
-        """Speech time to completion ``t_a`` at a = 1 (SPEC §1).
+    def eta(
+        self,
+        u: str,
+        remaining_in_u: float,
+        t_x: float | Sequence[float],
+        horizon: int | None = None,
+    ) -> float:
+        """Speech time to completion ``t_a`` at a = 1 (SPEC §1), to the end of segment
+        ``horizon`` (:mod:`langenv.speech.legs`).
 
         The rest of the current vertex's slot plus the slots of the vertices that repeated use of
-        :meth:`choose` would take, each choice evaluated with the ``t_x`` left at that moment
-        (``t_x`` minus the base-pace time until the choice), each pause at the length
-        :meth:`pause_length` would give it then.
+        :meth:`choose` would take, each choice evaluated with the motion's time to the end of
+        the children's segment left at that moment (that time minus the base-pace speech until
+        the choice), each pause at the length :meth:`pause_length` would give it then; the walk
+        stops where the speech would enter a segment after ``horizon``.
 
         Args:
             u: The current vertex.
             remaining_in_u: Base-pace time until ``u``'s slot ends (its pause included) (s).
-            t_x: Motion time to completion now (s).
+            t_x: The motion's time to the end of each segment now (s; a number for an unmarked
+                graph: its time to completion).
+            horizon: The last segment counted; None: the last.
 
         Returns:
             Seconds of speech left at a = 1 (without a trailing pause after the final phrase).
         """
+        hz = self._horizons(t_x)
+        last = len(hz) - 1 if horizon is None else horizon
         kids = self.children(u)
         total = remaining_in_u
-        left = t_x - remaining_in_u
+        cur, left = -1, 0.0
         slot, mid, children, lo, hi = self._slot, self._mid, self._children, self._lo, self._hi
+        seg = self._seg
         while kids:
+            j = seg[kids[0]]
+            if j > last:
+                break
+            if j != cur:  # entering a segment: the motion's time to its end, less the speech so far
+                cur, left = j, hz[j] - total
             v = _nearest(kids, mid, left)
             length = slot[v] if lo[v] == hi[v] else self._fill(v, left)
             total += length
             left -= length
             kids = children[v]
         return total
+
+    def _horizons(self, t_x: float | Sequence[float]) -> Sequence[float]:
+        """The motion's times to each segment's end (a number: the one segment's)."""
+        if isinstance(t_x, int | float):
+            if self.segments != 1:
+                raise PhraseGraphError(
+                    f"{self._label}: the graph speaks about {self.segments} legs: pass the "
+                    "motion's time to the end of each (langenv.speech.legs.LegPlan.horizons)"
+                )
+            return (t_x,)
+        if len(t_x) != self.segments:
+            raise PhraseGraphError(
+                f"{self._label}: {len(t_x)} horizons for {self.segments} segments"
+            )
+        return t_x
 
     def pause_length(self, u: str, target: float) -> float:
         """Length of silence (s at a = 1) for the pause ``u`` entered with ``target`` seconds of
@@ -637,7 +745,7 @@ class PhraseGraph:
     def _fill(self, v: str, left: float) -> float:
         """:meth:`pause_length` without checks (mirrored by
         :func:`langenv.speech.graph_kernels.fill`)."""
-        slot, mid, children = self._slot, self._mid, self._children
+        slot, mid, children = self._slot, self._mid, self._plan_kids
         y = left - slot[v]
         rest = 0.0
         kids = children[v]
@@ -665,11 +773,11 @@ class PhraseGraph:
 
     def shortest_path(self, u: str | None = None) -> tuple[str, ...]:
         """A path from ``u`` (default: start) to a terminal whose speech lasts ``t_min(u)``."""
-        return self._extreme_path(self.start if u is None else u, self._t_min, min)
+        return self._extreme_path(self.start if u is None else u, 0, min)
 
     def longest_path(self, u: str | None = None) -> tuple[str, ...]:
         """A path from ``u`` (default: start) to a terminal whose speech lasts ``t_max(u)``."""
-        return self._extreme_path(self.start if u is None else u, self._t_max, max)
+        return self._extreme_path(self.start if u is None else u, 1, max)
 
     def path_length(self, path: Iterable[str]) -> float:
         """Speech length of a path at a = 1 (s): slots, without a trailing pause; each pause at
@@ -760,8 +868,8 @@ class PhraseGraph:
     def __repr__(self) -> str:
         return (
             f"PhraseGraph({self._label!r}, {len(self.phrases)} phrases, start={self.start!r}, "
-            f"pause={self.pause}, speech {self.t_min(self.start):.2f}-"
-            f"{self.t_max(self.start):.2f} s)"
+            f"pause={self.pause}, speech {self.speech_range()[0]:.2f}-"
+            f"{self.speech_range()[1]:.2f} s)"
         )
 
     # ------------------------------------------------------------------ internals
@@ -769,7 +877,8 @@ class PhraseGraph:
     def _label(self) -> str:
         return str(self.path) if self.path is not None else "<phrase graph>"
 
-    def _extreme_path(self, u: str, table: dict[str, float], pick: Any) -> tuple[str, ...]:
+    def _extreme_path(self, u: str, which: int, pick: Any) -> tuple[str, ...]:
+        table = self._whole[which]
         self.children(u)  # validates u
         path = [u]
         while kids := self._path_children(path[-1], True):  # as t_min/t_max: a repeat once
@@ -788,64 +897,6 @@ def _nearest(kids: tuple[str, ...], mid: Mapping[str, float], x: float) -> str:
         if err < best_err:
             best, best_err = v, err
     return best
-
-
-def _leg_problems(
-    label: str, table: Mapping[str, Phrase], legs: tuple[str, ...], leg_of: Mapping[str, str]
-) -> list[str]:
-    """What is wrong with a graph's legs and its vertices' legs, one message each."""
-    if not all(isinstance(n, str) and n for n in legs):
-        return [f"{label}: 'legs' must be a list of leg names, got {list(legs)!r}"]
-    twice = sorted({n for n in legs if legs.count(n) > 1})
-    if twice:
-        return [f"{label}: 'legs' lists {twice} twice"]
-    if not legs:
-        return [f"{label}: vertices have a 'leg' but the graph has no 'legs'"] if leg_of else []
-    out = [
-        f"{label}: 'leg' given for {u!r}, which is not a vertex" for u in leg_of if u not in table
-    ]
-    for u, ph in table.items():
-        leg = leg_of.get(u)
-        if leg is None:
-            out.append(f"{label}: {ph.kind} {u!r}: no 'leg' (the graph has legs {list(legs)})")
-        elif leg not in legs:
-            out.append(f"{label}: {ph.kind} {u!r}: leg {leg!r} is not one of {list(legs)}")
-    return out
-
-
-def _unrolled_legs(
-    table: Mapping[str, Phrase], own: Mapping[str, str], repeats: Mapping[str, Repeat]
-) -> dict[str, str]:
-    """The leg of every unrolled vertex: its source's (``P#k``, ``F#end``, ``T#wait``), a gap
-    its repeat's phrases'."""
-    out: dict[str, str] = {}
-    for u in table:
-        if is_gap(u):
-            out[u] = own[repeats[u.rpartition(SEP)[0]].phrases[0]]
-        else:
-            out[u] = own[u.split(SEP, 1)[0]]
-    return out
-
-
-def _parse_legs(
-    path: Path, data: Mapping[str, Any], problems: list[str]
-) -> tuple[tuple[str, ...], dict[str, str]]:
-    """The graph file's ``legs`` and each vertex's ``leg`` (problems appended)."""
-    raw = data.get("legs", [])
-    if not isinstance(raw, list) or not all(isinstance(n, str) and n for n in raw):
-        problems.append(f"{path}: 'legs' must be a list of leg names, got {raw!r}")
-        raw = []
-    leg_of: dict[str, str] = {}
-    phrases = data.get("phrases")
-    for pid, spec in phrases.items() if isinstance(phrases, dict) else ():
-        leg = spec.get("leg") if isinstance(spec, dict) else None
-        if leg is None:
-            continue
-        if not isinstance(leg, str) or not leg:
-            problems.append(f"{path}: vertex {pid!r}: 'leg' must be a leg name, got {leg!r}")
-        else:
-            leg_of[str(pid)] = leg
-    return tuple(raw), leg_of
 
 
 def _is_number(x: object) -> bool:
@@ -892,6 +943,25 @@ def _parse(path: Path, data: object) -> tuple[str, float, str, dict[str, Phrase]
         raise PhraseGraphError("\n".join(problems))
     assert isinstance(start, str)
     return start, float(pause), str(voice), phrases
+
+
+def _parse_legs(
+    path: Path, data: dict[str, Any], problems: list[str]
+) -> tuple[tuple[str, ...], dict[str, str]]:
+    """The file's ``legs`` and each vertex's ``leg`` (problems appended, naming the file)."""
+    raw = data.get("legs", [])
+    if not isinstance(raw, list) or not all(isinstance(x, str) and x for x in raw):
+        problems.append(f"{path}: 'legs' must be a list of leg names, got {raw!r}")
+        raw = []
+    leg_of: dict[str, str] = {}
+    for pid, spec in (data.get("phrases") or {}).items():
+        if isinstance(spec, dict) and "leg" in spec:
+            leg = spec["leg"]
+            if not isinstance(leg, str) or not leg:
+                problems.append(f"{path}: vertex {pid!r}: 'leg' must be a leg name, got {leg!r}")
+                continue
+            leg_of[str(pid)] = leg
+    return tuple(raw), leg_of
 
 
 def _parse_vertex(path: Path, pid: str, spec: object) -> tuple[Phrase | None, list[str]]:

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import bisect
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from langenv.errors import ActionError, ConfigError
@@ -44,7 +44,26 @@ boundary: the choice and the history are Python's)."""
 Choice = str | Callable[[tuple[str, ...]], str] | None
 """The next phrase at a boundary: a phrase id, a function of the candidate ids, or None."""
 
-PauseTarget = float | None
+Horizons = float | Sequence[float] | None
+"""The motion's time to completion (s), or to the end of each of the graph's segments
+(:mod:`langenv.speech.legs`), for the rules; None: none given."""
+
+
+class _SegmentTargets:
+    """The pause rule's target of each pause: its segment's horizon times a factor (a gate
+    waits for its leg whatever the factor)."""
+
+    __slots__ = ("factor", "graph", "horizons")
+
+    def __init__(self, graph: PhraseGraph, horizons: Sequence[float], factor: float) -> None:
+        self.graph, self.horizons, self.factor = graph, horizons, factor
+
+    def of(self, v: str) -> float:
+        h = self.horizons[self.graph.segment(v)]
+        return h if self.graph.is_gate(v) else h * self.factor
+
+
+PauseTarget = float | _SegmentTargets | None
 """The speech time (s) wanted from the start of a step, for the pause rule; None: ``t_x``."""
 
 
@@ -139,8 +158,9 @@ class SpeechTimeline:
         dt: float,
         a: float,
         choice: Choice = None,
-        t_x: float | None = None,
+        t_x: Horizons = None,
         pause: PauseTarget = None,
+        pause_factor: float | None = None,
     ) -> None:
         """Advance by ``dt`` seconds at audio pace ``a``.
 
@@ -161,9 +181,14 @@ class SpeechTimeline:
             dt: Step length (s, > 0).
             a: Audio pace over the step (>= 0; 1 is the recorded pace).
             choice: Next vertex at a boundary (see above).
-            t_x: Motion time to completion at the start of the step (s), for the rules.
+            t_x: Motion time to completion at the start of the step (s), for the rules; for a
+                graph that speaks about several legs, the motion's time to the end of each
+                segment (:meth:`LegPlan.horizons <langenv.speech.legs.LegPlan.horizons>`): a
+                choice compares with its children's segment's, a pause with its own.
             pause: Speech time wanted from the start of the step (s), for the pause rule; None:
-                ``t_x``.
+                ``t_x`` (the pause's segment's), times ``pause_factor`` when given, except
+                for a gate between legs, which always waits for its leg.
+            pause_factor: See ``pause``.
 
         Raises:
             ActionError: naming the argument, for a non-finite or out-of-range ``dt``/``a``, a
@@ -180,15 +205,38 @@ class SpeechTimeline:
             self._t += dt
             return
         adv = a * dt
+        if pause is None and t_x is not None:
+            pause = self._factored(t_x, pause_factor)
         if self._pos + adv < self._mark:  # the common case: nothing happens in this tick
             self._pos += adv
             self._t += dt
             if self._elastic:
-                target = pause if pause is not None else t_x
+                target = self._pause_target(self._phrase, pause, None)
                 if target is not None:
                     self._replan(target)
             return
         self._advance(dt, a, adv, choice, t_x, pause)
+
+    def _factored(self, t_x: float | Sequence[float], factor: float | None) -> PauseTarget:
+        """The pause rule's targets from the horizons: each segment's times ``factor`` (the
+        gates' untouched), as a mapping from vertex to target, or one number for one segment."""
+        if factor is None:
+            return t_x if isinstance(t_x, int | float) else _SegmentTargets(self._graph, t_x, 1.0)
+        if isinstance(t_x, int | float):
+            return t_x * factor
+        return _SegmentTargets(self._graph, t_x, factor)
+
+    def _pause_target(self, v: str | None, pause: PauseTarget, t_x: Horizons) -> float | None:
+        """The pause rule's target for the pause ``v`` (see :meth:`step`)."""
+        if isinstance(pause, _SegmentTargets):
+            assert v is not None
+            return pause.of(v)
+        if pause is not None:
+            return pause
+        if t_x is None or isinstance(t_x, int | float):
+            return t_x
+        assert v is not None
+        return t_x[self._graph.segment(v)]
 
     def _replan(self, target: float) -> None:
         """The open pause's length for ``target`` s of speech wanted from now (mirrored by
@@ -210,7 +258,7 @@ class SpeechTimeline:
         a: float,
         adv: float,
         choice: Choice,
-        t_x: float | None,
+        t_x: Horizons,
         pause: PauseTarget,
     ) -> None:
         u = self._phrase
@@ -287,11 +335,11 @@ class SpeechTimeline:
             self._mark = self._cur_slot if self._in_pause else self._dur[self._phrase]
 
     def _pause_length(
-        self, v: str, pause: PauseTarget, t_x: float | None, tau: float, fallback: bool = False
+        self, v: str, pause: PauseTarget, t_x: Horizons, tau: float, fallback: bool = False
     ) -> float:
         """The length of the pause ``v`` being entered (see :meth:`step`)."""
         lo, hi = self._graph.slot_range(v)
-        target = pause if pause is not None else t_x
+        target = self._pause_target(v, pause, t_x)
         if target is not None:
             if isinstance(target, bool) or not isinstance(target, int | float):
                 raise ActionError(
@@ -314,7 +362,7 @@ class SpeechTimeline:
         u: str,
         kids: tuple[str, ...],
         choice: Choice,
-        t_x: float | None,
+        t_x: Horizons,
         tau: float,
         fallback: bool = False,
     ) -> str:
@@ -329,9 +377,10 @@ class SpeechTimeline:
                 )
             return v
         if t_x is not None:
-            if not math.isfinite(t_x):
+            h = t_x if isinstance(t_x, int | float) else t_x[self._graph.choice_segment(u)]
+            if not math.isfinite(h):
                 raise ActionError(f"SpeechTimeline.step: t_x must be finite, got {t_x!r}")
-            return self._graph.choose(u, t_x - tau)
+            return self._graph.choose(u, h - tau)
         if fallback:
             return kids[0]
         raise ActionError(
@@ -371,12 +420,21 @@ class SpeechTimeline:
         pace = self._a if a is None else a
         return self._cur_slot - self._pos <= pace * horizon
 
-    def eta(self, t_x: float) -> float:
-        """Speech time to completion ``t_a`` at a = 1 (s): see :meth:`PhraseGraph.eta`."""
+    def eta(self, t_x: float | Sequence[float], horizon: int | None = None) -> float:
+        """Speech time to completion ``t_a`` at a = 1 (s), to the end of segment ``horizon``:
+        see :meth:`PhraseGraph.eta`."""
         u = self._phrase
         if u is None:
             return 0.0
-        return self._graph.eta(u, self._cur_slot - self._pos, t_x)
+        return self._graph.eta(u, self._cur_slot - self._pos, t_x, horizon)
+
+    def horizon_segment(self) -> int:
+        """The segment whose end the speech's plan reaches now: the current vertex's children's
+        (a gate's: the next leg's); the last once the speech is over."""
+        u = self._phrase
+        if u is None:
+            return self._graph.segments - 1
+        return self._graph.choice_segment(u)
 
     def said_at(self, t: float) -> str | None:
         """Id of the phrase or filler audible at time ``t`` (s); None in pauses, before 0, after
