@@ -149,7 +149,8 @@ class EpisodeLog:
         voice: How the graph voices the speech pace (:data:`langenv.speech.voice.VOICES`):
             ``"stretch"`` (the paper's; recorded sessions) or ``"natural"``.
         leg: The leg the motion is in at each sample (``info["leg"]``: its index in
-            ``leg_names``), shape ``(n,)``, int64, never decreasing; None when not recorded.
+            ``leg_names``, their number once the last is done), shape ``(n,)``, int64, never
+            decreasing; None when not recorded.
         leg_names: The names of the motion's legs, in order (the exercise's); empty when unknown.
         spoken_legs: The legs the phrase graph has words for (a phrase vertex marked with the
             leg), in script order; empty for an unmarked graph.

@@ -64,7 +64,8 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
       leg's end pose (3.5 cm before it), without slowing down; the last leg ends the motion the
       same way, and the hand then brakes to rest. Nominal session without resistance: 10.1 s,
       plateaus at 0.125 m/s with short V-shaped dips at the corners. ``info["leg"]`` is the
-      index of the leg being guided (the exercise's order, from 0; it stays at the last leg).
+      index of the leg being guided (the exercise's order, from 0; the number of legs once the
+      last is done).
     * The velocity command sent to the arm follows ``v_ref`` changing at most at 0.14 m/s^2 (a
       UR's ``speedL`` acceleration, fitted to the recordings' dips and final ramps); a speed
       governor keeps a hand that a person pushes along from overshooting the corners.
