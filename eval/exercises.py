@@ -11,7 +11,8 @@ and controller, the medians of motion time, ``|AM|``, mean ``|EM|``, the share o
 and the hand's largest distance from the path (from the logged joint positions: the handle's
 position by forward kinematics, its distance to the nearest point of the exercise's path).
 Then the headline per exercise: over LC's sessions, the largest ``|AM|``, how many end within
-1 s, and the means of the silence share and of the share of the voice heard natural.
+1 s, the means of the silence share and of the share of the voice heard natural, and how many of
+the legs start their words within 1 s of the leg (``legs in step``, :mod:`eval.legs`).
 ``--table-only`` reads existing runs without running anything. Exit status 1 when an episode ended
 in a protective stop or left the path by more than the safety's ``max_deviation``, LC's median
 ``|AM|`` is not below AC's, or an LC session ends more than 1 s from its motion."""
@@ -97,12 +98,21 @@ def exercise_rows(run_dir: Path, name: str) -> list[dict[str, Any]]:
 
 
 def headline_row(run_dir: Path, name: str) -> dict[str, Any]:
-    """LC's headline on one exercise's run: every session's |AM| (max, share within 1 s), and the
-    means over sessions of the silence share and the share of the voice heard natural."""
+    """LC's headline on one exercise's run: every session's |AM| (max, share within 1 s), the
+    means over sessions of the silence share and the share of the voice heard natural, and its
+    legs in step: of the leg boundaries of every session (:mod:`eval.legs`), those whose words
+    start within 1 s of the leg."""
+    from eval.episode import EpisodeLog
+    from eval.legs import leg_boundaries
     from eval.report import read_sessions_csv
 
     mine = [r for r in read_sessions_csv(run_dir / "sessions.csv") if r["policy"] == "lc"]
     am = [float(r["abs_am"]) for r in mine]
+    legs = [
+        b
+        for r in mine
+        for b in leg_boundaries(EpisodeLog.load_npz(run_dir / "sessions" / f"lc_{r['user']}.npz"))
+    ]
     return {
         "exercise": name,
         "sessions": len(mine),
@@ -110,20 +120,23 @@ def headline_row(run_dir: Path, name: str) -> dict[str, Any]:
         "within": sum(a <= HEADLINE_AM for a in am),
         "silence": float(np.mean([float(r["pause_share"]) for r in mine])),
         "voice": float(np.mean([float(r["voice_natural"]) for r in mine])),
+        "legs": len(legs),
+        "legs_in_step": sum(b.in_step for b in legs),
     }
 
 
 def headline_table(rows: list[dict[str, Any]]) -> str:
-    """The headline rows as a Markdown table."""
+    """The headline rows as a Markdown table (legs in step: n/a for a script without marks)."""
     lines = [
         "| exercise | LC sessions | max abs(AM) (s) | within 1 s | silence (mean) | voice natural "
-        "(mean) |",
-        "|---|---|---|---|---|---|",
+        "(mean) | legs in step |",
+        "|---|---|---|---|---|---|---|",
     ]
     for r in rows:
+        legs = f"{r['legs_in_step']}/{r['legs']}" if r.get("legs") else "n/a"
         lines.append(
             f"| {r['exercise']} | {r['sessions']} | {r['max_am']:.2f} | {r['within']}/"
-            f"{r['sessions']} | {100 * r['silence']:.1f} % | {100 * r['voice']:.1f} % |"
+            f"{r['sessions']} | {100 * r['silence']:.1f} % | {100 * r['voice']:.1f} % | {legs} |"
         )
     return "\n".join(lines)
 

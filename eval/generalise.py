@@ -21,7 +21,9 @@ the best analytic policy, chosen on the validation worlds: the most sessions wit
 most content; ``docs/history.md``, issue 38), on the same
 episodes, paired, per group and all together: the share of sessions with ``|AM| <= 1 s`` no
 lower, the content share higher with the 95 % bootstrap interval of the difference above 0, the
-voice heard natural no lower than the base's - 0.02, no more protective stops.
+voice heard natural no lower than the base's - 0.02, no more protective stops, and the mean share
+of legs whose words start within 1 s of the leg (``legs_in_step``, :mod:`eval.legs`) no lower
+(where the graph has ``@leg`` marks).
 
 ``--role`` is ``validation`` by default. The test exercises and users are for the claim: look
 at them (``--role test``) only with the model you ship, at most twice per study, and record each
@@ -74,8 +76,8 @@ __all__ = [
 ]
 
 #: The metrics compared: column -> (statistic, label). Higher is better for the shares of
-#: :data:`_HIGHER_IS_BETTER` (content, voice natural, sessions with ``|AM| <= 1 s``), lower for
-#: the rest.
+#: :data:`_HIGHER_IS_BETTER` (content, voice natural, sessions with ``|AM| <= 1 s``, legs whose
+#: words start within 1 s of the leg), lower for the rest.
 COMPARED: dict[str, tuple[Stat, str]] = {
     "content_share": ("mean", "content share"),
     "voice_natural": ("mean", "voice natural"),
@@ -84,8 +86,9 @@ COMPARED: dict[str, tuple[Stat, str]] = {
     "abs_am": ("median", "median |AM| (s)"),
     "em_mean_abs": ("mean", "mean |EM| (s)"),
     "a_dev": ("mean", "mean |a - 1|"),
+    "legs_in_step": ("mean", "legs in step"),
 }
-_HIGHER_IS_BETTER = frozenset({"abs_am_le_1s", "content_share", "voice_natural"})
+_HIGHER_IS_BETTER = frozenset({"abs_am_le_1s", "content_share", "voice_natural", "legs_in_step"})
 REFERENCE = "lc-em-end"
 #: The analytic policy the bars compare with by default: the best on the validation worlds (the
 #: most sessions with |AM| <= 1 s, then the most content).
@@ -143,8 +146,10 @@ def _paired_groups(
 
 
 def _column(rows: list[dict[str, Any]], policy: str, metric: str) -> np.ndarray:
+    """``metric`` of ``policy``'s episodes in key order (NaN where a row lacks it: a table of
+    an older run)."""
     mine = sorted((r for r in rows if r["policy"] == policy), key=lambda r: r["key"])
-    return np.array([float(r[metric]) for r in mine], dtype=np.float64)
+    return np.array([float(r.get(metric, math.nan)) for r in mine], dtype=np.float64)
 
 
 def compare_rows(
@@ -205,6 +210,8 @@ class Bar:
         content: Learned minus base mean content share: ``(estimate, lo, hi)``.
         voice: Learned minus base mean voice natural: ``(estimate, lo, hi)``.
         stops: Protective stops: ``(learned, base)``.
+        legs: Mean share of legs in step (:mod:`eval.legs`): ``(learned, base)``; NaN where
+            the graph has no ``@leg`` marks.
     """
 
     learned: str
@@ -215,15 +222,19 @@ class Bar:
     content: tuple[float, float, float]
     voice: tuple[float, float, float]
     stops: tuple[int, int]
+    legs: tuple[float, float] = (math.nan, math.nan)
 
     @property
     def checks(self) -> dict[str, bool]:
-        """Each bar: whether it holds."""
+        """Each bar: whether it holds (legs in step: no lower than the base's; the bar holds
+        where the base's graph has no legs)."""
+        mine, base = self.legs
         return {
             "|AM| <= 1 s": self.within[0] >= self.within[1] - 1e-12,
             "content": self.content[1] > 0.0,
             "voice": self.voice[0] >= -VOICE_SLACK,
             "stops": self.stops[0] <= self.stops[1],
+            "legs in step": math.isnan(base) or mine >= base - 1e-12,
         }
 
     @property
@@ -259,9 +270,16 @@ def bars(
                 _diff(mine["content_share"], theirs["content_share"], "mean", n_boot, seed),
                 _diff(mine["voice_natural"], theirs["voice_natural"], "mean", n_boot, seed),
                 (int(mine["protective_stop"].sum()), int(theirs["protective_stop"].sum())),
+                (_mean(mine["legs_in_step"]), _mean(theirs["legs_in_step"])),
             )
         )
     return out
+
+
+def _mean(x: np.ndarray) -> float:
+    """The mean of the finite values (NaN when there are none)."""
+    x = x[np.isfinite(x)]
+    return float(np.mean(x)) if x.size else math.nan
 
 
 def overview_markdown(rows: list[dict[str, Any]], policies: Sequence[str]) -> str:
@@ -309,6 +327,7 @@ def bars_markdown(found: Sequence[Bar]) -> str:
         "content - base [95 % CI]",
         "voice natural - base [95 % CI]",
         "stops (learned / base)",
+        "legs in step (learned / base)",
         "verdict",
     ]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
@@ -322,6 +341,7 @@ def bars_markdown(found: Sequence[Bar]) -> str:
             _ci(b.content, 4),
             _ci(b.voice, 4),
             f"{b.stops[0]} / {b.stops[1]}",
+            " / ".join("n/a" if math.isnan(x) else f"{x:.3f}" for x in b.legs),
             "PASS" if not failed else "FAIL: " + ", ".join(k.replace("|", "\\|") for k in failed),
         ]
         lines.append("| " + " | ".join(cells) + " |")

@@ -6,8 +6,9 @@ box characters), so logs stay readable.
 
 The table has one row per policy: the median over users of ``|AM|``, the mean over users of the
 mean ``|EM|`` and of the mean ``|a - 1|`` while speaking, the mean shares of speech time at
-``|a - 1| <= 0.1``, in pauses and in fillers and the share of the motion in which words are
-heard (``content %``; when the rows have them), the number of truncated
+``|a - 1| <= 0.1``, in pauses and in fillers, the share of the motion in which words are
+heard (``content %``) and of the legs whose words start within 1 s of the leg (``legs in step
+%``; when the rows have them), the number of truncated
 episodes when
 there are any, the number of protective stops when ``sessions.csv`` has a column for them
 (the first of :data:`STOP_COLUMNS` present) and the phrase graph each policy spoke when it has a
@@ -52,9 +53,12 @@ _SHARE_COLUMNS = {
     "pause_share": "pauses %",
     "filler_share": "fillers %",
     "content_share": "content %",
+    "legs_in_step": "legs in step %",
 }
-"""Shares shown (mean over users, in percent) when the rows have them: of the speech time, and
-for ``content_share`` of the motion's duration (words heard, :mod:`eval.metrics`)."""
+"""Shares shown (mean over users, in percent) when the rows have them: of the speech time, for
+``content_share`` of the motion's duration (words heard, :mod:`eval.metrics`), for
+``legs_in_step`` of the legs whose words start within 1 s of the leg (:mod:`eval.legs`; n/a
+for a graph without ``@leg`` marks)."""
 
 
 def _values(rows: Sequence[Row], policy: str, column: str) -> np.ndarray:

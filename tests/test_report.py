@@ -57,6 +57,9 @@ def synthetic_rows(
                     "t_motion": t_motion,
                     "t_speech": t_motion + am,
                     "return": -rng.uniform(5.0, 50.0),
+                    # legs: LC speaks a marked graph, the baselines one wording (no legs)
+                    "sm_max_abs": 0.25 * (k % 3) if p == "lc" else math.nan,
+                    "legs_in_step": 1.0 - 0.5 * (k % 2) if p == "lc" else math.nan,
                 }
             )
     return rows
