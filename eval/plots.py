@@ -11,8 +11,9 @@ drawing time), its session's artists replaced on every call.
   over the part of each session where they matter (``c``, ``p``: motion going on; ``a``: speech
   going on; EM: either); AM is one value per session, drawn as points over its violin.
 * :func:`session_figure`: stacked panels on a shared time axis: ``c``; hand speed; ``p`` and
-  ``a``; the ETCs ``t_x`` and ``t_a``; EM; and the phrases said, as labelled spans like subtitles;
-  vertical lines at the motion and speech ends, AM annotated.
+  ``a``; the ETCs ``t_x`` and ``t_a``; EM; and the phrases said, as labelled spans like subtitles,
+  over the motion's legs (shaded bands, each leg's ``SM`` marked: :mod:`eval.legs`); vertical
+  lines at the motion and speech ends, AM annotated.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ from matplotlib.ticker import FixedLocator, MaxNLocator, NullLocator
 from PIL import Image, PngImagePlugin
 
 from eval.episode import EpisodeLog
+from eval.legs import leg_boundaries, leg_entries
 from eval.metrics import A_TOLERANCE, Window, time_samples
 from eval.report import AM_TOLERANCE, atomic_write, display_name
 from langenv.errors import ConfigError
@@ -82,6 +84,8 @@ _PNG_INFO.add_text("Software", f"LangCtrl eval.plots (Matplotlib {matplotlib.__v
 
 _MOTION_END = "#222222"
 _SPEECH_END = "#C0392B"
+_LEG_SHADES = ("#EDEDED", "#DADADA")  # the motion's legs, alternately, under the phrases said
+_IN_STEP, _OUT_OF_STEP = "#1B7837", "#B2182B"  # a leg's words within 1 s of the leg, or not
 
 
 def policy_color(policy: str, index: int = 0) -> str:
@@ -332,6 +336,43 @@ def _phrase_labels(
         added.append(label)
 
 
+def _leg_spans(ax: Axes, log: EpisodeLog, added: list[Artist]) -> None:
+    """The motion's legs as shaded bands under the phrases said, each named at its top, and per
+    leg boundary (:mod:`eval.legs`) where the motion entered the leg (dotted) and an arrow to
+    where its words started, labelled ``SM``: green within 1 s, red beyond or never said. The
+    artists drawn are appended to ``added``; nothing without the motion's legs in the log."""
+    if log.leg is None or not log.leg_names:
+        return
+    n = len(log.leg_names)
+    starts = leg_entries(log.t, log.leg, n)
+    ends = [*starts[1:], log.t_motion]
+    on_x = ax.get_xaxis_transform()
+    sm = {b.index: b for b in leg_boundaries(log)}
+    for k, name in enumerate(log.leg_names):
+        a, b = float(starts[k]), float(ends[k]) if np.isfinite(ends[k]) else log.t_motion
+        if not np.isfinite(a):
+            continue
+        added.append(ax.axvspan(a, b, color=_LEG_SHADES[k % 2], linewidth=0, zorder=0.2))
+        found = sm.get(k)
+        text, color = name, "0.25"
+        if found is not None:
+            said = np.isfinite(found.sm)
+            text += f" · SM {found.sm:+.1f} s" if said else " · SM: words not said"
+            color = _IN_STEP if found.in_step else _OUT_OF_STEP
+            added.append(ax.axvline(a, color=color, linestyle=":", linewidth=1.2, zorder=4))
+            if said and abs(found.sm) > 1e-3:
+                arrow = ax.annotate(
+                    "", xy=(found.t_words, 0.04), xytext=(a, 0.04), xycoords=on_x,
+                    arrowprops={"arrowstyle": "->", "color": color, "linewidth": 1.2}, zorder=6,
+                )  # fmt: skip
+                added.append(arrow)
+        label = ax.text(
+            a, 0.99, f" {text}", transform=on_x, ha="left", va="top", fontsize=6.5,
+            color=color, zorder=6, bbox={"facecolor": "white", "edgecolor": "none", "pad": 0.5},
+        )  # fmt: skip
+        added.append(label)
+
+
 def _clip(text: str, n: int) -> str:
     return text if len(text) <= n else text[: max(1, n - 1)] + "…"
 
@@ -502,6 +543,7 @@ class _SessionCanvas:
             self._signals(log)
             self._time_axis(log, x_range)
             _phrase_labels(self.axes[-1], log, x_range, _WIDTH_PX, self.session)
+            _leg_spans(self.axes[-1], log, self.session)
             self._ends(log, x_range)
             for artist in self.session:
                 artist.set_animated(True)

@@ -9,7 +9,8 @@ per episode. Each frame shows:
 * a panel of live traces on the session's time axis: the paces ``p`` and ``a``, cooperation
   ``c`` and the estimated misalignment EM, the past bright, the future dim, with the current
   values and the motion and speech ends marked;
-* the phrase being said as a caption.
+* the phrase being said as a caption, and the leg of the exercise the hand is in (its name,
+  ``leg 2/3: back``; ``legs done`` after the last) in the caption band's corner.
 
 The sound track is the robot's speech, rendered exactly as the session's WAV
 (:func:`langenv.speech.render.render_history` with the log's phrases and audio pace), starting
@@ -295,26 +296,39 @@ class TracePanel:
 
 
 class _Captions:
-    """The caption band: the phrase being said (bright), the last one said in pauses (dim)."""
+    """The caption band: the phrase being said (bright), the last one said in pauses (dim), and
+    the motion's leg in its top-left corner (when the log has the motion's legs)."""
 
     def __init__(self, log: EpisodeLog, size: tuple[int, int]) -> None:
         self.log = log
         self.size = size
-        self._cache: dict[tuple[int, bool], np.ndarray] = {}
+        self._cache: dict[tuple[int, bool, str], np.ndarray] = {}
 
     def frame(self, t: float) -> np.ndarray:
         said = [k for k, u in enumerate(self.log.utterances) if u.t_start <= t and not u.is_pause]
         k = said[-1] if said else -1
         speaking = k >= 0 and t < self.log.utterances[k].t_end
-        key = (k, speaking)
+        key = (k, speaking, self.leg_label(t))
         if key not in self._cache:
-            self._cache[key] = self._draw(k, speaking)
+            self._cache[key] = self._draw(k, speaking, key[2])
         return self._cache[key]
 
-    def _draw(self, k: int, speaking: bool) -> np.ndarray:
+    def leg_label(self, t: float) -> str:
+        """The leg the hand is in at ``t`` (``leg 2/3: back``; ``done`` after the last; empty
+        without the motion's legs in the log)."""
+        log = self.log
+        if log.leg is None or not log.leg_names:
+            return ""
+        i = max(0, int(np.searchsorted(log.t, t, side="right")) - 1)
+        k, n = int(log.leg[i]), len(log.leg_names)
+        return f"leg {k + 1}/{n}: {log.leg_names[k]}" if k < n else "legs done"
+
+    def _draw(self, k: int, speaking: bool, leg: str) -> np.ndarray:
         from PIL import Image, ImageDraw
 
         img = Image.new("RGB", self.size, _BG)
+        if leg:
+            ImageDraw.Draw(img).text((8, 4), leg, fill=_DIM, font=_font(13))
         if k >= 0:
             u = self.log.utterances[k]
             text = f"“{u.text or u.phrase}”"
