@@ -27,6 +27,9 @@ def test_the_exercise_table_runs_and_reads_back(
     heads = [line.split(" | ") for line in headline.splitlines() if line.startswith("| ")]
     assert [h[0] for h in heads[1:]] == ["| external_rotation", "| shoulder_flexion"]
     assert all(h[1] == "1" and h[3] == "1/1" for h in heads[1:])
+    # legs in step: of LC's two leg boundaries per session (the scripts mark three legs)
+    assert heads[0][-1] == "legs in step |"
+    assert all(h[-1].removesuffix(" |").split("/")[1] == "2" for h in heads[1:])
     # read back without running: the same table
     assert main([*args, "--out", str(tmp_path), "--table-only"]) == 0
     table = [line for line in out.splitlines() if line.startswith("|")]

@@ -261,3 +261,22 @@ def test_the_session_video_names_the_current_leg() -> None:
     assert not np.array_equal(band.frame(2.0), band.frame(4.0))  # the same caption, another leg
     plain = _Captions(_log(said=said, legs=False), (FRAME_SIZE[0], CAPTION_HEIGHT))
     assert plain.leg_label(4.0) == "" and np.array_equal(plain.frame(2.0), plain.frame(4.0))
+
+
+def test_compare_writes_the_leg_metrics_and_the_verdict_shows_them(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from eval.compare import main
+    from eval.report import read_sessions_csv
+
+    out = tmp_path / "c"
+    args = ["--policies", "ac,lc", "--users", "synthetic:1", "--workers", "1", "--seed", "5"]
+    assert main([*args, "--out", str(out)]) == 0
+    assert "legs in step %" in capsys.readouterr().out
+    rows = {r["policy"]: r for r in read_sessions_csv(out / "sessions.csv")}
+    assert math.isnan(float(rows["ac"]["legs_in_step"]))  # one wording, no marks
+    assert 0.0 <= float(rows["lc"]["legs_in_step"]) <= 1.0  # the default graph is marked
+    log = EpisodeLog.load_npz(out / "sessions" / "lc_s5.npz")
+    assert log.leg_names == LEGS and log.spoken_legs == LEGS and log.leg is not None
+    assert {u.leg for u in log.utterances} == set(LEGS)
+    assert leg_metrics(log)["legs_in_step"] == float(rows["lc"]["legs_in_step"])
