@@ -228,7 +228,6 @@ def _check(args: argparse.Namespace) -> int:
 
 
 def _summary(graph: PhraseGraph) -> str:
-    start = graph.start
     own = graph.source_phrases.values()
     pauses = sum(ph.is_pause for ph in own)
     fillers = sum(ph.kind == "filler" for ph in own)
@@ -243,9 +242,11 @@ def _summary(graph: PhraseGraph) -> str:
     longest = speech_lengths(graph)[-1][1]
     repeats = f"; up to {longest:.2f} s with every repeat" if graph.repeats else ""
     ending = ", the last phrase waits for the motion" if graph.final_wait else ""
+    legs = f", {_n(len(graph.legs), 'leg')} marked ({', '.join(graph.legs)})" if graph.legs else ""
+    lo, hi = graph.speech_range()  # the whole speech (t_min/t_max of a marked graph: its leg's)
     return (
-        f"{graph.path}: OK, {', '.join(kinds)}, {_n(graph.count_paths(), 'path')}, speech "
-        f"{graph.t_min(start):.2f}-{graph.t_max(start):.2f} s at a = 1 "
+        f"{graph.path}: OK, {', '.join(kinds)}{legs}, {_n(graph.count_paths(), 'path')}, speech "
+        f"{lo:.2f}-{hi:.2f} s at a = 1 "
         f"(shortest-longest, pause {graph.pause:g} s{repeats}), voice {graph.voice}{ending}"
     )
 

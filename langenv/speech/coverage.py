@@ -69,9 +69,10 @@ def speech_lengths(graph: PhraseGraph, u: str | None = None) -> Intervals:
 
 def leg_lengths(graph: PhraseGraph, leg: str) -> Intervals:
     """Every length of the words of leg ``leg`` at a = 1 (s), as merged intervals: along each
-    path, the slots of its vertices marked with ``leg`` (pauses at their planned bounds), from
-    the start of the leg's first vertex to the start of the next leg's (the end of the speech
-    for the last); a path that skips the leg's lines gives 0."""
+    path, the slots of its vertices whose :meth:`~langenv.speech.graph.PhraseGraph.leg` is
+    ``leg`` (pauses, and the wait before the next leg's words, at their planned bounds), from the
+    start of the leg's first vertex to the start of the next leg's (the end of the speech for
+    the last); a path that skips the leg's lines gives 0."""
     sets: dict[str, Intervals] = {}
     for v in reversed(graph.order):
         mine = graph.leg(v) == leg
