@@ -15,8 +15,9 @@ each leg, from the guide's switch into it to the switch out of it).
 :func:`fit_warnings` compares the two and says what would close each gap, one line each, every
 line beginning ``warning:``; :func:`leg_warnings` does the same per leg for a script with
 ``@leg`` marks (a leg's words against the hand's time in it: :func:`leg_fit_warnings`), and
-warns about a leg without words and a script without marks (aligned at the end only). ``python -m langenv.exercise check`` prints them for an exercise's
-script, ``python -m langenv.speech author SCRIPT --exercise E`` for a script being written.
+warns about a leg without words and a script without marks (aligned at the end only).
+``python -m langenv.exercise check`` prints them for an exercise's script, ``python -m
+langenv.speech author SCRIPT --exercise E`` for a script being written.
 Nothing here refuses a script: a short script still ends with the motion when its last phrase
 waits (the silence before it is what the warning is about).
 """
