@@ -1,7 +1,8 @@
 """The legs' horizons compiled (:class:`~langenv.speech.legs.LegPlan`), and each vertex's
-segment and gate flag, read from the packed plan ``lg`` (:meth:`LegPlan.packed
-<langenv.speech.legs.LegPlan.packed>`: ``[S, n, last_leg (S), rest (S), seg (n), gate (n), lead (n)]``).
-The same operations in the same order as the Python methods (``tests/test_legs.py``)."""
+segment, gate flag and lead, read from the packed plan ``lg`` (:meth:`LegPlan.packed
+<langenv.speech.legs.LegPlan.packed>`: ``[S, n, last_leg (S), rest (S), seg (n), gate (n),
+lead (n)]``). The same operations in the same order as the Python methods
+(``tests/test_legs.py``)."""
 
 from __future__ import annotations
 
