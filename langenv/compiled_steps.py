@@ -46,7 +46,6 @@ class CompiledSteps:
         self.lg = env.leg_plan.packed(
             [graph.segment(u) for u in self.order],
             [graph.is_gate(u) for u in self.order],
-            [graph.lead(u) for u in self.order],
         )
         self._graph = (self.mid, self.slot, self.kid_ptr, self.kids, self.lg)
         self._head: tuple[np.ndarray, ...] | None = None

@@ -399,12 +399,6 @@ class PhraseGraph:
             u: () if u in self._gates else kids for u, kids in self._children.items()
         }
         self._t_min, self._t_max = self._ranges(self._plan_kids)
-        # a gate ends half its longest filler early: a filler leads into the leg's first words
-        self._lead = {
-            u: 0.5 * max((self._slot[v] for v in table[u].next if table[v].kind == "filler"),
-                         default=0.0)
-            for u in self._gates
-        }  # fmt: skip
         self._whole = (
             (self._t_min, self._t_max) if not self._gates else self._ranges(self._children)
         )
@@ -697,11 +691,10 @@ class PhraseGraph:
         total = remaining_in_u
         cur, left = -1, 0.0
         slot, mid, children, lo, hi = self._slot, self._mid, self._children, self._lo, self._hi
-        seg, here = self._seg, u
+        seg = self._seg
         while kids:
             j = seg[kids[0]]
             if j > last:
-                total += self._lead.get(here, 0.0)  # the filler said before the next leg
                 break
             if j != cur:  # entering a segment: the motion's time to its end, less the speech so far
                 cur, left = j, hz[j] - total
@@ -709,14 +702,8 @@ class PhraseGraph:
             length = slot[v] if lo[v] == hi[v] else self._fill(v, left)
             total += length
             left -= length
-            kids, here = children[v], v
+            kids = children[v]
         return total
-
-    def lead(self, u: str) -> float:
-        """How long before the next leg a gate ends (s at a = 1): half its longest filler's
-        slot, so that a filler leading into the leg's first words is said just before the leg
-        and the words themselves just after; 0 for a vertex that is not a gate."""
-        return self._lead.get(u, 0.0)
 
     def _horizons(self, t_x: float | Sequence[float]) -> Sequence[float]:
         """The motion's times to each segment's end (a number: the one segment's)."""
@@ -760,7 +747,7 @@ class PhraseGraph:
         :func:`langenv.speech.graph_kernels.fill`)."""
         slot, mid, children = self._slot, self._mid, self._plan_kids
         y = left - slot[v]
-        rest = self._lead[v] if v in self._gates else 0.0
+        rest = 0.0
         kids = children[v]
         while kids:
             w = _nearest(kids, mid, y)

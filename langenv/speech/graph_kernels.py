@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from langenv.kernels import inline, kernel
-from langenv.speech.legs_kernels import gate, horizon, lead, segment
+from langenv.speech.legs_kernels import gate, horizon, segment
 
 __all__ = ["eta", "fill", "nearest"]
 
@@ -52,7 +52,6 @@ def fill(
     rest = 0.0
     lo, hi = kid_ptr[v], kid_ptr[v + 1]
     if gate(lg, v):
-        rest = lead(lg, v)
         hi = lo
     while hi > lo:
         w = nearest(lo, hi, kids, mid, y)
@@ -86,12 +85,10 @@ def eta(
     total = remaining
     cur = -1
     left = 0.0
-    here = u
     lo, hi = kid_ptr[u], kid_ptr[u + 1]
     while hi > lo:
         j = segment(lg, kids[lo])
         if j > last:
-            total += lead(lg, here)
             break
         if j != cur:
             cur = j
@@ -104,5 +101,4 @@ def eta(
         total += length
         left -= length
         lo, hi = kid_ptr[v], kid_ptr[v + 1]
-        here = v
     return total

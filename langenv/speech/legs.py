@@ -14,11 +14,11 @@ paper's law is applied at every leg instead of once for the whole motion:
 * **The words of a leg wait for their leg.** Every way from one segment's words to the next
   goes through a *gate*: a silence (a pause vertex ``LEG#gate``, planned as 0 to ``WAIT_PLAN`` s,
   open above) that lasts until the motion enters the next segment's legs, as the last phrase
-  waits for the motion's end (:mod:`langenv.speech.repeat`), less a *lead* of half the longest
-  filler that may follow it (so that "Okay," falls just before the leg and its words just after).
-  A pause whose children all begin the next segment is itself opened into the gate; a pause
-  written at the start of a leg's lines is the silence before them and belongs to the leg
-  before.
+  waits for the motion's end (:mod:`langenv.speech.repeat`). A pause whose children all begin
+  the next segment is itself opened into the gate; a pause written at the start of a leg's lines
+  is the silence before them and belongs to the leg before. (Ending the gate early by half a
+  filler, so that "Okay," falls before the leg, was measured worse: the fillers' lead is in
+  nominal seconds, which a resisting person stretches.)
 * **Horizons.** The motion's time to the end of segment ``j`` is :meth:`LegPlan.horizons`' ``j``-th
   value (the last segment's is the whole motion's ETC ``t_x``); the law aligns the speech's time to
   the end of the *horizon* segment ``H`` (the later of the motion's segment and the speech's) with
@@ -235,17 +235,13 @@ class LegPlan:
         """:meth:`horizon` of every segment."""
         return tuple(self.horizon(j, t_x, t_leg, leg) for j in range(len(self.last_leg)))
 
-    def packed(
-        self, seg: Sequence[int], gate: Sequence[bool], lead: Sequence[float] | None = None
-    ) -> np.ndarray:
-        """The plan and each vertex's segment, gate flag and lead (in the compiled graph's
-        order; :meth:`PhraseGraph.lead <langenv.speech.graph.PhraseGraph.lead>`) as
+    def packed(self, seg: Sequence[int], gate: Sequence[bool]) -> np.ndarray:
+        """The plan and each vertex's segment and gate flag (in the compiled graph's order) as
         :mod:`langenv.speech.legs_kernels` reads them: ``[S, n, last_leg (S), rest (S), seg (n),
-        gate (n), lead (n)]``."""
+        gate (n)]``."""
         s, n = len(self.last_leg), len(seg)
-        leads = [0.0] * n if lead is None else list(lead)
         return np.array(
-            [s, n, *self.last_leg, *self.rest, *seg, *(1.0 if g else 0.0 for g in gate), *leads],
+            [s, n, *self.last_leg, *self.rest, *seg, *(1.0 if g else 0.0 for g in gate)],
             dtype=np.float64,
         )
 

@@ -1,8 +1,7 @@
 """The legs' horizons compiled (:class:`~langenv.speech.legs.LegPlan`), and each vertex's
-segment, gate flag and lead, read from the packed plan ``lg`` (:meth:`LegPlan.packed
-<langenv.speech.legs.LegPlan.packed>`: ``[S, n, last_leg (S), rest (S), seg (n), gate (n),
-lead (n)]``). The same operations in the same order as the Python methods
-(``tests/test_legs.py``)."""
+segment and gate flag, read from the packed plan ``lg`` (:meth:`LegPlan.packed
+<langenv.speech.legs.LegPlan.packed>`: ``[S, n, last_leg (S), rest (S), seg (n), gate (n)]``).
+The same operations in the same order as the Python methods (``tests/test_legs.py``)."""
 
 from __future__ import annotations
 
@@ -10,7 +9,7 @@ import numpy as np
 
 from langenv.kernels import inline
 
-__all__ = ["gate", "horizon", "lead", "motion_segment", "segment", "segments"]
+__all__ = ["gate", "horizon", "motion_segment", "segment", "segments"]
 
 
 @inline
@@ -31,13 +30,6 @@ def gate(lg: np.ndarray, v: int) -> bool:
     """Whether vertex index ``v`` is a gate (its children begin the next segment)."""
     s, n = int(lg[0]), int(lg[1])
     return lg[2 + 2 * s + n + v] != 0.0
-
-
-@inline
-def lead(lg: np.ndarray, v: int) -> float:
-    """The lead of vertex index ``v`` (a gate's; 0 for others)."""
-    s, n = int(lg[0]), int(lg[1])
-    return lg[2 + 2 * s + 2 * n + v]
 
 
 @inline
