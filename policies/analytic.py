@@ -335,12 +335,7 @@ class LanguageController:
         """The content rule's phrase action (see ``choice``, ``pause_scale``)."""
         t_x = ob.seconds(values, Obs.T_X)
         now = ob.elapsed(values)
-        if self._t_x0 is None:
-            self._t_x0 = t_x
-        elif self._prev_t_x is not None and t_x > self._prev_t_x + NEW_HORIZON:
-            self._used += self._t_x0 - self._prev_t_x  # a leg's horizon used up
-            self._t_x0, self._leg_t0 = t_x, now
-        self._prev_t_x = t_x
+        self.track(t_x, now)
         if self._slot_ends(values, a_cmd):
             return fill_choice(values, self.fill_margin, self._fill_horizon(t_x, now))
         if self.pause_scale != 1.0 and ob.flag(values, Obs.IN_PAUSE):
@@ -349,11 +344,37 @@ class LanguageController:
                 return min(1.0, max(-1.0, u))
         return 0.0
 
+    def track(self, t_x: float, now: float) -> None:
+        """Follow the motion's horizon through one observation (its ``T_X`` and ``ELAPSED``, as
+        the observation stores them): :meth:`act` does it for the content rule; a caller that
+        lets the env run the law without the policy (:class:`train.choices.ChoicePoints`) hands
+        it the ticks it skipped, so that the state is the same. A rise of more than
+        :data:`NEW_HORIZON` is the start of a leg's horizon. Idempotent for a repeated one."""
+        if self._t_x0 is None:
+            self._t_x0 = t_x
+        elif self._prev_t_x is not None and t_x > self._prev_t_x + NEW_HORIZON:
+            self._used += self._t_x0 - self._prev_t_x  # a leg's horizon used up
+            self._t_x0, self._leg_t0 = t_x, now
+        self._prev_t_x = t_x
+
+    def track_many(self, t_x: np.ndarray, now: np.ndarray) -> None:
+        """:meth:`track` through many observations at once (the same state)."""
+        values, times = t_x.tolist(), now.tolist()
+        if not values:
+            return
+        if self._t_x0 is None or self._prev_t_x is None:
+            self.track(values[0], times[0])
+        prev = np.array([self._prev_t_x, *values[:-1]])
+        for j in np.flatnonzero(t_x > prev + NEW_HORIZON).tolist():
+            self._used += self._t_x0 - prev[j]
+            self._t_x0, self._leg_t0 = values[j], times[j]
+        self._prev_t_x = values[-1]
+
     def _fill_horizon(self, t_x: float, now: float) -> float | None:
         """The time to go the content rule plans with (None: ``t_x``): ``t_x`` stretched by the
         person's pace ``r`` (seconds of motion per second of ETC used): over the current leg's
         horizon once it has used 1 s, else over the whole session so far."""
-        if self.fill_anticipate <= 0.0:
+        if self.fill_anticipate <= 0.0 or self._t_x0 is None:
             return None
         used = self._t_x0 - t_x
         elapsed = now - self._leg_t0

@@ -302,3 +302,25 @@ def test_a_therapists_script_is_in_step_at_every_leg(exercise: str, script: str)
     for seed in (21, 22):
         sm, am = _step_alignment(env, policy, seed)
         assert all(abs(x) <= 1.0 for x in sm) and abs(am) <= 1.0, (seed, sm)
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    st.lists(st.floats(0.0, 30.0), min_size=1, max_size=40),
+    st.integers(0, 39),
+)
+def test_tracking_many_observations_is_tracking_each(values: list[float], cut: int) -> None:
+    times = [0.002 * k for k in range(len(values))]
+    one, many = make_analytic("lc-fill"), make_analytic("lc-fill")
+    for t_x, now in zip(values, times, strict=True):
+        one.track(t_x, now)
+    k = min(cut, len(values))
+    for t_x, now in zip(values[:k], times[:k], strict=True):
+        many.track(t_x, now)
+    many.track_many(np.array(values[k:]), np.array(times[k:]))
+    assert (one._t_x0, one._used, one._leg_t0, one._prev_t_x) == (
+        many._t_x0,
+        many._used,
+        many._leg_t0,
+        many._prev_t_x,
+    )
