@@ -324,3 +324,14 @@ def test_tracking_many_observations_is_tracking_each(values: list[float], cut: i
         many._leg_t0,
         many._prev_t_x,
     )
+
+
+def test_a_script_variant_keeps_its_legs(tmp_path: Path) -> None:
+    from langenv.speech.variant import GraphVariation, vary_graph
+
+    graph = PhraseGraph.load(_marked_default(tmp_path))
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        out = vary_graph(graph, rng, GraphVariation(p_drop=0.3, p_add=0.3))
+        assert out.legs == graph.legs and out.segment_names == graph.segment_names
+        assert all(out.leg(u) in graph.legs for u in out.phrases)
