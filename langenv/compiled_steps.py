@@ -44,7 +44,8 @@ class CompiledSteps:
         self.index = {u: i for i, u in enumerate(self.order)}
         self.mid, self.slot, self.kid_ptr, self.kids = graph.packed(self.order)
         self.lg = env.leg_plan.packed(
-            [graph.segment(u) for u in self.order], [graph.is_gate(u) for u in self.order]
+            [graph.segment(u) for u in self.order],
+            [graph.is_gate(u) for u in self.order],
         )
         self._graph = (self.mid, self.slot, self.kid_ptr, self.kids, self.lg)
         self._head: tuple[np.ndarray, ...] | None = None

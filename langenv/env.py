@@ -71,6 +71,18 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
       governor keeps a hand that a person pushes along from overshooting the corners.
     * The person's force above the 5 N deadband drives the admittance and the cooperation filter.
 
+    ## Speech in step with every leg
+
+    A phrase graph whose script marks the leg each line speaks about (``@leg NAME``,
+    :mod:`langenv.speech.legs`) is aligned leg by leg: ``t_x`` below (observation, rewards, the
+    choice and pause rules, ``info["t_x"]``) is the motion's time to the end of the *horizon*
+    segment, the later of the motion's current leg's segment and the one the speech's plan
+    reaches (a gate's: the next leg's), and ``t_a`` the speech's time to the end of that
+    segment's lines; a leg's words wait for their leg (a gate); a choice compares its children's
+    ``(t_min + t_max)/2``, counted to the end of their own leg, with the motion's time to it.
+    ``t_x`` therefore starts again at each leg. An unmarked graph (the study's) is one segment:
+    ``t_x`` is the whole motion's, as in the paper.
+
     ## Action space
 
     ``Box(-1, 1, (2 + n_choice,), float32)``:

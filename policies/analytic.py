@@ -44,6 +44,10 @@ RATE_TAU = 0.04
 RATE_FLOOR = 0.3
 #: Octaves of the env's target-duration action per unit (``langenv.env``: target ``t_x 2^{2u}``).
 _CHOICE_OCTAVES = 2.0
+#: A rise of the observed ``t_x`` by more than this in one observation (s) is a new horizon: the
+#: speech of a script marked with legs (:mod:`langenv.speech.legs`) is aligned with the motion's
+#: time to the end of the current leg, which starts again at each leg.
+NEW_HORIZON = 1.0
 
 
 def fill_choice(observation: ob.ObsValues, margin: float, horizon: float | None = None) -> float:
@@ -181,6 +185,9 @@ class LanguageController:
     _last: tuple[float, float] | None = field(default=None, init=False, repr=False)
     _rate: float = field(default=1.0, init=False, repr=False)
     _t_x0: float | None = field(default=None, init=False, repr=False)
+    _used: float = field(default=0.0, init=False, repr=False)
+    _leg_t0: float = field(default=0.0, init=False, repr=False)
+    _prev_t_x: float | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.graph_role not in GRAPH_ROLES:
@@ -217,6 +224,9 @@ class LanguageController:
         self._last = None
         self._rate = 1.0
         self._t_x0 = None
+        self._used = 0.0
+        self._leg_t0 = 0.0
+        self._prev_t_x = None
 
     @property
     def motion_rate(self) -> float:
@@ -254,6 +264,9 @@ class LanguageController:
             dt = now - self._last[1]
             if dt <= 0.0:
                 return  # the same observation again (or time did not advance)
+            if t_x > self._last[0] + NEW_HORIZON:  # the next leg's horizon: not a rate
+                self._last = (t_x, now)
+                return
             w = dt / (RATE_TAU + dt)
             self._rate += w * ((self._last[0] - t_x) / dt - self._rate)
         self._last = (t_x, now)
@@ -321,20 +334,57 @@ class LanguageController:
     def _fill_action(self, values: ob.ObsValues, a_cmd: float) -> float:
         """The content rule's phrase action (see ``choice``, ``pause_scale``)."""
         t_x = ob.seconds(values, Obs.T_X)
-        if self._t_x0 is None:
-            self._t_x0 = t_x
+        now = ob.elapsed(values)
+        self.track(t_x, now)
         if self._slot_ends(values, a_cmd):
-            horizon = None
-            used = self._t_x0 - t_x
-            if self.fill_anticipate > 0.0 and used >= 1.0:
-                r = min(3.0, max(1.0, ob.elapsed(values) / used))
-                horizon = t_x * (1.0 + self.fill_anticipate * (r - 1.0))
-            return fill_choice(values, self.fill_margin, horizon)
+            return fill_choice(values, self.fill_margin, self._fill_horizon(t_x, now))
         if self.pause_scale != 1.0 and ob.flag(values, Obs.IN_PAUSE):
             if _valid_children(values) >= 2:
                 u = math.log2(self.pause_scale) / _CHOICE_OCTAVES
                 return min(1.0, max(-1.0, u))
         return 0.0
+
+    def track(self, t_x: float, now: float) -> None:
+        """Follow the motion's horizon through one observation (its ``T_X`` and ``ELAPSED``, as
+        the observation stores them): :meth:`act` does it for the content rule; a caller that
+        lets the env run the law without the policy (:class:`train.choices.ChoicePoints`) hands
+        it the ticks it skipped, so that the state is the same. A rise of more than
+        :data:`NEW_HORIZON` is the start of a leg's horizon. Idempotent for a repeated one."""
+        if self._t_x0 is None:
+            self._t_x0 = t_x
+        elif self._prev_t_x is not None and t_x > self._prev_t_x + NEW_HORIZON:
+            self._used += self._t_x0 - self._prev_t_x  # a leg's horizon used up
+            self._t_x0, self._leg_t0 = t_x, now
+        self._prev_t_x = t_x
+
+    def track_many(self, t_x: np.ndarray, now: np.ndarray) -> None:
+        """:meth:`track` through many observations at once (the same state)."""
+        values, times = t_x.tolist(), now.tolist()
+        if not values:
+            return
+        if self._t_x0 is None or self._prev_t_x is None:
+            self.track(values[0], times[0])
+        prev = np.array([self._prev_t_x, *values[:-1]])
+        for j in np.flatnonzero(t_x > prev + NEW_HORIZON).tolist():
+            self._used += self._t_x0 - prev[j]
+            self._t_x0, self._leg_t0 = values[j], times[j]
+        self._prev_t_x = values[-1]
+
+    def _fill_horizon(self, t_x: float, now: float) -> float | None:
+        """The time to go the content rule plans with (None: ``t_x``): ``t_x`` stretched by the
+        person's pace ``r`` (seconds of motion per second of ETC used): over the current leg's
+        horizon once it has used 1 s, else over the whole session so far."""
+        if self.fill_anticipate <= 0.0 or self._t_x0 is None:
+            return None
+        used = self._t_x0 - t_x
+        elapsed = now - self._leg_t0
+        if used < 1.0:
+            used = self._used + used
+            elapsed = now
+        if used < 1.0:
+            return None
+        r = min(3.0, max(1.0, elapsed / used))
+        return t_x * (1.0 + self.fill_anticipate * (r - 1.0))
 
     def _slot_ends(self, values: ob.ObsValues, a_cmd: float) -> bool:
         """Whether the current slot ends (a choice is made) in the coming decision step: at

@@ -31,6 +31,7 @@ from langenv.observation import (
 )
 from langenv.pacing import COMMAND_MIN, PaceLimits
 from policies.aligner import AlignerGains
+from policies.analytic import NEW_HORIZON
 
 __all__ = ["RESIDUAL_PARAMS", "RESIDUAL_STATE", "act", "observe", "residual_params"]
 
@@ -200,6 +201,8 @@ def _base_act(o: np.ndarray, st: np.ndarray, prm: np.ndarray) -> None:
                 dt = now - st[_S.lc_last_now]
                 if dt <= 0.0:
                     skip = True
+                elif t_x > st[_S.lc_last_t_x] + NEW_HORIZON:
+                    pass  # the next leg's horizon: not a rate (policies.analytic.NEW_HORIZON)
                 else:
                     w = dt / (_LC_RATE_TAU + dt)
                     st[_S.lc_rate] += w * ((st[_S.lc_last_t_x] - t_x) / dt - st[_S.lc_rate])

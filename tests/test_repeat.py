@@ -10,6 +10,7 @@ import re
 from itertools import pairwise
 from pathlib import Path
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -21,8 +22,26 @@ from langenv.speech.coverage import speech_lengths
 from langenv.speech.graph import Phrase, PhraseGraph
 from langenv.speech.graph_kernels import eta as compiled_eta
 from langenv.speech.graph_kernels import fill as compiled_fill
+from langenv.speech.legs import LegPlan
 from langenv.speech.repeat import MAX_REPEAT, SEP, WAIT_PLAN, Repeat, is_gap
 from langenv.speech.timeline import SpeechTimeline
+
+
+def one_leg(g: PhraseGraph) -> np.ndarray:
+    """The compiled legs of an unmarked graph (one segment, no gate), in ``g.order``."""
+    return LegPlan.whole(1).packed([0] * len(g.order), [False] * len(g.order))
+
+
+def c_eta(g: PhraseGraph, i: int, remaining: float, t_x: float) -> float:
+    """The compiled eta of vertex index ``i`` (of ``g.phrases``) of an unmarked graph."""
+    mid, slot, kid_ptr, kids = g.packed(tuple(g.phrases))
+    return float(compiled_eta(i, remaining, t_x, t_x, 0, 0, mid, slot, kid_ptr, kids, one_leg(g)))
+
+
+def c_fill(g: PhraseGraph, i: int, target: float) -> float:
+    """The compiled pause rule of vertex index ``i`` of an unmarked graph."""
+    mid, slot, kid_ptr, kids = g.packed(tuple(g.phrases))
+    return float(compiled_fill(i, target, mid, slot, kid_ptr, kids, one_leg(g)))
 
 
 def encourage(
@@ -188,7 +207,9 @@ def test_compiled_eta_equals_the_graph_s_bit_for_bit(
     mid, slot, kid_ptr, kids = g.packed(order)
     for i, u in enumerate(order):
         remaining = frac * g.slot(u)
-        assert compiled_eta(i, remaining, t_x, mid, slot, kid_ptr, kids) == g.eta(u, remaining, t_x)
+        assert compiled_eta(
+            i, remaining, t_x, t_x, 0, 0, mid, slot, kid_ptr, kids, one_leg(g)
+        ) == g.eta(u, remaining, t_x)
 
 
 @settings(max_examples=40, deadline=None)
@@ -343,9 +364,9 @@ def _compiled_agrees(g: PhraseGraph) -> None:
     for t_x in (0.0, 2.0, 7.5, 30.0):
         for i, u in enumerate(order):
             remaining = 0.5 * g.slot(u)
-            assert compiled_eta(i, remaining, t_x, mid, slot, kid_ptr, kids) == g.eta(
-                u, remaining, t_x
-            )
+            assert compiled_eta(
+                i, remaining, t_x, t_x, 0, 0, mid, slot, kid_ptr, kids, one_leg(g)
+            ) == g.eta(u, remaining, t_x)
 
 
 def test_a_pause_that_may_also_lead_elsewhere_keeps_its_bounds() -> None:
@@ -492,11 +513,13 @@ def test_only_the_silence_before_the_ending_words_outlasts_its_plan(
     for i, u in enumerate(order):
         for t_x in (0.0, motion / 3, motion):
             remaining = 0.3 * g.slot(u)
-            assert compiled_eta(i, remaining, t_x, mid, slot, kid_ptr, kids) == g.eta(
-                u, remaining, t_x
-            )
+            assert compiled_eta(
+                i, remaining, t_x, t_x, 0, 0, mid, slot, kid_ptr, kids, one_leg(g)
+            ) == g.eta(u, remaining, t_x)
             if u in g.pauses:
-                assert compiled_fill(i, t_x, mid, slot, kid_ptr, kids) == g.pause_length(u, t_x)
+                assert compiled_fill(
+                    i, t_x, mid, slot, kid_ptr, kids, one_leg(g)
+                ) == g.pause_length(u, t_x)
     for u in g.opened:
         assert all(g.kind(v) != "pause" for v in g.children(u))
     if g.t_min(g.start) > motion:

@@ -37,6 +37,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from langenv import observation as ob
 from langenv.errors import ConfigError
 from langenv.pacing import PaceLaw
 from langenv.speech.voice import voice_rate, words_heard
@@ -265,6 +266,7 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
                 if run.steps:
                     self._flush()
                     rows = run.info
+                    self._follow(base, rows["t_x"], rows["time"])
                     self._chunks.append(
                         (
                             rows["time"],
@@ -292,6 +294,17 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
         self._done = True
         info = dict(info, terminated=terminated)
         return obs, self._final_reward(info, terminated), info
+
+    @staticmethod
+    def _follow(base: Any, t_x: np.ndarray, time: np.ndarray) -> None:
+        """The base's horizon tracking through the ticks the law ran without it, each value as
+        its observation would have stored it (:meth:`LanguageController.track
+        <policies.analytic.LanguageController.track>`)."""
+        if base.choice != "fill":
+            return
+        seen_t_x = np.clip(t_x / ob.T_SCALE, -1.0, 1.0).astype(np.float32).astype(float)
+        seen_now = np.clip(time / ob.ELAPSED_SCALE, -1.0, 1.0).astype(np.float32).astype(float)
+        base.track_many(seen_t_x * ob.T_SCALE, seen_now * ob.ELAPSED_SCALE)
 
     def _final_reward(self, info: dict[str, Any], terminated: bool) -> float:
         """The episode's reward (module docstring); its terms and metrics go into ``info``."""

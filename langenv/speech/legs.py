@@ -14,9 +14,11 @@ paper's law is applied at every leg instead of once for the whole motion:
 * **The words of a leg wait for their leg.** Every way from one segment's words to the next
   goes through a *gate*: a silence (a pause vertex ``LEG#gate``, planned as 0 to ``WAIT_PLAN`` s,
   open above) that lasts until the motion enters the next segment's legs, as the last phrase
-  waits for the motion's end (:mod:`langenv.speech.repeat`). A pause whose children all begin the
-  next segment is itself opened into the gate; a pause written at the start of a leg's lines is
-  the silence before them and belongs to the leg before.
+  waits for the motion's end (:mod:`langenv.speech.repeat`). A pause whose children all begin
+  the next segment is itself opened into the gate; a pause written at the start of a leg's lines
+  is the silence before them and belongs to the leg before. (Ending the gate early by half a
+  filler, so that "Okay," falls before the leg, was measured worse: the fillers' lead is in
+  nominal seconds, which a resisting person stretches.)
 * **Horizons.** The motion's time to the end of segment ``j`` is :meth:`LegPlan.horizons`' ``j``-th
   value (the last segment's is the whole motion's ETC ``t_x``); the law aligns the speech's time to
   the end of the *horizon* segment ``H`` (the later of the motion's segment and the speech's) with

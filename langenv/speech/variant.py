@@ -99,7 +99,13 @@ def vary_graph(
     rate = float(rng.uniform(*variation.tts_rate))
     scale = float(rng.uniform(*variation.pause_scale))
     own = PhraseGraph(  # the graph's own vertices: what a variant drops and adds to
-        graph.source_phrases, graph.start, graph.duration, pause=graph.pause, voice=graph.voice
+        graph.source_phrases,
+        graph.start,
+        graph.duration,
+        pause=graph.pause,
+        voice=graph.voice,
+        legs=graph.legs,
+        leg_of=graph.leg_of,
     )
     for _ in range(variation.tries):
         try:
@@ -156,6 +162,7 @@ def _variant(
         for r in graph.repeats.values()
         if (kept := tuple(m for m in r.phrases if m in live))
     ]
+    legs = {u: graph.leg_of[u.split("~", 1)[0]] for u in final} if graph.legs else {}
     return PhraseGraph(
         final,
         graph.start,
@@ -164,6 +171,8 @@ def _variant(
         voice=graph.voice,
         repeats=repeats,
         final_wait=graph.final_wait,
+        legs=graph.legs,
+        leg_of=legs,
     )
 
 
