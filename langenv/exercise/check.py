@@ -108,9 +108,12 @@ def _script_problems(exercise: Exercise) -> list[Problem]:
         except LangEnvError as exc:
             out.append(Problem("bad_graph", None, None, f"script.{key}: {exc}"))
             continue
+        found = leg_problems(graph.legs, exercise.leg_names, graph_path(ref))
+        hint = "; give the exercise a script of its own (docs/scripts.md) or an unmarked graph "
+        hint += "(script: {graph: study})"
         out += [
-            Problem("unknown_leg", leg, None, f"script.{key}: {where}: {why}")
-            for leg, where, why in leg_problems(graph.legs, exercise.leg_names, graph_path(ref))
+            Problem("unknown_leg", leg, None, f"script.{key}: {where}: {why}{hint}")
+            for leg, where, why in found
         ]
     return out
 
