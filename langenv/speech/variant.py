@@ -104,8 +104,6 @@ def vary_graph(
         graph.duration,
         pause=graph.pause,
         voice=graph.voice,
-        legs=graph.legs,
-        leg_of=graph.leg_of,
     )
     for _ in range(variation.tries):
         try:
