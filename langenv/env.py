@@ -195,7 +195,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     | ``session`` | ``None`` | session CSV (``t, cooperation``) for ``users="replay"`` |
     | ``exercise`` | ``"external_rotation"`` | a shipped exercise's name (``python -m langenv.exercise list``), an exercise YAML path or an :class:`~langenv.exercise.Exercise` |
     | ``phrase_graph`` | the exercise's (``script.graph``: for the study's exercise ``"default"``) | YAML path or a shipped graph: ``"default"`` (= ``"lc"``, LC's graph with pauses and fillers), ``"study"`` (the study's LC graph), ``"lc-noap"``, ``"ac"`` |
-    | ``trajectory`` | ``None`` | a :class:`~langenv.control.trajectory.Trajectory` instead of the exercise's path (not with ``exercise``) |
+    | ``trajectory`` | ``None`` | a :class:`~langenv.control.trajectory.Trajectory` instead of the exercise's path; with ``exercise``, that exercise's path in another frame (its legs, which name the script's) |
     | ``decision_hz`` | 25 | agent decisions per second; must divide 500 |
     | ``choice_mode`` | ``"target"`` | next-phrase action design: ``"target"`` or ``"scores"`` |
     | ``w_em``, ``w_pace``, ``w_am`` | 1, 1, 1 | reward weights |
@@ -283,11 +283,17 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         if safety is not None and not isinstance(safety, SafetyLimits):
             raise ConfigError(f"safety must be SafetyLimits or None, got {type(safety).__name__}")
 
-        if exercise is not None and trajectory is not None:
-            raise ConfigError("give exercise or trajectory, not both")
         self.exercise: Exercise = resolve_exercise(exercise)
         if trajectory is not None and not isinstance(trajectory, Trajectory):
             raise ConfigError(f"trajectory must be a Trajectory, got {type(trajectory).__name__}")
+        if exercise is not None and trajectory is not None:
+            n = len(trajectory.waypoint_s)
+            if n != len(self.exercise.legs):
+                raise ConfigError(
+                    f"trajectory has {n} legs, exercise {self.exercise.name!r} "
+                    f"{len(self.exercise.legs)}: give the exercise's own path (in any frame), "
+                    "or the trajectory alone"
+                )
         arm: Arm | IOArm
         if robot is None:
             arm = Arm(model_path, handle_site)

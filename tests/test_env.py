@@ -127,7 +127,14 @@ def test_lc_at_500hz_is_the_papers_controller() -> None:
 
 
 def test_target_choice_at_zero_is_the_papers_rule() -> None:
-    env = gym.make(langenv.ENV_ID, users=resisting_user, decision_hz=500, max_episode_steps=30_000)
+    # the study's graph: one horizon, the whole motion (a graph marked with legs: tests/test_legs)
+    env = gym.make(
+        langenv.ENV_ID,
+        users=resisting_user,
+        phrase_graph="study",
+        decision_hz=500,
+        max_episode_steps=30_000,
+    )
     base: LangCtrlEnv = env.unwrapped  # type: ignore[assignment]
     obs, _ = env.reset(seed=0)
     pol = load_policy("lc")

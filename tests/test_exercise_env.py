@@ -64,8 +64,12 @@ def test_an_exercise_by_name_path_or_object(tmp_path: Path) -> None:
 
 
 def test_bad_exercise_arguments_are_named() -> None:
-    with pytest.raises(ConfigError, match="not both"):
-        LangCtrlEnv(exercise="hand_to_mouth", trajectory=default_exercise())
+    circle = resolve_exercise(Path(__file__).parent / "data" / "exercises" / "circle.yaml")
+    with pytest.raises(ConfigError, match="trajectory has 1 legs, exercise 'hand_to_mouth' 3"):
+        LangCtrlEnv(exercise="hand_to_mouth", trajectory=circle.trajectory)
+    # the exercise's own path in another frame: the exercise names the legs of the script
+    env = LangCtrlEnv(exercise="hand_to_mouth", trajectory=default_exercise())
+    assert env.leg_plan.segments == 3 and env.exercise.name == "hand_to_mouth"
     with pytest.raises(ConfigError, match="external_rotation"):
         LangCtrlEnv(exercise="no_such_exercise")
     with pytest.raises(ConfigError, match="Exercise"):

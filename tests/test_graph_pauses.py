@@ -328,10 +328,13 @@ def test_the_study_graph_ships_byte_for_byte(clips: ClipLibrary) -> None:
 
 def test_every_path_of_the_default_graph_alternates_speech_and_silence(clips: ClipLibrary) -> None:
     g = PhraseGraph.load(default_graph_path("default"), clips)
-    # every path starts and ends with words and never has two silences in a row: no pause
-    # starts, ends or follows another (checked on the edges: the paths number in the millions)
+    # every path starts and ends with words and never has two silences in a row but for the
+    # waits the graph adds (a gate before a leg's words, the wait before the last phrase): no
+    # pause starts, ends or follows another (checked on the edges: the paths number in the
+    # millions)
     assert g.start not in g.pauses
+    waits = {u for u in g.opened if g.is_gate(u) or u.endswith("#wait")}
     for u in g.phrases:
         assert not (u in g.pauses and g.is_terminal(u))
-        assert not (u in g.pauses and any(v in g.pauses for v in g.children(u)))
+        assert not (u in g.pauses and any(v in g.pauses - waits for v in g.children(u)))
     assert g.count_paths() > 100_000 and np.isfinite(g.t_max(g.start))

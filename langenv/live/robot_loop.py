@@ -167,6 +167,7 @@ class RobotLoop:
         self.exercise = ex
         self.env = LangCtrlEnv(
             robot=robot,
+            exercise=ex,
             trajectory=trajectory if trajectory is not None else ex.trajectory,
             phrase_graph=self.spoken.ref,
             decision_hz=int(policy.decision_hz),
