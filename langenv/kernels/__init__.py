@@ -77,6 +77,7 @@ SOURCES = (
     "safety.py",
     "pacing.py",
     "speech/timeline.py",
+    "speech/legs.py",
 )
 """The files whose content the compiled kernels depend on: :data:`COMPILED` and the parts'
 declarations (``tests/test_architecture.py`` checks that every module importing
