@@ -303,15 +303,17 @@ def test_phrase_objects_check_their_kind() -> None:
 
 
 # ---------------------------------------------------------------- the shipped graphs
-def test_the_default_graph_has_pauses_fillers_and_shorter_late_wordings(
+def test_the_default_graph_has_pauses_legs_and_shorter_late_wordings(
     clips: ClipLibrary,
 ) -> None:
     g = PhraseGraph.load(default_graph_path("default"), clips)
     study = PhraseGraph.load(default_graph_path("study"), clips)
-    assert g.pauses and g.fillers
+    assert g.pauses and g.segment_names == ("out", "back", "again")
+    # no filler before a leg's first words: they start as the hand enters the leg
+    assert not g.fillers and len(g.repeats) == 3  # a line that may repeat in every leg
     assert default_graph_path("lc") == default_graph_path("default")
     # the study's graph has no late wording shorter than "I want you to retract your arm"
-    assert g.t_min(g.start) < study.t_min(study.start) - 2.0
+    assert g.speech_range()[0] < study.t_min(study.start) - 2.0
     cov = coverage(g)
     assert cov.covers(8.0, 16.0), cov.natural
     assert not coverage(study).covers(8.0, 16.0)  # the study's graph starts at 10.4 s

@@ -64,7 +64,7 @@ def test_check_prints_one_line(capsys: pytest.CaptureFixture[str]) -> None:
     assert "16 phrases" in out[0] and "paths" in out[0] and "study.yaml" in out[0]
     assert main(["check", "default"]) == 0
     out = capsys.readouterr().out.splitlines()
-    assert "fillers" in out[0] and "pauses" in out[0] and "default.yaml" in out[0]
+    assert "legs marked" in out[0] and "pauses" in out[0] and "default.yaml" in out[0]
 
 
 def test_check_accepts_shipped_names_and_lists_paths(capsys: pytest.CaptureFixture[str]) -> None:
