@@ -186,7 +186,7 @@ def _make_env(ns: argparse.Namespace, policy: Any, user: Any) -> Any:
         langenv.ENV_ID,
         phrase_graph=spoken.ref,
         decision_hz=hz,
-        max_episode_steps=int(120 * hz),
+        max_seconds=120.0,
         **kwargs,
     )
 

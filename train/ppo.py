@@ -644,7 +644,7 @@ def _make_envs(run: _Run) -> tuple[Any, Any]:
         ]
         env = make_batched_vec_env(
             run.n_envs,
-            {"max_episode_steps": run.env_kwargs.get("max_episode_steps", 1500)},
+            {"max_episode_steps": run.env_kwargs.get("max_episode_steps")},
             a.seed,
             [(_dotted(k), kw) for k, kw in chain],
             session_kwargs=sessions,

@@ -50,11 +50,14 @@ class _Problems(list[Problem]):
         self.append(Problem(kind, leg, point, detail))
 
 
-def load_exercise(path: str | Path) -> Exercise:
+def load_exercise(path: str | Path, *, unwritten_scripts: bool = False) -> Exercise:
     """Read, validate and build the exercise of a YAML file.
 
     Args:
         path: The exercise file (``.yaml``).
+        unwritten_scripts: Accept ``script`` entries that name files not written yet (a
+            script being authored against its exercise: ``speech author --exercise``); they
+            stay the paths they name.
 
     Returns:
         The exercise (its ``trajectory`` built, in SI units).
@@ -119,7 +122,7 @@ def load_exercise(path: str | Path) -> Exercise:
                 found.add("bad_value", f"{what} must lie in [{lo}, {hi}], got {value}")
             elif value is not None:
                 fields[key] = value
-    fields.update(_script(data.get("script", {}), path, found))
+    fields.update(_script(data.get("script", {}), path, found, unwritten_scripts))
     fields["description"] = _comment_block(source)
     legs = _legs(data.get("legs"), found, lines, fields.get("start")) if "legs" in data else []
     if found:
@@ -188,8 +191,9 @@ def _vector(value: Any, what: str, found: _Problems, leg: str | None) -> np.ndar
     return np.array(value, dtype=np.float64)
 
 
-def _script(script: Any, path: Path, found: _Problems) -> dict[str, str]:
-    """``graph`` and ``single`` of the ``script`` section, resolved (shipped name or path)."""
+def _script(script: Any, path: Path, found: _Problems, unwritten: bool) -> dict[str, str]:
+    """``graph`` and ``single`` of the ``script`` section, resolved (shipped name or path; a
+    missing file only when ``unwritten``)."""
     from langenv.speech.graph import SHIPPED_GRAPHS
 
     if not isinstance(script, dict):
@@ -209,7 +213,7 @@ def _script(script: Any, path: Path, found: _Problems) -> dict[str, str]:
             out[key] = ref
             continue
         file = (path.parent / ref).resolve()
-        if not file.is_file():
+        if not file.is_file() and not (unwritten and not file.exists()):
             found.add(
                 "bad_graph",
                 f"script.{key}: {ref!r} is neither a shipped graph ({', '.join(SHIPPED_GRAPHS)}) "

@@ -258,7 +258,8 @@ def _author(args: argparse.Namespace) -> int:
     if args.exercise is not None:
         from langenv.exercise import resolve_exercise
 
-        exercise = resolve_exercise(args.exercise)  # a bad exercise before anything is written
+        # a bad exercise before anything is written; its script may be the one being written
+        exercise = resolve_exercise(args.exercise, unwritten_scripts=True)
     graph = author(args.script, out, _clips(args))
     print(f"wrote {out} from {args.script}")
     print(_summary(graph))
