@@ -24,7 +24,6 @@ import argparse
 import math
 import os
 import sys
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from fractions import Fraction
@@ -37,6 +36,7 @@ import numpy as np
 from eval.episode import EpisodeLog
 from eval.report import display_name
 from langenv.errors import ConfigError, LangEnvError
+from langenv.files import temp_file
 
 __all__ = [
     "DEFAULT_FPS",
@@ -469,12 +469,8 @@ def write_video(
     track[: min(audio.size, n_audio)] = audio[:n_audio]
 
     frames = SessionFrames(log, t0 + n_frames / fps, fps=fps, model_path=model_path)
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".mp4", dir=out.parent)
+    fd, tmp = temp_file(out.parent, prefix=f".{out.name}.", suffix=".mp4")
     os.close(fd)
-    tmp = Path(tmp_name)
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o666 & ~umask)  # as a plain open() would create it
     try:
         with av.open(str(tmp), "w", format="mp4", options={"movflags": "+faststart"}) as box:
             vs = box.add_stream("libx264", rate=fps, options={"crf": str(CRF), "preset": PRESET})

@@ -21,7 +21,6 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -29,6 +28,7 @@ import numpy as np
 
 from langenv.control.etc_cache import etc_cache_dir
 from langenv.exercise import Exercise
+from langenv.files import temp_file
 from langenv.pacing import PaceLimits
 from langenv.speech.coverage import NATURAL, coverage
 from langenv.speech.graph import PhraseGraph, graph_path
@@ -208,7 +208,7 @@ def _write(key: str, times: MotionTimes) -> None:
         return
     try:
         root.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=root, suffix=".json.part")
+        fd, tmp = temp_file(root, suffix=".json.part")
         with os.fdopen(fd, "w") as f:
             json.dump({"nominal": times.nominal, "population": list(times.population)}, f)
         os.replace(tmp, root / f"motion_times_{key}.json")

@@ -19,7 +19,6 @@ speaks the exercise's phrase graph (:meth:`PPOEnsemble.use_graph`).
 from __future__ import annotations
 
 import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -28,6 +27,7 @@ import numpy as np
 import yaml
 
 from langenv.exercise.script import SpokenGraph
+from langenv.files import temp_file
 from policies.learned import PPOPolicy, file_sha256
 
 __all__ = ["MANIFEST_KIND", "PPOEnsemble", "write_manifest"]
@@ -179,8 +179,7 @@ def write_manifest(out: Path, models: list[Path]) -> Path:
         "# (policies/ensemble.py). Written by python -m train.ensemble.\n"
         + yaml.safe_dump({"kind": MANIFEST_KIND, "members": entries}, sort_keys=False)
     )
-    fd, name = tempfile.mkstemp(prefix=f".{out.name}.", suffix=out.suffix, dir=out.parent)
-    tmp = Path(name)
+    fd, tmp = temp_file(out.parent, prefix=f".{out.name}.", suffix=out.suffix)
     try:
         with os.fdopen(fd, "w") as fh:
             fh.write(text)

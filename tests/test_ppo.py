@@ -143,6 +143,34 @@ def test_periodic_evaluation_records_the_metrics_and_best_exports_it(
 
 @pytest.mark.slow
 @pytest.mark.xdist_group("ppo_smoke_run")
+def test_one_report_per_evaluation_on_the_projects_channel(smoke_run: SmokeRun) -> None:
+    """stdout holds the model's path only; each evaluation is one [eval @ N steps] line on
+    stderr (SB3's own evaluation lines, on stdout at any verbosity, are not printed)."""
+    assert smoke_run.first.stdout.splitlines() == [str(smoke_run.out / "ppo_langctrl.zip")]
+    lines = smoke_run.first.stderr.splitlines()
+    assert [line.split("]")[0] for line in lines if "[eval @" in line] == ["[eval @ 2048 steps"]
+    assert not any("rounded up" in line for line in lines)  # 2048: one whole rollout
+
+
+@pytest.mark.parametrize(("asked", "total"), [(32, 1024), (1024, 1024), (1025, 2048)])
+def test_the_budget_is_rounded_up_to_whole_rollouts_and_said(asked: int, total: int) -> None:
+    """PPO trains whole rollouts (n_steps x n_envs): a budget of 32 trains 1,024 steps, so the
+    run's budget (its progress bar, its config, resume) is 1,024, and a line says why."""
+    from train.ppo import _resolve
+
+    config = REPO / "configs" / "ppo_speech.yaml"
+    run = _resolve(TrainArgs(config=config, total_timesteps=asked, n_envs=2))
+    assert run.total == total and run.asked == asked
+    note = run.budget_note()
+    if asked == total:
+        assert note is None
+    else:
+        assert note is not None and f"{asked:,} steps is rounded up to {total:,}" in note
+        assert "512 steps x 2 envs (1,024 steps)" in note
+
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("ppo_smoke_run")
 def test_resume_extends_the_budget(smoke_run: SmokeRun) -> None:
     assert "resuming from" in smoke_run.resumed.stderr
     cfg = yaml.safe_load(model_files(smoke_run.out / "ppo_langctrl.zip")[2].read_text())

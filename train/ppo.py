@@ -61,7 +61,6 @@ import re
 import shutil
 import signal
 import sys
-import tempfile
 import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, fields, replace
@@ -80,6 +79,7 @@ from stable_baselines3.common.callbacks import (
 from stable_baselines3.common.vec_env import SubprocVecEnv, VecNormalize
 
 from langenv.errors import ConfigError
+from langenv.files import temp_dir
 
 __all__ = [
     "TrainArgs",
@@ -115,7 +115,8 @@ class TrainArgs:
         out: Output directory.
         name: File stem of the saved model (``NAME.zip``, ...).
         total_timesteps: Training budget (env steps, all envs together); ``None``: the YAML's
-            ``n_timesteps``.
+            ``n_timesteps``. Rounded up to whole rollouts (``n_steps x n_envs``), which is what
+            PPO trains; a line on stderr says so.
         seed: Seed of the first training env (env ``i`` gets ``seed + i``) and of PPO; >= 1e6 so
             that no training user is an evaluation user.
         eval_seed: Seed of the first held-out periodic-evaluation user.
@@ -227,8 +228,8 @@ def build_parser() -> argparse.ArgumentParser:
         type=int,
         default=None,
         metavar="STEPS",
-        help="training budget, env steps of all envs together "
-        f"{default('total_timesteps', 'its n_timesteps')}",
+        help="training budget, env steps of all envs together, rounded up to whole rollouts "
+        f"(n_steps x n_envs) {default('total_timesteps', 'its n_timesteps')}",
     )
     p.add_argument(
         "--seed",
@@ -524,8 +525,32 @@ class _Run:
     wrapper: _WrapperChain | None
     normalize: dict[str, Any] | None
     n_envs: int
-    total: int
+    total: int  # the budget asked for, rounded up to whole rollouts (what PPO trains)
     worlds: Any = None  # langenv.worlds.WorldSplit, from the config's ``worlds`` section
+    asked: int = 0  # the budget asked for (--total-timesteps or the config's n_timesteps)
+
+    @property
+    def rollout(self) -> int:
+        """Steps of one PPO rollout, all envs together (``n_steps x n_envs``)."""
+        return int(self.hyper.get("n_steps", _SB3_N_STEPS)) * self.n_envs
+
+    def budget_note(self) -> str | None:
+        """A line saying that the budget was rounded up to whole rollouts, or None."""
+        if self.asked in (0, self.total):
+            return None
+        n_steps = self.rollout // self.n_envs
+        return (
+            f"the budget of {self.asked:,} steps is rounded up to {self.total:,}: PPO trains "
+            f"whole rollouts of {n_steps:,} steps x {self.n_envs} envs ({self.rollout:,} steps)"
+        )
+
+
+_SB3_N_STEPS = 2048  # PPO's n_steps when the config gives none
+
+
+def whole_rollouts(steps: int, rollout: int) -> int:
+    """``steps`` rounded up to a whole number of rollouts of ``rollout`` steps (at least one)."""
+    return max(1, math.ceil(steps / rollout)) * rollout
 
 
 def load_worlds(data: dict[str, Any], path: Path) -> Any:
@@ -555,7 +580,8 @@ def _resolve(args: TrainArgs, given: set[str] | None = None) -> _Run:
             defaults[key] = Path(defaults[key])
     args = replace(args, **defaults) if defaults else args
     n_envs = int(args.n_envs or hyper.get("n_envs", 1))
-    total = int(args.total_timesteps or float(hyper.get("n_timesteps", 100_000)))
+    asked = int(args.total_timesteps or float(hyper.get("n_timesteps", 100_000)))
+    total = whole_rollouts(asked, int(hyper.get("n_steps", _SB3_N_STEPS)) * n_envs)
     env_kwargs = dict(hyper.get("env_kwargs") or {})
     wrapper = _wrapper_class(hyper.get("env_wrapper"), args.config)
     normalize = _normalize_kwargs(hyper.get("normalize"), args.config)
@@ -565,7 +591,7 @@ def _resolve(args: TrainArgs, given: set[str] | None = None) -> _Run:
             f"{args.config}: with 'worlds' the exercises are the split's; remove "
             "env_kwargs.exercise"
         )
-    return _Run(args, hyper, env_kwargs, wrapper, normalize, n_envs, total, worlds)
+    return _Run(args, hyper, env_kwargs, wrapper, normalize, n_envs, total, worlds, asked)
 
 
 def _ppo_kwargs(run: _Run) -> dict[str, Any]:
@@ -1068,7 +1094,7 @@ def _save_resume_point(model: Any, ckpt_dir: Path, name: str) -> None:
     ckpt_dir.mkdir(parents=True, exist_ok=True)
     final = ckpt_dir / "resume"
     old = ckpt_dir / ".resume.old"
-    tmp = Path(tempfile.mkdtemp(prefix=".resume.tmp-", dir=ckpt_dir))
+    tmp = temp_dir(ckpt_dir, prefix=".resume.tmp-")
     try:
         model.save(tmp / f"{name}.zip")
         vn = model.get_vec_normalize_env()
@@ -1181,8 +1207,10 @@ def _resolve_resume(args: TrainArgs, given: set[str]) -> tuple[_Run, dict[str, A
     kwargs.update({k: getattr(args, k) for k in given if k in known and k != "config"})
     kwargs.update(out=out, resume=True)
     merged = TrainArgs(**kwargs)
+    asked = total
     if merged.total_timesteps is not None and "total_timesteps" in given:
-        total = merged.total_timesteps
+        asked = merged.total_timesteps
+        total = whole_rollouts(asked, int(hyper.get("n_steps", _SB3_N_STEPS)) * n_envs)
     merged = replace(merged, total_timesteps=total)
     run = _Run(
         merged,
@@ -1193,6 +1221,7 @@ def _resolve_resume(args: TrainArgs, given: set[str]) -> tuple[_Run, dict[str, A
         n_envs,
         total,
         load_worlds(config, path),
+        asked,
     )
     return run, config
 
@@ -1324,6 +1353,8 @@ def train(args: TrainArgs, given: set[str] | None = None) -> Path:
         run = _resolve(args, given)
         _check_fresh_out(run.args.out)
     a = run.args
+    if (note := run.budget_note()) is not None:
+        print(note, file=sys.stderr)
     torch.set_num_threads(a.torch_threads)
     if a.init_from is not None and not a.resume:
         init_files(a.init_from)  # a missing file fails before any env starts
@@ -1411,6 +1442,7 @@ def _learn(
             log_path=str(eval_dir),
             deterministic=True,
             callback_on_new_best=_SaveBest(),
+            verbose=0,  # its report is the project's one line on stderr ([eval @ N steps])
         )
         callbacks.append(eval_cb)
         if a.resume:

@@ -76,6 +76,9 @@ def _check(specs: Sequence[str]) -> int:
             continue
         print(report.summary())
         print(f"  OK (checked in {report.seconds:.2f} s)")
+        for role in ("graph", "single"):
+            if (warning := report.exercise.script_warning(role)) is not None:
+                print(warning)
         for line in _script_fit(report.exercise):
             print(line)
     return status

@@ -14,7 +14,7 @@ from types import MappingProxyType
 
 from langenv.errors import ConfigError
 from langenv.exercise.load import load_exercise
-from langenv.exercise.spec import Exercise
+from langenv.exercise.spec import STUDY_EXERCISE, Exercise
 
 __all__ = [
     "DEFAULT_EXERCISE",
@@ -32,7 +32,7 @@ SHIPPED_EXERCISES: Mapping[str, Path] = MappingProxyType(
 )
 """The shipped exercise files by name (the file's stem)."""
 
-DEFAULT_EXERCISE = "external_rotation"
+DEFAULT_EXERCISE = STUDY_EXERCISE
 """The study's exercise (SPEC §2), the env's default."""
 
 _LOADED: dict[tuple[str, int, int, bool], Exercise] = {}

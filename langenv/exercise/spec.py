@@ -72,6 +72,7 @@ __all__ = [
     "MAX_LEGS",
     "PROBLEM_KINDS",
     "SPEED_RANGE",
+    "STUDY_EXERCISE",
     "SWITCH_TOL_RANGE",
     "Exercise",
     "Leg",
@@ -120,6 +121,8 @@ GRAPH_ROLES = MappingProxyType(
 """What graph a policy speaks, by role (a policy declares its ``graph_role``; the exercise maps
 the role to a graph: :meth:`Exercise.graph_for`). A policy brings a rule, not a script."""
 
+STUDY_EXERCISE = "external_rotation"
+"""The study's exercise (SPEC §2), whose words the shipped graphs say."""
 LEG_KINDS = ("line", "arc", "spline")
 """The shapes a leg may take."""
 MAX_LEGS = 40
@@ -430,6 +433,24 @@ class Exercise:
         if role == "single":
             return self.single
         raise ConfigError(f"graph role must be one of {sorted(GRAPH_ROLES)}, got {role!r}")
+
+    def script_warning(self, role: str) -> str | None:
+        """A ``warning:`` line when the policies of graph role ``role`` would say the study's
+        words (a shipped graph: ``script.<role>`` left out or naming one) on an exercise other
+        than the study's; else None."""
+        from langenv.speech.graph import SHIPPED_GRAPHS
+
+        ref = self.graph_for(role)
+        if self.name == STUDY_EXERCISE or ref.replace("_", "-") not in SHIPPED_GRAPHS:
+            return None
+        who = "AC and LC-noAP" if role == "single" else "LC and the policies that choose phrases"
+        where = self.path.name if self.path is not None else self.name
+        return (
+            f"warning: {where}: script.{role} is the study's {ref!r} (the default where the file "
+            f"leaves it out): {who} would say the words of its shoulder external rotation ('move "
+            "your hand away from your body') on this exercise; write a script (docs/scripts.md) "
+            f"and name it in script.{role}"
+        )
 
     @property
     def leg_names(self) -> tuple[str, ...]:

@@ -15,13 +15,13 @@ import csv
 import math
 import os
 import sys
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from langenv.errors import LangEnvError, SessionDataError
+from langenv.files import temp_file
 from langenv.speech.audio import DEFAULT_RATE, DEFAULT_SR, DEFAULT_VOICE, ClipLibrary
 from langenv.speech.author import author
 from langenv.speech.coverage import coverage, format_coverage, speech_lengths
@@ -308,13 +308,13 @@ def _render(args: argparse.Namespace) -> int:
 
     import soundfile as sf
 
-    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.stem}.", suffix=out.suffix + ".part")
+    fd, tmp = temp_file(out.parent, prefix=f".{out.stem}.", suffix=out.suffix + ".part")
     os.close(fd)
     try:
         sf.write(tmp, y, clips.sr, format=fmt[0], subtype=fmt[1])
         os.replace(tmp, out)
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        tmp.unlink(missing_ok=True)
         raise
     said = " > ".join(u.phrase if u.length is None else f"({u.length:.2f} s)" for u in plan)
     end = f"speech ends at {plan[-1].t_end:.2f} s" if plan else "nothing said"
