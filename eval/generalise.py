@@ -2,7 +2,7 @@
 
 Run::
 
-    python -m eval.generalise --model runs/speech/best/ppo_speech.zip --out out/generalise
+    python -m eval.generalise --model runs/speech/best.zip --out out/generalise
     python -m eval.generalise --model M1.zip --model M2.zip --role test --users 48 \
         --population both --out out/test_look_1
 

@@ -13,7 +13,9 @@ paths as :func:`train.ppo.recorded_path` records them), and loads the result onc
 Nothing is written when an input is missing, nor over an existing ``OUT.*`` without
 ``--overwrite``.
 
-``--best`` exports the checkpoint with the best periodic-evaluation *score* instead: the lowest
+``--best`` exports the checkpoint the periodic evaluations on the held-out users favour instead:
+for a phrase chooser's run (content recorded) the most content among the checkpoints that keep
+the base's alignment and natural voice (:data:`CONTENT_RULE`); for any other run the lowest
 mean ``|AM|`` + mean ``|EM|`` of the held-out users (``train.ppo``'s ``eval_seed`` onwards,
 recorded in ``RUN/eval/evaluations.npz``) among the evaluations made at a checkpoint's step count
 (``eval_freq`` a multiple of ``checkpoint_freq``), the earliest on a tie; so the choice is
@@ -96,7 +98,9 @@ def build_parser() -> argparse.ArgumentParser:
     which.add_argument(
         "--best",
         action="store_true",
-        help="the checkpoint with the lowest held-out mean |AM| + mean |EM| (periodic evaluation)",
+        help="the checkpoint the periodic evaluations on the held-out users favour: for a phrase "
+        f"chooser's run the {CONTENT_RULE}; for any other run the lowest mean |AM| + mean |EM| "
+        "(not the run's best_return/, SB3's highest return)",
     )
     p.add_argument(
         "--out",

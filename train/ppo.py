@@ -19,8 +19,9 @@ What a run writes into ``--out``:
 
 * ``NAME.zip``, ``NAME_vecnormalize.pkl``, ``NAME_config.yaml``: the final model, its
   observation/reward normalisation and the run's full config (what ``PPOPolicy.load`` reads);
-* ``best/NAME.*``: the same three files for the best periodic evaluation (its config records
-  the evaluation's mean return, ``eval_mean_reward``);
+* ``best_return/NAME.*``: the same three files at the periodic evaluation with the highest mean
+  return (SB3's rule; its config records it, ``eval_mean_reward``). The model a run is meant
+  to give is chosen by ``train.export --best`` (its own rule), not this one;
 * ``checkpoints/NAME_<steps>_steps.zip`` and ``NAME_vecnormalize_<steps>_steps.pkl``: snapshots
   every ``checkpoint_freq`` steps (what ``train.export`` reads), taken at that step, i.e. with the
   weights of the last update before it;
@@ -546,6 +547,8 @@ class _Run:
 
 
 _SB3_N_STEPS = 2048  # PPO's n_steps when the config gives none
+BEST_RETURN = "best_return"
+"""The run's folder of the model at its highest mean evaluation return (SB3's best model)."""
 
 
 def whole_rollouts(steps: int, rollout: int) -> int:
@@ -1414,7 +1417,7 @@ def _learn(
 ) -> Path:
     """Run PPO to the budget with checkpoints, resume points and periodic evaluations."""
     a = run.args
-    ckpt_dir, eval_dir, best_dir = a.out / "checkpoints", a.out / "eval", a.out / "best"
+    ckpt_dir, eval_dir, best_dir = a.out / "checkpoints", a.out / "eval", a.out / BEST_RETURN
     eval_cb: _MetricsEvalCallback | None = None
 
     class _SaveBest(BaseCallback):
@@ -1446,7 +1449,10 @@ def _learn(
         )
         callbacks.append(eval_cb)
         if a.resume:
-            n = _restore_history(eval_cb, eval_dir, best_dir / f"{a.name}_config.yaml", steps)
+            best_cfg = best_dir / f"{a.name}_config.yaml"
+            if not best_cfg.is_file():  # a run written before the folder had its name
+                best_cfg = a.out / "best" / best_cfg.name
+            n = _restore_history(eval_cb, eval_dir, best_cfg, steps)
             print(f"{n} earlier evaluations carried over", file=sys.stderr)
     for cb in callbacks:  # the schedules go on where the interrupted run was
         cb.n_calls = steps // run.n_envs
