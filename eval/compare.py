@@ -396,7 +396,7 @@ def _spoken_graphs(names: list[str], labels: dict[str, str], args: CompareArgs) 
         trained = getattr(policy, "trained_graph", None)
         widened = getattr(policy, "widened_from", None)
         if widened is not None or (trained is not None and trained != spoken[spec].label):
-            line = f"eval.compare: {labels[spec]} speaks {spoken[spec].label}"
+            line = f"langctrl compare: {labels[spec]} speaks {spoken[spec].label}"
             line += f" (trained on {trained})" if trained is not None else ""
             if widened is not None:
                 line += (
@@ -679,7 +679,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         users = _users(args)
         tmp = _make_tmp(out)
     except UsageError as exc:
-        print(f"eval.compare: error: {exc}", file=sys.stderr)
+        print(f"langctrl compare: error: {exc}", file=sys.stderr)
         return 2
     try:
         (tmp / "sessions").mkdir()
@@ -708,7 +708,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         (tmp / "config.json").write_text(json.dumps(cfg, indent=2) + "\n")
         move_into_place(tmp, out, args.overwrite)
     except OutTaken as exc:
-        print(f"eval.compare: error: {exc}; the outputs are in {tmp}", file=sys.stderr)
+        print(f"langctrl compare: error: {exc}; the outputs are in {tmp}", file=sys.stderr)
         return 1
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)

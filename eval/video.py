@@ -554,10 +554,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the process exit code."""
     args = parse_args(argv)
     if args.out.suffix.lower() != ".mp4":
-        print(f"eval.video: error: --out must end in .mp4, got {args.out}", file=sys.stderr)
+        print(f"langctrl video: error: --out must end in .mp4, got {args.out}", file=sys.stderr)
         return 2
     if not args.out.parent.is_dir():
-        print(f"eval.video: error: --out: no directory {args.out.parent}", file=sys.stderr)
+        print(f"langctrl video: error: --out: no directory {args.out.parent}", file=sys.stderr)
         return 2
     try:
         log = EpisodeLog.load_npz(args.log)
@@ -566,7 +566,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             log, args.out, audio, sr, fps=args.fps, model_path=args.model_path, progress=None
         )
     except LangEnvError as exc:
-        print(f"eval.video: error: {exc}", file=sys.stderr)
+        print(f"langctrl video: error: {exc}", file=sys.stderr)
         return 2
     print(f"wrote {path} ({len(log.utterances)} phrases, {log.t[-1] - log.t[0]:.1f} s)")
     return 0

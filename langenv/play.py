@@ -325,10 +325,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         line = run(ns)
     except LangEnvError as exc:
-        print(f"langenv.play: error: {exc}", file=sys.stderr)
+        print(f"langctrl play: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("langenv.play: stopped", file=sys.stderr)
+        print("langctrl play: stopped", file=sys.stderr)
         return 130
     print(line)
     return 0

@@ -166,12 +166,12 @@ def write_manifest(out: Path, models: list[Path]) -> Path:
     for model in models:
         model = Path(model)
         if not model.is_file():
-            raise FileNotFoundError(f"train.ensemble: not found: {model}")
+            raise FileNotFoundError(f"langctrl ensemble: not found: {model}")
         try:
             rel = model.resolve().relative_to(out.parent.resolve())
         except ValueError:
             raise ValueError(
-                f"train.ensemble: {model} must lie in the manifest's folder {out.parent}"
+                f"langctrl ensemble: {model} must lie in the manifest's folder {out.parent}"
             ) from None
         entries.append({"file": rel.as_posix(), "sha256": file_sha256(model)})
     text = (

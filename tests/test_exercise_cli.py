@@ -101,7 +101,12 @@ def test_check_refuses_a_malformed_file(tmp_path: Path, capsys: pytest.CaptureFi
     path = tmp_path / "bad.yaml"
     path.write_text(BAD.replace("line: {to: start}", "lines: {to: start}"))
     assert main(["check", str(path)]) == 1
-    assert "unknown_key" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "unknown_key" in err and "did you mean 'line'?" in err
+    assert err.rstrip().endswith("REFUSED (2 problems)")
+    path.write_text(BAD + "colour: red\n")
+    assert main(["check", str(path)]) == 1
+    assert capsys.readouterr().err.rstrip().endswith("REFUSED (1 problem)")
 
 
 def test_usage_errors_exit_2(capsys: pytest.CaptureFixture[str]) -> None:

@@ -165,7 +165,7 @@ def test_export_best_s_help_says_both_of_its_rules(monkeypatch: pytest.MonkeyPat
 
 
 def test_one_name_per_best_in_the_docs() -> None:
-    """"best" is the model export --best chooses (runs/speech/best.zip); the training run's
+    """ "best" is the model export --best chooses (runs/speech/best.zip); the training run's
     SB3 model of the highest return is best_return/: no page or example names a best/ model."""
     import re
 
@@ -667,7 +667,7 @@ def test_ctrl_c_exits_130_with_one_line(tmp_path: Path) -> None:
         pytest.fail("train.ppo did not end after five Ctrl-C")
     assert proc.returncode == 130, stderr[-3000:]
     lines = stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("train.ppo: interrupted at"), stderr[-3000:]
+    assert len(lines) == 1 and lines[0].startswith("langctrl train: interrupted at"), stderr[-3000:]
     assert "continue with --resume" in lines[0]
     assert point.is_file()
 

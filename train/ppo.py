@@ -913,8 +913,8 @@ def code_version(installed: str) -> dict[str, str]:
         source = None
     if isinstance(source, str) and source != installed:
         print(
-            f"train.ppo: the installed metadata says langctrl {installed} but the code that runs "
-            f"is {source} ({root / 'pyproject.toml'}); recording {source} (reinstall: pip "
+            f"langctrl train: the installed metadata says langctrl {installed} but the code that "
+            f"runs is {source} ({root / 'pyproject.toml'}); recording {source} (reinstall: pip "
             "install -e .)",
             file=sys.stderr,
         )
@@ -1482,7 +1482,7 @@ def _learn(
             else "nothing to resume from yet"
         )
         print(
-            f"train.ppo: interrupted at {model.num_timesteps} steps; {where}; continue with "
+            f"langctrl train: interrupted at {model.num_timesteps} steps; {where}; continue with "
             "--resume",
             file=sys.stderr,
         )
@@ -1644,7 +1644,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         path = train(args, given)
     except (FileNotFoundError, ConfigError) as exc:
-        print(f"train.ppo: error: {exc}", file=sys.stderr)
+        print(f"langctrl train: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         return 130

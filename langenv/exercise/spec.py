@@ -148,12 +148,15 @@ class Problem:
             its start), its segment (a bend too tight), or the spline's point (the format);
             None for the whole leg.
         detail: What is wrong and what is allowed, in words.
+        at: Where along the leg it lies (m from the leg's start) for a check along the path,
+            said instead of ``point`` (an internal sample or segment index); None otherwise.
     """
 
     kind: str
     leg: str | None
     point: int | None
     detail: str
+    at: float | None = None
 
     def __post_init__(self) -> None:
         if self.kind not in PROBLEM_KINDS:
@@ -163,7 +166,9 @@ class Problem:
 
     def __str__(self) -> str:
         where = f"leg {self.leg!r}: " if self.leg is not None else ""
-        if self.point is not None:
+        if self.at is not None:
+            where += f"{self.at:.2f} m along it: "
+        elif self.point is not None:
             where += f"point {self.point}: "
         return f"{where}{self.kind}: {self.detail}"
 

@@ -202,10 +202,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return run(ns)
     except LangEnvError as exc:
-        print(f"langenv.robot.ur: error: {exc}", file=sys.stderr)
+        print(f"langctrl robot: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("langenv.robot.ur: stopped", file=sys.stderr)
+        print("langctrl robot: stopped", file=sys.stderr)
         return 130
 
 
