@@ -81,6 +81,7 @@ from stable_baselines3.common.vec_env import SubprocVecEnv, VecNormalize
 
 from langenv.errors import ConfigError
 from langenv.files import temp_dir
+from langenv.validation import yaml_text
 
 __all__ = [
     "TrainArgs",
@@ -383,7 +384,7 @@ def _read_config(path: Path, seen: tuple[Path, ...]) -> dict[str, Any]:
         chain = " -> ".join(str(p) for p in (*seen, path.resolve()))
         raise ConfigError(f"{path}: 'inherit' forms a cycle: {chain}")
     try:
-        data = yaml.safe_load(path.read_text())
+        data = yaml.safe_load(yaml_text(path.read_text(), path))
     except yaml.YAMLError as exc:
         raise ConfigError(f"{path}: not valid YAML: {exc}") from None
     if not isinstance(data, dict):
