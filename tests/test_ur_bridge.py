@@ -198,6 +198,51 @@ def test_no_robot_on_the_host_is_a_named_error_within_seconds(
     assert "no robot answers at 127.0.0.1" in err or ".[ur]" in err
 
 
+def test_a_session_without_a_sound_card_is_refused_before_connecting(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """No PortAudio (or no output device) and no --audio-out: the error comes before the fake
+    robot is even served, and no plan is printed."""
+    import langenv.live.sinks as sinks
+    from langenv.errors import DeviceError
+
+    def no_portaudio() -> object:
+        raise DeviceError("live audio needs the PortAudio library (not found)")
+
+    served: list[object] = []
+    monkeypatch.setattr(sinks, "_sounddevice", no_portaudio)
+    monkeypatch.setattr(fake_rtde.FakeUR, "serve", lambda self: served.append(self) or self)
+    assert ur_main(["--host", HOST, "--fake", "--yes"]) == 2
+    out, err = capsys.readouterr()
+    assert served == [] and out == ""
+    assert err.startswith("langctrl robot: error: live audio needs the PortAudio library")
+
+
+def test_a_host_that_hangs_up_is_said_in_words() -> None:
+    """ur-rtde's own "read: End of file" (the host took the connection, then closed it) becomes
+    what happened and what to check."""
+    import types
+
+    from langenv.errors import DeviceError
+    from langenv.robot.ur.bridge import URRobot
+    from langenv.robot.ur.config import URConfig
+
+    def hangs_up(*args: object, **kwargs: object) -> None:
+        raise RuntimeError("read: End of file")
+
+    backend = types.SimpleNamespace(
+        probe=lambda host, timeout: None,
+        RTDEReceiveInterface=hangs_up,
+        RTDEControlInterface=hangs_up,
+        DashboardClient=hangs_up,
+    )
+    with pytest.raises(DeviceError) as info:
+        URRobot(URConfig(host=HOST), backend=backend)
+    message = str(info.value)
+    assert message.startswith(f"the robot at {HOST} does not answer as a UR's RTDE interface")
+    assert "took the connection and closed it" in message and "Remote Control" in message
+
+
 def test_import_needs_neither_ur_rtde_nor_mujoco_and_names_the_extra() -> None:
     code = (
         "import sys\n"

@@ -127,6 +127,10 @@ def run(
 
     config = _config(ns)
     exercise = checked_exercise(ns.exercise)  # before anything connects or moves
+    if not ns.dry_run and ns.audio_out is None:
+        from langenv.live.sinks import check_output_device
+
+        check_output_device(ns.device)  # the sound card too: a session speaks through it
     fake = None
     if ns.fake:
         from langenv.robot.ur.fake_rtde import FakeUR
