@@ -11,7 +11,7 @@ and controller, the medians of motion time, ``|AM|``, mean ``|EM|``, the share o
 and the hand's largest distance from the path (from the logged joint positions: the handle's
 position by forward kinematics, its distance to the nearest point of the exercise's path).
 Then the headline per exercise: over LC's sessions, the largest ``|AM|``, how many end within
-1 s, and the means of the silence share and of the share of the voice heard natural.
+1 s, and the means of the pause share and of the share of the voice heard natural.
 ``--table-only`` reads existing runs without running anything. Exit status 1 when an episode ended
 in a protective stop or left the path by more than the safety's ``max_deviation``, LC's median
 ``|AM|`` is not below AC's, or an LC session ends more than 1 s from its motion."""
@@ -98,7 +98,7 @@ def exercise_rows(run_dir: Path, name: str) -> list[dict[str, Any]]:
 
 def headline_row(run_dir: Path, name: str) -> dict[str, Any]:
     """LC's headline on one exercise's run: every session's |AM| (max, share within 1 s), and the
-    means over sessions of the silence share and the share of the voice heard natural."""
+    means over sessions of the pause share and the share of the voice heard natural."""
     from eval.report import read_sessions_csv
 
     mine = [r for r in read_sessions_csv(run_dir / "sessions.csv") if r["policy"] == "lc"]
@@ -116,7 +116,7 @@ def headline_row(run_dir: Path, name: str) -> dict[str, Any]:
 def headline_table(rows: list[dict[str, Any]]) -> str:
     """The headline rows as a Markdown table."""
     lines = [
-        "| exercise | LC sessions | max abs(AM) (s) | within 1 s | silence (mean) | voice natural "
+        "| exercise | LC sessions | max abs(AM) (s) | within 1 s | pauses (mean) | voice natural "
         "(mean) |",
         "|---|---|---|---|---|---|",
     ]

@@ -125,6 +125,11 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="CSV",
         help="with --robot: write the session CSV here (default: none)",
     )
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace an existing --audio-out, --trace-out or --log-out file (default: refuse)",
+    )
     return p
 
 
@@ -155,6 +160,8 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     ):
         if path is not None and not path.parent.is_dir():
             p.error(f"{flag}: no directory {path.parent}")
+        if path is not None and path.exists() and not ns.overwrite:
+            p.error(f"{flag} {path}: exists; give --overwrite to replace it")
     if ns.user is None:
         ns.user = "synthetic" if ns.headless else "drag"
     if ns.headless and ns.user == "drag":

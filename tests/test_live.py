@@ -210,3 +210,18 @@ def test_missing_portaudio_is_a_clear_error(monkeypatch: pytest.MonkeyPatch) -> 
     monkeypatch.setattr(builtins, "__import__", fake_import)
     with pytest.raises(DeviceError, match="libportaudio2"):
         SoundCardSink(AudioRing(1024), 22050)
+
+
+def test_play_refuses_to_replace_an_output_without_overwrite(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """As every other job: an existing --audio-out (or --trace-out) is kept unless --overwrite."""
+    wav = tmp_path / "live.wav"
+    wav.write_bytes(b"RIFF the last session")
+    args = ["--headless", "--seconds", "1", "--audio-out", str(wav)]
+    with pytest.raises(SystemExit) as info:
+        parse_args(args)
+    assert info.value.code == 2
+    assert f"--audio-out {wav}: exists; give --overwrite to replace it" in capsys.readouterr().err
+    assert wav.read_bytes() == b"RIFF the last session"
+    assert parse_args([*args, "--overwrite"]).overwrite

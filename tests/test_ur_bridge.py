@@ -627,3 +627,16 @@ def test_write_speed_sends_no_unbounded_rotation() -> None:
         robot.close()
     last = [c for c in ur.commands if c[0] == "speedL"][-1][2]
     assert last[3:] == [0.0, 0.0, 0.0] and not sent[3:].any() and last[0] == pytest.approx(0.01)
+
+
+def test_robot_refuses_to_replace_a_log_without_overwrite(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from langenv.robot.ur.__main__ import parse_args
+
+    log = tmp_path / "session.csv"
+    log.write_text("t\n0\n")
+    with pytest.raises(SystemExit):
+        parse_args(["--host", HOST, "--fake", "--log-out", str(log)])
+    assert f"--log-out {log}: exists; give --overwrite" in capsys.readouterr().err
+    assert parse_args(["--host", HOST, "--fake", "--log-out", str(log), "--overwrite"]).overwrite
