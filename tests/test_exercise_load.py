@@ -148,7 +148,9 @@ def test_every_problem_is_reported_at_once_with_leg_and_line(tmp_path: Path) -> 
     kinds = [p.kind for p in info.value.problems]
     assert {"bad_value", "bad_vector", "unknown_key"} <= set(kinds)
     message = str(info.value)
-    assert "ex.yaml" in message and "leg 'back'" in message and "(line 11)" in message
+    assert "ex.yaml" in message and "leg 'back'" in message
+    assert "line.to (m) must be [x, y, z]" in message and "(line 12)" in message  # its key's line
+    assert "unknown key 'wobble'" in message and "(line 13)" in message
 
 
 def test_an_unknown_key_is_named_with_its_line_and_the_closest_known_one(

@@ -260,6 +260,7 @@ def _author(args: argparse.Namespace) -> int:
 
         # a bad exercise before anything is written; its script may be the one being written
         exercise = resolve_exercise(args.exercise, unwritten_scripts=True)
+    _every_error(args.script)
     graph = author(args.script, out, _clips(args))
     print(f"wrote {out} from {args.script}")
     print(_summary(graph))
@@ -271,6 +272,18 @@ def _author(args: argparse.Namespace) -> int:
         for line in fit_report(graph, exercise):
             print(line)
     return 0
+
+
+def _every_error(script: Path) -> None:
+    """Raise every error of the script at once (:func:`~langenv.speech.script_check.read_script`),
+    not only its first; a file that cannot be read is left to ``author``, which names it."""
+    from langenv.speech.script_check import read_script
+
+    try:
+        source = script.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return
+    read_script(source, script)
 
 
 def _render(args: argparse.Namespace) -> int:

@@ -541,9 +541,7 @@ def author(
     except (OSError, UnicodeDecodeError) as exc:
         reason = getattr(exc, "strerror", None) or exc
         raise PhraseGraphError(f"{script_path}: cannot read script: {reason}") from None
-    from langenv.speech.script_check import read_script  # every error of the script at once
-
-    script = read_script(source, script_path)
+    script = parse_script(source, script_path)
     text = graph_yaml(script, script_path.name)
     if not out.parent.is_dir():
         raise ScriptError(f"{out}: directory {out.parent} does not exist")

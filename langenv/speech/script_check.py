@@ -4,7 +4,8 @@
 on past each one: the line in error is read again as a plain one-wording step (a directive as a
 blank line), which keeps the steps around it where they were, until the script parses or a line
 fails twice; then it raises every error found, one line each (file, line, column), in the order
-found. ``langctrl speech author`` reads scripts this way, so an author fixes them in one pass.
+found. ``langctrl speech author`` reads a script this way before writing its graph, so an author
+fixes every error in one pass.
 """
 
 from __future__ import annotations
