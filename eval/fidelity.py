@@ -749,7 +749,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         kind, _, count = args.users.partition(":")
         if kind != "synthetic" or not count.isdigit() or int(count) < 1:
             print(
-                f"eval.fidelity: error: --users must be synthetic:N, got {args.users!r}",
+                f"langctrl fidelity: error: --users must be synthetic:N, got {args.users!r}",
                 file=sys.stderr,
             )
             return 2
@@ -764,7 +764,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             )
         rec_traces = [trace_from_session(s, str(controller_of(s.name))) for s in sessions]
     except (SessionDataError, ValueError, OSError) as exc:
-        print(f"eval.fidelity: error: {exc}", file=sys.stderr)
+        print(f"langctrl fidelity: error: {exc}", file=sys.stderr)
         return 2
     sim_traces = replay_traces(sessions, args.workers)
     rec, sim = measure(rec_traces), measure(sim_traces)
