@@ -46,7 +46,7 @@ def _unscripted(tmp_path: Path, script: str) -> Path:
 
 @pytest.mark.parametrize(
     ("script", "warned"),
-    [("", ("graph", "single")), ("script: {graph: lc}", ("graph", "single")),
+    [("script: {graph: study}", ("graph", "single")),
      ("script: {graph: scripts/shoulder_flexion_lc.yaml}", ("single",))],
 )  # fmt: skip
 def test_check_warns_of_the_study_s_words_naming_the_entry(
@@ -56,7 +56,7 @@ def test_check_warns_of_the_study_s_words_naming_the_entry(
     script: str,
     warned: tuple[str, ...],
 ) -> None:
-    """A new exercise that leaves its script out would say "move your hand away from your
+    """A new exercise that speaks a shipped graph would say "move your hand away from your
     body" (the study's external rotation) on any path: check says so, naming the entry."""
     import langenv.exercise.__main__ as cli
 
@@ -69,6 +69,18 @@ def test_check_warns_of_the_study_s_words_naming_the_entry(
     lines = [line for line in out.splitlines() if line.startswith("warning: mine.yaml: script.")]
     assert [line.split()[2] for line in lines] == [f"script.{r}" for r in warned]
     assert all("move your hand away from your body" in line for line in lines)
+
+
+@pytest.mark.parametrize("script", ["", "script: {graph: lc}"])
+def test_check_refuses_the_study_s_marked_script_naming_the_entry(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], script: str
+) -> None:
+    """Left out (or named), script.graph is the study's script, whose lines are marked with
+    the legs of its external rotation: refused, naming the entry and what to do."""
+    assert main(["check", str(_unscripted(tmp_path, script))]) == 1
+    err = capsys.readouterr().err
+    assert "unknown_leg: script.graph" in err and "is left out or names a shipped graph" in err
+    assert "script: {graph: study}" in err
 
 
 def test_the_study_s_exercise_and_the_shipped_scripts_are_not_warned_about() -> None:
