@@ -1,4 +1,4 @@
-"""Words with intents: ``<INTENT>`` in scripts, ``intent:`` in graph YAML, ``PhraseGraph.intent``."""
+"""Words with intents: ``<INTENT>`` in scripts, ``intent:`` in the YAML, ``PhraseGraph.intent``."""
 
 from __future__ import annotations
 
