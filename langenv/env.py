@@ -31,9 +31,10 @@ from langenv.robot.io_arm import IOArm, MeasuredUser
 from langenv.safety import SafetyLimits
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.graph import PhraseGraph, graph_path
+from langenv.speech.hearing import Ear
 from langenv.speech.legs import LegPlan, leg_plan
 from langenv.speech.timeline import SpeechTimeline
-from langenv.users import CallableUser, ReplayUser, SyntheticUser, User
+from langenv.users import CallableUser, Listener, ListeningUser, ReplayUser, SyntheticUser, User
 
 __all__ = ["LAW_CHUNK", "LangCtrlEnv", "LawSteps", "make_env"]
 
@@ -191,7 +192,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
 
     | argument | default | meaning |
     |---|---|---|
-    | ``users`` | ``"synthetic"`` | ``"synthetic"``, ``"replay"`` (with ``session``), a :class:`~langenv.users.User` or a callable ``f(t, hand_velocity, tangent) -> (3,)`` N |
+    | ``users`` | ``"synthetic"`` | ``"synthetic"``, ``"listening"`` (a synthetic person who responds to the words' intents, :class:`~langenv.users.ListeningUser`), ``"replay"`` (with ``session``), a :class:`~langenv.users.User` or a callable ``f(t, hand_velocity, tangent) -> (3,)`` N |
     | ``session`` | ``None`` | session CSV (``t, cooperation``) for ``users="replay"`` |
     | ``exercise`` | ``"external_rotation"`` | a shipped exercise's name (``python -m langenv.exercise list``), an exercise YAML path or an :class:`~langenv.exercise.Exercise` |
     | ``phrase_graph`` | the exercise's (``script.graph``: for the study's exercise ``"default"``) | YAML path or a shipped graph: ``"default"`` (= ``"lc"``, LC's graph with pauses and fillers), ``"study"`` (the study's LC graph), ``"lc-noap"``, ``"ac"`` |
@@ -344,6 +345,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self._choice_u: list[float] = [0.0] * n_choice
         self._pause_factor = 1.0  # the pause rule's target over t_x (target mode: 2**(2u))
         self._renderer: Any = None
+        self._ear: Ear | None = None
         self.time = 0.0
         self.t_a = 0.0
         self.t_h = 0.0
@@ -407,6 +409,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self.motion.reset()
         self.paces.reset()
         self.speech.reset()
+        self._ear = Ear(self.speech) if isinstance(self.user, Listener) else None
         self._reset_episode_state()
         self._update_speech_eta()
         return self._observation(), self._info()
@@ -699,6 +702,8 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             hz = self._horizons()
             speech.step(self.dt, a, self._choose, hz, pause_factor=self._pause_factor)
         self.time += self.dt
+        if self._ear is not None:
+            self._listen(a)
         self._coop_hist[self._coop_i % self._coop_hist.size] = motion.cooperation
         self._coop_i += 1
         self._update_speech_eta()
@@ -710,6 +715,20 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         if not motion_on and not speech_on:
             self._end_episode()
         return em, pace
+
+    def _listen(self, a: float) -> None:
+        """Tell a person who listens (:class:`~langenv.users.Listener`) the words heard in this
+        tick and, if they need it, the speech's lead over the motion: the speech's progress
+        minus the motion's, in seconds of the whole speech (:mod:`langenv.users.listening`)."""
+        user: Any = self.user
+        assert self._ear is not None
+        for t, _, intent in self._ear.step(self.dt, a):
+            user.hear(t, intent)
+        if user.perceives:
+            sp = self.speech
+            said = sp.content_time
+            left = self.t_a if self._legs.segments == 1 else sp.eta(self._hz)
+            user.perceive(self.time, said - self.motion.progress * (said + left))
 
     def _end_episode(self) -> None:
         """Motion and speech are over: the episode terminates with its alignment ``am``."""
@@ -903,12 +922,14 @@ def _make_user(users: Any, session: str | Path | None) -> User:
     if isinstance(users, str):
         if users == "synthetic":
             return SyntheticUser()
+        if users == "listening":
+            return ListeningUser()
         if users == "replay":
             if session is None:
                 raise ConfigError("users='replay' needs session=PATH to a session CSV")
             return ReplayUser.from_csv(session)
         raise ConfigError(
-            f"users must be 'synthetic', 'replay', a User or a callable; got {users!r}"
+            f"users must be 'synthetic', 'listening', 'replay', a User or a callable; got {users!r}"
         )
     if hasattr(users, "reset") and hasattr(users, "force"):
         return users
