@@ -67,7 +67,7 @@ LAGS: tuple[float, ...] = (0.5, 1.0, 1.5, 2.0, 3.0)
 RESPONSES: tuple[str, ...] = ("c", "v")
 """The responses: cooperation and hand speed."""
 
-FOLLOW_GRID: tuple[float, ...] = (-2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 2.0)
+FOLLOW_GRID: tuple[float, ...] = (-3.0, -2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 2.0, 3.0)
 """``follow`` values simulated (N per s of lead)."""
 
 GRID_HZ = 50.0

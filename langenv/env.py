@@ -719,16 +719,18 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     def _listen(self, a: float) -> None:
         """Tell a person who listens (:class:`~langenv.users.Listener`) the words heard in this
         tick and, if they need it, the speech's lead over the motion: the speech's progress
-        minus the motion's, in seconds of the whole speech (:mod:`langenv.users.listening`)."""
+        minus the motion's, in seconds of the whole speech, while the speech runs (0 once it
+        is over; :mod:`langenv.users.listening`)."""
         user: Any = self.user
         assert self._ear is not None
         for t, _, intent in self._ear.step(self.dt, a):
             user.hear(t, intent)
-        if user.perceives:
+        if user.perceives:  # while the speech runs; once it is over there is nothing to follow
             sp = self.speech
             said = sp.content_time
             left = self.t_a if self._legs.segments == 1 else sp.eta(self._hz)
-            user.perceive(self.time, said - self.motion.progress * (said + left))
+            lead = 0.0 if sp.done else said - self.motion.progress * (said + left)
+            user.perceive(self.time, lead)
 
     def _end_episode(self) -> None:
         """Motion and speech are over: the episode terminates with its alignment ``am``."""

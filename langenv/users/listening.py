@@ -148,10 +148,10 @@ SOURCES: Mapping[str, Source] = MappingProxyType(
         ),
         "follow": Source(
             "fitted",
-            (-1.0, 1.0),
+            (-1.0, 0.0),
             "push along the motion per second of the speech's lead (N/s), fitted to the "
             "study's AC sessions, whose speech runs at its own pace (python -m "
-            "eval.listening); the range is the fit's 95 % interval",
+            "eval.listening): 0 [95 % CI -0.99, 0.00]; the range is the interval",
         ),
     }
 )
@@ -190,9 +190,10 @@ class ListeningParams:
             0-6 N).
         slower: Push against the motion (N above the deadband) after ``slower`` (assumption,
             0-6 N).
-        follow: Push along the motion per second of the speech's lead over the motion (N/s;
-            fitted to the study's AC sessions by ``python -m eval.listening``, the range its
-            95 % interval); negative: against.
+        follow: Push along the motion per second of the speech's lead over the motion, while
+            the speech runs (N/s; negative: the person waits for the speech). Fitted to the
+            study's AC sessions by ``python -m eval.listening``: 0, 95 % interval -0.99-0.00
+            (the range).
     """
 
     latency: float = 0.8
