@@ -408,7 +408,7 @@ def _spoken_graphs(names: list[str], labels: dict[str, str], args: CompareArgs) 
         trained = getattr(policy, "trained_graph", None)
         widened = getattr(policy, "widened_from", None)
         if widened is not None or (trained is not None and trained != spoken[spec].label):
-            line = f"eval.compare: {labels[spec]} speaks {spoken[spec].label}"
+            line = f"langctrl compare: {labels[spec]} speaks {spoken[spec].label}"
             line += f" (trained on {trained})" if trained is not None else ""
             if widened is not None:
                 line += (
@@ -714,7 +714,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         person = _user_spec(args).model() if args.sessions is None else None
         tmp = _make_tmp(out)
     except UsageError as exc:
-        print(f"eval.compare: error: {exc}", file=sys.stderr)
+        print(f"langctrl compare: error: {exc}", file=sys.stderr)
         return 2
     try:
         (tmp / "sessions").mkdir()
@@ -744,7 +744,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         (tmp / "config.json").write_text(json.dumps(cfg, indent=2) + "\n")
         move_into_place(tmp, out, args.overwrite)
     except OutTaken as exc:
-        print(f"eval.compare: error: {exc}; the outputs are in {tmp}", file=sys.stderr)
+        print(f"langctrl compare: error: {exc}; the outputs are in {tmp}", file=sys.stderr)
         return 1
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -784,11 +784,12 @@ def run_jobs(jobs: list[Job], workers: int) -> list[dict[str, Any]]:
     """
     from tqdm import tqdm
 
-    bar = tqdm(total=len(jobs), desc="episodes", unit="ep", file=sys.stderr)
+    bar = tqdm(total=len(jobs), desc=bar_label(jobs), unit="ep", file=sys.stderr)
     rows: list[dict[str, Any] | None] = [None] * len(jobs)
     try:
         if workers == 1:
             for k, job in enumerate(jobs):
+                bar.set_postfix_str(_job_name(job), refresh=False)
                 rows[k] = run_episode(job)
                 bar.update()
         else:
@@ -804,6 +805,7 @@ def run_jobs(jobs: list[Job], workers: int) -> list[dict[str, Any]]:
                 try:
                     for future in as_completed(futures):
                         rows[futures[future]] = future.result()
+                        bar.set_postfix_str(_job_name(jobs[futures[future]]), refresh=False)
                         bar.update()
                 except BaseException:  # episodes not yet handed to a worker are not run
                     pool.shutdown(wait=False, cancel_futures=True)
@@ -813,6 +815,27 @@ def run_jobs(jobs: list[Job], workers: int) -> list[dict[str, Any]]:
     done = [row for row in rows if row is not None]
     assert len(done) == len(jobs)
     return done
+
+
+def bar_label(jobs: Sequence[Job]) -> str:
+    """What a progress bar of ``jobs`` runs: their exercise(s) and policies (``"hand_to_mouth:
+    ac, lc-noap, lc episodes"``), so that a job of several runs says which one it is on."""
+    exercises = sorted({_exercise_name(j.exercise) for j in jobs})
+    policies = list(dict.fromkeys(_job_name(j) for j in jobs))
+    where = exercises[0] if len(exercises) == 1 else f"{len(exercises)} exercises"
+    who = ", ".join(policies) if len(policies) <= 4 else f"{len(policies)} policies"
+    return f"{where}: {who} episodes"
+
+
+def _job_name(job: Job) -> str:
+    return job.name if job.name is not None else job.policy
+
+
+def _exercise_name(exercise: str | None) -> str:
+    """An exercise argument as a bar names it: a shipped name, or a file's stem."""
+    from langenv.exercise import DEFAULT_EXERCISE
+
+    return DEFAULT_EXERCISE if exercise is None else Path(exercise).stem
 
 
 def decision_rate(job: Job) -> int:

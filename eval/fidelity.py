@@ -774,7 +774,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 raise ValueError("--listening sets listening people: give --users listening:N")
             spec = parse_users(args.users, args.listening)
         except ValueError as exc:
-            print(f"eval.fidelity: error: {exc}", file=sys.stderr)
+            print(f"langctrl fidelity: error: {exc}", file=sys.stderr)
             return 2
         n_syn = spec.count
     try:
@@ -787,7 +787,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             )
         rec_traces = [trace_from_session(s, str(controller_of(s.name))) for s in sessions]
     except (SessionDataError, ValueError, OSError) as exc:
-        print(f"eval.fidelity: error: {exc}", file=sys.stderr)
+        print(f"langctrl fidelity: error: {exc}", file=sys.stderr)
         return 2
     sim_traces = replay_traces(sessions, args.workers)
     rec, sim = measure(rec_traces), measure(sim_traces)

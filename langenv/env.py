@@ -150,9 +150,10 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
 
     ## Episode end
 
-    Terminates when both speech and motion are over, or at a **protective stop** (below). Truncation
-    through ``max_episode_steps`` at registration (1500 steps = 60 s at the default 25 Hz; pass
-    ``max_episode_steps=60 * decision_hz`` to ``gymnasium.make`` for other rates).
+    Terminates when both speech and motion are over, or at a **protective stop** (below).
+    Truncates at the session's length, ``max_seconds`` (60 s), whatever the decision rate: the
+    step that reaches it returns ``truncated=True`` (``info["am"]`` is then None). A
+    ``max_episode_steps`` given to ``gymnasium.make`` adds Gymnasium's step-counting limit on top.
 
     ## Safety
 
@@ -186,7 +187,9 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     comes back as ``last``; without one, take the next step with
     ``env.step(policy.act(env.unwrapped.observation()))`` (a phrase boundary) and call it again. The episode is the
     same, bit for bit, as the policy taking every step, at a few times the speed (``eval.compare``
-    runs 500 Hz aligners this way). Steps it takes bypass wrappers (count them for a time limit).
+    runs 500 Hz aligners this way). Steps it takes bypass wrappers (count them for a
+    ``max_episode_steps`` wrapper); it stops a step before ``max_seconds``, so that the step that
+    truncates is ``env.step``'s.
 
     ## Arguments
 
@@ -197,7 +200,8 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     | ``exercise`` | ``"external_rotation"`` | a shipped exercise's name (``python -m langenv.exercise list``), an exercise YAML path or an :class:`~langenv.exercise.Exercise` |
     | ``phrase_graph`` | the exercise's (``script.graph``: for the study's exercise ``"default"``) | YAML path or a shipped graph: ``"default"`` (= ``"lc"``, LC's graph with pauses and fillers), ``"study"`` (the study's LC graph), ``"lc-noap"``, ``"ac"`` |
     | ``trajectory`` | ``None`` | a :class:`~langenv.control.trajectory.Trajectory` instead of the exercise's path; with ``exercise``, that exercise's path in another frame (its legs, which name the script's) |
-    | ``decision_hz`` | 25 | agent decisions per second; must divide 500 |
+    | ``decision_hz`` | 25 | agent decisions per second; must divide 500 (an analytic policy holds the paper's law at its own rate, ``policy.decision_hz``) |
+    | ``max_seconds`` | 60 | the session's length (s): the episode truncates there at any ``decision_hz``; ``None``: no limit |
     | ``choice_mode`` | ``"target"`` | next-phrase action design: ``"target"`` or ``"scores"`` |
     | ``w_em``, ``w_pace``, ``w_am`` | 1, 1, 1 | reward weights |
     | ``sensor_noise`` | 0 | force sensor noise std (N) |
@@ -216,6 +220,9 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
 
     ## Version history
 
+    * v0 (langctrl 0.6): the time limit is a session length, ``max_seconds`` (60 s at any
+      ``decision_hz``), instead of 1500 steps at registration (3 s at 500 Hz); episodes that
+      ended before 60 s are unchanged.
     * v0 (langctrl 0.5): ``exercise`` added (exercises as data), ``robot`` (a
       :class:`~langenv.robot.io.RobotIO`) and ``robot_acceleration`` added, the default phrase
       graph has pauses and fillers (the study's is ``"study"``); the study's exercise with the
@@ -258,6 +265,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         robot: RobotIO | None = None,
         robot_acceleration: float = 1.0,
         max_children: int | None = None,
+        max_seconds: float | None = 60.0,
     ) -> None:
         super().__init__()
         if (
@@ -279,6 +287,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self.width, self.height = _pixels("width", width), _pixels("height", height)
         self.decision_hz = int(decision_hz)
         self.ticks_per_step = PHYSICS_HZ // self.decision_hz
+        self.max_seconds, self.max_ticks = _session_length(max_seconds)
         self.choice_mode = choice_mode
         self.w_em, self.w_pace, self.w_am = weights
         if safety is not None and not isinstance(safety, SafetyLimits):
@@ -498,7 +507,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             raise ConfigError(f"max_steps must be >= 0, got {max_steps}")
         arm = self.motion.arm
         n_q = arm.data.qpos.shape[0] if isinstance(arm, Arm) else 0
-        n = min(int(max_steps), LAW_CHUNK) if self.runs_compiled else 0
+        n = self._law_steps_left(max_steps)
         rows = np.zeros((n, len(ek.ROW_FIELDS) + n_q + 3))
         rewards = np.zeros(n)
         phrase, in_pause = self.speech.phrase, self.speech.in_pause
@@ -619,7 +628,24 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         total = reward.total(r_em, r_pace, r_am)
         info = self._info()
         info.update(reward_em=r_em, reward_pace=r_pace, reward_am=r_am)
-        return self._observation(), float(total), self._terminated, False, info
+        return self._observation(), float(total), self._terminated, self.truncated, info
+
+    @property
+    def truncated(self) -> bool:
+        """Whether the episode has reached its length (``max_seconds``) without ending."""
+        return (
+            not self._terminated
+            and self.max_ticks is not None
+            and round(self.time * PHYSICS_HZ) >= self.max_ticks
+        )
+
+    def _law_steps_left(self, max_steps: int) -> int:
+        """Steps :meth:`run_law` may take: at most ``max_steps`` and :data:`LAW_CHUNK`, and one
+        fewer than the steps left to the session's length (that last step is Python's)."""
+        n = min(int(max_steps), LAW_CHUNK)
+        if self.max_ticks is not None:
+            n = min(n, self.max_ticks - round(self.time * PHYSICS_HZ) - 1)
+        return max(0, n) if self.runs_compiled else 0
 
     def _law_array(self, law: PaceLaw) -> np.ndarray:
         """``law`` and the reward weights as :func:`langenv.env_kernels.run_law` reads them
@@ -898,6 +924,18 @@ def _non_negative(name: str, value: Any) -> float:
     if not (math.isfinite(v) and v >= 0.0):
         raise ConfigError(f"{name} must be finite and >= 0, got {value!r}")
     return v
+
+
+def _session_length(value: Any) -> tuple[float | None, int | None]:
+    """``max_seconds`` checked, and its ticks (rounded up): ``(None, None)`` for no limit."""
+    if value is None:
+        return None, None
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ConfigError(f"max_seconds must be a number of seconds or None, got {value!r}")
+    v = float(value)
+    if not (math.isfinite(v) and v > 0.0):
+        raise ConfigError(f"max_seconds must be finite and > 0 (s), got {value!r}")
+    return v, math.ceil(round(v * PHYSICS_HZ, 6))
 
 
 def _pixels(name: str, value: Any) -> int:

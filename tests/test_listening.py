@@ -261,14 +261,14 @@ def test_the_ear_hears_each_last_word_as_the_voice_says_it(voice: str, a: float)
 # ------------------------------------------------------------------------------ in the env
 def test_the_env_tells_a_listening_person_what_they_hear() -> None:
     env = gym.make(langenv.ENV_ID, users="listening", decision_hz=25, max_episode_steps=1500)
-    obs, info = env.reset(seed=4)
+    env.reset(seed=4)
     base = env.unwrapped
     user = base.user
     assert isinstance(user, ListeningUser)
     assert not base.runs_compiled  # the person is not tabulated: Python ticks
     done = False
     while not done:
-        obs, _, terminated, truncated, info = env.step(np.zeros(env.action_space.shape))
+        _, _, terminated, truncated, _ = env.step(np.zeros(env.action_space.shape))
         done = terminated or truncated
     graph = base.graph
     said = [u for u in base.speech.utterances() if u.length is None]

@@ -62,6 +62,7 @@ import numpy as np
 
 from eval.sweep.errors import SweepError
 from eval.sweep.exercises import DEFAULT_EXERCISE, SWEEP_EXERCISES
+from langenv.validation import yaml_text
 
 __all__ = [
     "COORDINATES",
@@ -204,7 +205,7 @@ def _key_lines(text: str) -> dict[str, int]:
 
     lines: dict[str, int] = {}
     try:
-        root = yaml.compose(text)
+        root = yaml.compose(text)  # its errors are load_spec's, named there
     except yaml.YAMLError:
         return lines
     if isinstance(root, yaml.MappingNode):
@@ -233,7 +234,7 @@ def load_spec(path: str | Path) -> SweepSpec:
     file = Path(path)
     try:
         text = file.read_text(encoding="utf-8")
-        data = yaml.safe_load(text)
+        data = yaml.safe_load(yaml_text(text, file))
     except OSError as exc:
         raise SweepError(file, "", f"cannot read the sweep file ({exc.strerror or exc})") from None
     except yaml.YAMLError as exc:

@@ -57,7 +57,6 @@ from __future__ import annotations
 import json
 import os
 import re
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -65,6 +64,7 @@ from pathlib import Path
 import yaml
 
 from langenv.errors import PhraseGraphError, ScriptError
+from langenv.files import temp_file
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.graph import _MAX_PAUSE, DEFAULT_PAUSE, PhraseGraph
 from langenv.speech.intents import INTENTS, intent_problem
@@ -697,7 +697,8 @@ def author(
     text = graph_yaml(script, script_path.name)
     if not out.parent.is_dir():
         raise ScriptError(f"{out}: directory {out.parent} does not exist")
-    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.stem}.", suffix=".yaml")
+    fd, tmp_path = temp_file(out.parent, prefix=f".{out.stem}.", suffix=".yaml")
+    tmp = str(tmp_path)
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as f:
             f.write(text)

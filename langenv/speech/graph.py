@@ -472,8 +472,10 @@ class PhraseGraph:
             raise PhraseGraphError(f"{path}: cannot read phrase graph: {reason}") from None
         import yaml
 
+        from langenv.validation import yaml_text
+
         try:
-            data = yaml.safe_load(source)
+            data = yaml.safe_load(yaml_text(source, path))
         except yaml.YAMLError as exc:
             raise PhraseGraphError(f"{path}: invalid YAML: {exc}") from None
         start, pause, voice, phrases = _parse(path, data)
