@@ -586,11 +586,11 @@ def run_episode(job: Job) -> dict[str, Any]:
         options = {"user": job.user_model}
     elif job.user_params is not None:
         options = {"user": SyntheticUser(job.user_params)}
-    elif type(env.unwrapped.user) is not SyntheticUser:  # a reused env's last person was another
+    base: Any = env.unwrapped
+    if options is None and type(base.user) is not SyntheticUser:  # a reused env's last person
         options = {"user": SyntheticUser()}
     obs, info = env.reset(seed=job.seed, options=options)
     policy.reset()
-    base: Any = env.unwrapped
     rec = EpisodeRecorder(policy=policy.name, user=job.user)
     rec.append(_with_scene(info, base))
     law = policy.pace_law() if hz == 500 and hasattr(policy, "pace_law") else None
