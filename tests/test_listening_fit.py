@@ -117,7 +117,8 @@ def test_the_fit_recovers_the_follow_that_made_the_statistics(
     recorded = sims[0] + slope * (follow - grid[0])
     fit, fine, loss = fit_follow(recorded, np.ones_like(recorded), grid, sims)
     assert abs(fit - follow) <= (fine[1] - fine[0]) / 2 + 1e-9
-    assert loss.shape == fine.shape and loss.min() == pytest.approx(0.0, abs=1e-3)
+    step = fine[1] - fine[0]
+    assert loss.shape == fine.shape and loss.min() <= recorded.size * (slope * step) ** 2
 
 
 def test_a_recorded_ac_session_gives_its_lead() -> None:
@@ -130,3 +131,41 @@ def test_a_recorded_ac_session_gives_its_lead() -> None:
     assert 12.0 < tr.t[tr.speaking][-1] < 14.5  # the speech runs its own 13.3 s
     assert tr.lead[tr.t.searchsorted(10.0)] > 3.0  # u3 resisted: the speech ran ahead
     assert tr.length == pytest.approx(21.93, abs=0.01)
+
+
+# --------------------------------------------------------------------------- sweeps
+def test_a_sweep_runs_listening_people_with_their_parameters(tmp_path: Path) -> None:
+    import pickle
+
+    from eval.sweep import SweepError, load_spec
+    from eval.sweep.grid import expand
+
+    path = tmp_path / "s.yaml"
+    path.write_text(
+        "grid: {policy: [lc]}\n"
+        "users:\n"
+        "  - {synthetic: 2}\n"
+        "  - {listening: 2}\n"
+        "  - {listening: 2, params: {latency: 1.5, comply: 0.3}}\n"
+    )
+    spec = load_spec(path)
+    names = [u.name for u in spec.users]
+    assert names == ["synthetic:2@0", "listening:2@0", "listening:2@0[latency=1.5,comply=0.3]"]
+    assert spec.users[0].listening is None
+    assert spec.users[2].listening == ListeningParams(latency=1.5, comply=0.3)
+    jobs = [s.job for s in expand(spec)]
+    assert [j.user_model is None for j in jobs] == [True, True, False, False, False, False]
+    person = jobs[-1].user_model
+    assert isinstance(person, ListeningUser) and person.listening.comply == 0.3
+    copy = pickle.loads(pickle.dumps(person))  # a fresh person of the same parameters
+    assert copy.listening == person.listening and len(pickle.dumps(person)) < 5000
+    for bad, message in [
+        ("{synthetic: 2, params: {latency: 1}}", "users.params (line 2): sets listening"),
+        ("{listening: 2, params: {speed: 1}}", "unknown field(s) speed"),
+        ("{listening: 2, params: {comply: 3}}", "comply must lie in [0, 1]"),
+        ("{listening: 2, synthetic: 2}", "give exactly one of synthetic: N, listening: N"),
+    ]:
+        path.write_text(f"grid: {{policy: [lc]}}\nusers: {bad}\n")
+        with pytest.raises(SweepError) as err:
+            load_spec(path)
+        assert message in str(err.value), str(err.value)

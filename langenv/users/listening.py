@@ -406,6 +406,11 @@ class ListeningUser(SyntheticUser):
         """Each intent's response level now, in [0, 1]."""
         return dict(self._level)
 
+    def __reduce__(self) -> tuple[type[ListeningUser], tuple[ListeningParams, SyntheticUserParams]]:
+        """Pickled as a fresh person of the same parameters (what a job hands a worker: the
+        env resets it; its tables and draws are not worth carrying)."""
+        return (type(self), (self.listening, self.params))
+
     def __repr__(self) -> str:
         who = f"p_comply={self.p_comply:.2f}" if self.responder else "does not respond"
         return f"ListeningUser({who}, {len(self.episodes)} episodes)"
