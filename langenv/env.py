@@ -222,7 +222,9 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
 
     * v0 (langctrl 0.6): the time limit is a session length, ``max_seconds`` (60 s at any
       ``decision_hz``), instead of 1500 steps at registration (3 s at 500 Hz); episodes that
-      ended before 60 s are unchanged.
+      ended before 60 s are unchanged. ``users="listening"`` added (a person who responds to
+      the words' intents, told what they hear: :class:`~langenv.users.Listener`); the shipped
+      scripts mark intents; episodes of every other person unchanged.
     * v0 (langctrl 0.5): ``exercise`` added (exercises as data), ``robot`` (a
       :class:`~langenv.robot.io.RobotIO`) and ``robot_acceleration`` added, the default phrase
       graph has pauses and fillers (the study's is ``"study"``); the study's exercise with the
