@@ -282,3 +282,19 @@ def test_the_env_tells_a_listening_person_what_they_hear() -> None:
 def test_users_listening_is_refused_on_nothing_and_named_in_errors() -> None:
     with pytest.raises(ConfigError, match="'synthetic', 'listening', 'replay'"):
         gym.make(langenv.ENV_ID, users="hearing")
+
+
+def test_a_batch_steps_a_listening_session_as_the_single_env_does() -> None:
+    venv = gym.make_vec(langenv.ENV_ID, num_envs=2, users="listening")
+    single = gym.make(langenv.ENV_ID, users="listening")
+    obs, _ = venv.reset(seed=4)
+    one, _ = single.reset(seed=4)
+    zero = np.zeros(single.action_space.shape, np.float32)
+    for _ in range(200):
+        obs, *_ = venv.step(np.stack([zero, zero]))
+        one, *_ = single.step(zero)
+    assert np.array_equal(obs[0], one)
+    heard = venv.unwrapped.envs[0].user.heard
+    assert heard and heard == single.unwrapped.user.heard
+    venv.close()
+    single.close()
