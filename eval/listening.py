@@ -2,7 +2,8 @@
 
 Run::
 
-    python -m eval.listening --sessions ../shared/sessions --out out/listening
+    langctrl listening --sessions ../shared/sessions --out out/listening
+    python -m eval.listening --sessions ../shared/sessions --out out/listening   # the same
 
 Under AC the study's speech ran at its own pace (``a = 1``), whatever the person did, so in the
 AC sessions the speech ran ahead of the motion or behind it as the person happened to move: the
@@ -320,16 +321,52 @@ def _markdown(res: dict[str, Any]) -> str:
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``python -m eval.listening``."""
     p = argparse.ArgumentParser(
-        prog="python -m eval.listening",
+        prog="langctrl listening",
         description="Does the person's pace follow the speech running ahead or behind? The "
-        "study's AC sessions against simulated ones: the listening person's follow, fitted.",
+        "study's AC sessions against simulated ones: the listening person's follow, fitted. Also "
+        "run as python -m eval.listening.",
     )
-    p.add_argument("--sessions", type=Path, required=True, metavar="DIR", help="recorded sessions")
-    p.add_argument("--out", type=Path, default=Path("out/listening"), metavar="DIR")
-    p.add_argument("--users", type=int, default=48, metavar="N", help="simulated people per run")
-    p.add_argument("--seed", type=int, default=3000, help="first simulated person's seed")
-    p.add_argument("--boot", type=int, default=2000, help="bootstrap resamples")
-    p.add_argument("--workers", type=int, default=2, metavar="N", help="processes")
+    p.add_argument(
+        "--sessions",
+        type=Path,
+        required=True,
+        metavar="DIR",
+        help="directory of the recorded sessions; its *_ac.csv are read (required)",
+    )
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=Path("out/listening"),
+        metavar="DIR",
+        help="output directory: listening.json, listening.md, listening.png (default: %(default)s)",
+    )
+    p.add_argument(
+        "--users",
+        type=int,
+        default=48,
+        metavar="N",
+        help="simulated people per run (default: %(default)s)",
+    )
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=3000,
+        help="first simulated person's seed, and the bootstrap's (default: %(default)s)",
+    )
+    p.add_argument(
+        "--boot",
+        type=int,
+        default=2000,
+        metavar="N",
+        help="bootstrap resamples of the recorded people (default: %(default)s)",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=2,
+        metavar="N",
+        help="parallel episode processes (default: %(default)s)",
+    )
     return p
 
 
@@ -344,7 +381,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         sessions = load_sessions(ns.sessions, "*_ac.csv")
         rec_traces = [trace_from_session(s) for s in sessions]
     except (SessionDataError, ValueError, OSError) as exc:
-        print(f"eval.listening: error: {exc}", file=sys.stderr)
+        print(f"langctrl listening: error: {exc}", file=sys.stderr)
         return 2
     rec_stats = statistics(rec_traces)
     recorded = pooled(rec_stats)

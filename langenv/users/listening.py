@@ -192,7 +192,7 @@ class ListeningParams:
             0-6 N).
         follow: Push along the motion per second of the speech's lead over the motion, while
             the speech runs (N/s; negative: the person waits for the speech). Fitted to the
-            study's AC sessions by ``python -m eval.listening``: 0, 95 % interval -0.99-0.00
+            study's AC sessions by ``langctrl listening``: 0, 95 % interval -0.99-0.00
             (the range).
     """
 
