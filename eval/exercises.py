@@ -186,7 +186,14 @@ def build_parser() -> argparse.ArgumentParser:
         "--users",
         default="synthetic:48",
         metavar="synthetic:N",
-        help="users per exercise and controller (default: %(default)s)",
+        help="users per exercise and controller: synthetic:N, or listening:N (the same people "
+        "listening to the robot) (default: %(default)s)",
+    )
+    p.add_argument(
+        "--listening",
+        default=None,
+        metavar="KEY=VALUE,...",
+        help="the listening people's parameters, with --users listening:N (default: none)",
     )
     p.add_argument(
         "--seed",
@@ -237,6 +244,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
             args = ["--exercise", name, "--policies", ",".join(POLICIES), "--users", ns.users]
             args += ["--seed", str(ns.seed), "--workers", str(ns.workers), "--out", str(run_dir)]
+            args += ["--listening", ns.listening] if ns.listening is not None else []
             if compare([*args, "--overwrite"]) != 0:
                 return 1
         rows += exercise_rows(run_dir, name)

@@ -31,9 +31,10 @@ from langenv.robot.io_arm import IOArm, MeasuredUser
 from langenv.safety import SafetyLimits
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.graph import PhraseGraph, graph_path
+from langenv.speech.hearing import Ear
 from langenv.speech.legs import LegPlan, leg_plan
 from langenv.speech.timeline import SpeechTimeline
-from langenv.users import CallableUser, ReplayUser, SyntheticUser, User
+from langenv.users import CallableUser, Listener, ListeningUser, ReplayUser, SyntheticUser, User
 
 __all__ = ["LAW_CHUNK", "LangCtrlEnv", "LawSteps", "make_env"]
 
@@ -194,7 +195,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
 
     | argument | default | meaning |
     |---|---|---|
-    | ``users`` | ``"synthetic"`` | ``"synthetic"``, ``"replay"`` (with ``session``), a :class:`~langenv.users.User` or a callable ``f(t, hand_velocity, tangent) -> (3,)`` N |
+    | ``users`` | ``"synthetic"`` | ``"synthetic"``, ``"listening"`` (a synthetic person who responds to the words' intents, :class:`~langenv.users.ListeningUser`), ``"replay"`` (with ``session``), a :class:`~langenv.users.User` or a callable ``f(t, hand_velocity, tangent) -> (3,)`` N |
     | ``session`` | ``None`` | session CSV (``t, cooperation``) for ``users="replay"`` |
     | ``exercise`` | ``"external_rotation"`` | a shipped exercise's name (``python -m langenv.exercise list``), an exercise YAML path or an :class:`~langenv.exercise.Exercise` |
     | ``phrase_graph`` | the exercise's (``script.graph``: for the study's exercise ``"default"``) | YAML path or a shipped graph: ``"default"`` (= ``"lc"``, LC's graph with pauses and fillers), ``"study"`` (the study's LC graph), ``"lc-noap"``, ``"ac"`` |
@@ -221,7 +222,9 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
 
     * v0 (langctrl 0.6): the time limit is a session length, ``max_seconds`` (60 s at any
       ``decision_hz``), instead of 1500 steps at registration (3 s at 500 Hz); episodes that
-      ended before 60 s are unchanged.
+      ended before 60 s are unchanged. ``users="listening"`` added (a person who responds to
+      the words' intents, told what they hear: :class:`~langenv.users.Listener`); the shipped
+      scripts mark intents; episodes of every other person unchanged.
     * v0 (langctrl 0.5): ``exercise`` added (exercises as data), ``robot`` (a
       :class:`~langenv.robot.io.RobotIO`) and ``robot_acceleration`` added, the default phrase
       graph has pauses and fillers (the study's is ``"study"``); the study's exercise with the
@@ -353,6 +356,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self._choice_u: list[float] = [0.0] * n_choice
         self._pause_factor = 1.0  # the pause rule's target over t_x (target mode: 2**(2u))
         self._renderer: Any = None
+        self._ear: Ear | None = None
         self.time = 0.0
         self.t_a = 0.0
         self.t_h = 0.0
@@ -416,6 +420,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self.motion.reset()
         self.paces.reset()
         self.speech.reset()
+        self._ear = Ear(self.speech) if isinstance(self.user, Listener) else None
         self._reset_episode_state()
         self._update_speech_eta()
         return self._observation(), self._info()
@@ -725,6 +730,8 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             hz = self._horizons()
             speech.step(self.dt, a, self._choose, hz, pause_factor=self._pause_factor)
         self.time += self.dt
+        if self._ear is not None:
+            self._listen(a)
         self._coop_hist[self._coop_i % self._coop_hist.size] = motion.cooperation
         self._coop_i += 1
         self._update_speech_eta()
@@ -736,6 +743,22 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         if not motion_on and not speech_on:
             self._end_episode()
         return em, pace
+
+    def _listen(self, a: float) -> None:
+        """Tell a person who listens (:class:`~langenv.users.Listener`) the words heard in this
+        tick and, if they need it, the speech's lead over the motion: the speech's progress
+        minus the motion's, in seconds of the whole speech, while the speech runs (0 once it
+        is over; :mod:`langenv.users.listening`)."""
+        user: Any = self.user
+        assert self._ear is not None
+        for t, _, intent in self._ear.step(self.dt, a):
+            user.hear(t, intent)
+        if user.perceives:  # while the speech runs; once it is over there is nothing to follow
+            sp = self.speech
+            said = sp.content_time
+            left = self.t_a if self._legs.segments == 1 else sp.eta(self._hz)
+            lead = 0.0 if sp.done else said - self.motion.progress * (said + left)
+            user.perceive(self.time, lead)
 
     def _end_episode(self) -> None:
         """Motion and speech are over: the episode terminates with its alignment ``am``."""
@@ -941,12 +964,14 @@ def _make_user(users: Any, session: str | Path | None) -> User:
     if isinstance(users, str):
         if users == "synthetic":
             return SyntheticUser()
+        if users == "listening":
+            return ListeningUser()
         if users == "replay":
             if session is None:
                 raise ConfigError("users='replay' needs session=PATH to a session CSV")
             return ReplayUser.from_csv(session)
         raise ConfigError(
-            f"users must be 'synthetic', 'replay', a User or a callable; got {users!r}"
+            f"users must be 'synthetic', 'listening', 'replay', a User or a callable; got {users!r}"
         )
     if hasattr(users, "reset") and hasattr(users, "force"):
         return users
