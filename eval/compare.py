@@ -619,7 +619,7 @@ def run_episode(job: Job) -> dict[str, Any]:
         path=base.motion.trajectory.sample(200),
         voice=graph.voice,
         leg_of=leg_of,
-        leg_names=_leg_names(base),
+        leg_names=base.motion_legs,
         spoken_legs=spoken_legs,
     )
     stem = Path(job.out_dir) / f"{policy.name}_{job.user}"
@@ -671,13 +671,6 @@ def _run_law(
         ret += float(reward)
         rec.append(_with_scene(info, base))
     return ret, terminated, info
-
-
-def _leg_names(base: Any) -> tuple[str, ...]:
-    """The names of the legs the env's motion goes through: its exercise's, unless a
-    trajectory of other legs replaced the exercise's path (then none)."""
-    names = tuple(base.exercise.leg_names)
-    return names if len(base.motion.trajectory.waypoint_s) == len(names) else ()
 
 
 def _with_scene(info: dict[str, Any], base: Any) -> dict[str, Any]:

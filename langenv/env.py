@@ -379,6 +379,13 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         return leg_plan(graph, names, self.motion.etc.nominal_rest, self.exercise.name)
 
     @property
+    def motion_legs(self) -> tuple[str, ...]:
+        """The names of the legs the motion goes through, which ``info["leg"]`` indexes: the
+        exercise's, unless a trajectory of other legs replaced the exercise's path (then none)."""
+        names = tuple(self.exercise.leg_names)
+        return names if len(self.motion.trajectory.waypoint_s) == len(names) else ()
+
+    @property
     def leg_plan(self) -> LegPlan:
         """The phrase graph's segments on the exercise's legs (one for an unmarked graph)."""
         return self._legs

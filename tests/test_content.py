@@ -133,11 +133,16 @@ def test_choices_decisions_need_a_phrase_only_target_residual_at_500_hz() -> Non
         ResidualSpec(decisions="ticks")  # type: ignore[arg-type]
 
 
+def _same(x: float, y: float) -> bool:
+    """Equal to the last bit, NaN equal to NaN."""
+    return (math.isnan(x) and math.isnan(y)) or x == pytest.approx(y, abs=1e-12)
+
+
 def test_the_choice_env_at_zero_correction_is_lc_fill_tick_for_tick(tmp_path: Path) -> None:
     from train.choices import ChoicePoints
 
     split = WorldSplit.load(SPLIT)
-    env = ChoicePoints(WorldEnv(split, "validation", {"decision_hz": 500}, 2))
+    env = ChoicePoints(WorldEnv(split, "validation", {"decision_hz": 500}, 2), w_legs=3.0)
     for _ in range(2):
         obs, _ = env.reset()
         assert env.observation_space.contains(obs)
@@ -152,9 +157,11 @@ def test_the_choice_env_at_zero_correction_is_lc_fill_tick_for_tick(tmp_path: Pa
                   exercise="shoulder_extension", save_log=False,
                   user_model=PerturbedUser(split.perturbations))  # fmt: skip
         row = run_episode(job)
-        for key in ("content_share", "voice_natural", "em_mean_abs"):
-            assert info[key] == pytest.approx(row[key], abs=1e-12), key
+        for key in ("content_share", "voice_natural", "em_mean_abs", "legs_in_step", "sm_max_abs"):
+            assert _same(info[key], row[key]), key
         assert info["am"] == pytest.approx(row["am"], abs=1e-12)
+        assert math.isfinite(row["legs_in_step"])  # shoulder_extension's script marks its legs
+        assert info["reward_legs"] == pytest.approx(3.0 * info["legs_in_step"])
         terms = [v for k, v in info.items() if k.startswith("reward_")]
         assert reward == pytest.approx(sum(terms)) and info["reward_content"] > 0.0
         assert math.isfinite(reward)
@@ -225,8 +232,46 @@ def test_a_chooser_acts_in_evaluation_as_in_training(tiny_chooser: Path, tmp_pat
               exercise="shoulder_extension", save_log=False,
               user_model=PerturbedUser(split.perturbations))  # fmt: skip
     row = run_episode(job)
-    for key in ("content_share", "voice_natural", "em_mean_abs"):
-        assert info[key] == pytest.approx(row[key], abs=1e-12), key
+    for key in ("content_share", "voice_natural", "em_mean_abs", "legs_in_step", "sm_max_abs"):
+        assert _same(info[key], row[key]), key
+    assert info["reward_legs"] == pytest.approx(_chooser_kwargs()["w_legs"] * info["legs_in_step"])
+    assert float(_chooser_kwargs()["w_legs"]) > 0.0  # type: ignore[arg-type]
+
+
+def test_the_reward_s_legs_in_step_is_the_evaluation_s() -> None:
+    """A crafted session on a marked graph (legs out, back, again entered at 0, 3 and 6 s):
+    ``session_legs`` measures as ``eval.legs`` does, from the timeline's utterances (vertex ids,
+    times, a pause's length) and the graph's legs and kinds."""
+    from collections import namedtuple
+
+    from eval.episode import Utterance
+    from eval.legs import leg_metrics
+    from tests.test_legs_metric import _log
+    from tests.test_script_legs import _graph
+    from train.choices import session_legs
+
+    graph = _graph()
+    said = namedtuple("said", "phrase t_start t_end length", defaults=(None,))
+    legs = ("out", "back", "again")
+    cases = {  # (timeline, legs_in_step): "so" is a filler, "p" a pause, back's words late
+        "in step": ([said("go", 0.0, 2.0), said("so", 2.9, 3.3), said("back", 3.4, 4.4),
+                     said("more", 6.5, 8.0), said("done", 8.5, 9.5)], 1.0),
+        "late": ([said("go", 0.0, 2.0), said("p", 2.0, 3.0, 1.0), said("so", 3.0, 3.6),
+                  said("back", 4.2, 5.2), said("more", 6.5, 8.0)], 0.5),
+        "unsaid": ([said("go", 0.0, 2.0), said("back", 3.4, 4.4)], 0.5),
+    }  # fmt: skip
+    leg_of = {u: graph.leg(u) for u in graph.phrases}
+    for name, (timeline, want) in cases.items():
+        log = _log(said=tuple(
+            Utterance(u.phrase, "", u.t_start, u.t_end, u.length, u.phrase in graph.fillers,
+                      leg_of[u.phrase] or "") for u in timeline
+        ))  # fmt: skip
+        assert log.leg is not None
+        mine = session_legs(log.t, log.leg, timeline, graph, legs)
+        theirs = leg_metrics(log)
+        assert mine["legs_in_step"] == theirs["legs_in_step"] == want, name
+        assert _same(mine["sm_max_abs"], theirs["sm_max_abs"]), name
+    assert math.isnan(session_legs(log.t, log.leg, timeline, graph, ())["legs_in_step"])
 
 
 def _chooser_kwargs() -> dict[str, object]:

@@ -823,6 +823,14 @@ def test_best_of_a_phrase_choosers_run_is_chosen_by_content(tmp_path: Path) -> N
     base.update(content_share=np.full(2, 0.83), voice_natural=np.full(2, 0.915))
     np.savez(run / "eval" / "base.npz", **base)
     assert best_steps(run, "m").steps == 40  # its voice 0.90 is within 0.02 of the base's
+    # legs in step (issue 44): 40 drops a boundary the base keeps; NaN (no boundary) counts out
+    arrays["legs_in_step"] = [[1.0, 1.0], [1.0, 1.0], [1.0, math.nan], [1.0, 0.5]]
+    np.savez(run / "eval" / "evaluations.npz", **arrays)
+    assert eval_scores(run)[2].legs_in_step == 1.0
+    base["legs_in_step"] = np.array([1.0, 1.0])
+    np.savez(run / "eval" / "base.npz", **base)
+    chosen = best_steps(run, "m")
+    assert chosen.steps == 30 and chosen.record({})["legs_in_step"] == 1.0
     base["voice_natural"] = np.full(2, 1.0)
     np.savez(run / "eval" / "base.npz", **base)
     with pytest.raises(ValueError, match="no checkpoint holds"):

@@ -19,13 +19,17 @@ Reward, once, when the episode ends (weights are keyword arguments; each term in
   :func:`langenv.speech.voice.words_heard`);
 * ``reward_voice = w_voice * voice_natural``: the share of the speech time in which the voice is
   heard within 0.1 of its natural rate;
+* ``reward_legs = w_legs * legs_in_step``: the share of the leg boundaries whose words start
+  within 1 s of the motion entering the leg (:mod:`langenv.speech.in_step`, the metric of
+  :mod:`eval.legs`, from the env's ``info["leg"]`` at every tick and the timeline's utterances
+  with the graph's legs; 0 for an unmarked graph or an exercise of one leg);
 * the alignment terms: ``reward_am = -w_am |AM| - w_am_fine ln(1 + |AM| / am_scale)``,
   ``reward_am_far = -w_am_far`` when ``|AM| > 1 s``, ``reward_em = -w_em`` mean ``|EM|``;
   a protective stop or a cut-off episode pays ``-w_stop`` instead of the alignment terms.
 
 The final step's ``info`` also holds the metrics themselves (``content_share``,
-``voice_natural``, ``em_mean_abs``, ``am``), which the periodic evaluation of
-:mod:`train.ppo` records.
+``voice_natural``, ``legs_in_step``, ``sm_max_abs``, ``em_mean_abs``, ``am``), which the
+periodic evaluation of :mod:`train.ppo` records.
 """
 
 from __future__ import annotations
@@ -40,11 +44,12 @@ from gymnasium import spaces
 from langenv import observation as ob
 from langenv.errors import ConfigError
 from langenv.pacing import PaceLaw
+from langenv.speech.in_step import boundaries, graph_legs, in_step, said_words
 from langenv.speech.voice import voice_rate, words_heard
 from policies.analytic import FILL_ANTICIPATE, FILL_K_C, FILL_MARGIN, FILL_PAUSE_SCALE
 from policies.learned import ResidualLC, ResidualSpec
 
-__all__ = ["EPISODE_S", "ChoicePoints", "session_speech"]
+__all__ = ["EPISODE_S", "ChoicePoints", "session_legs", "session_speech"]
 
 EPISODE_S = 60.0
 """Longest episode (s of simulated time), as ``eval.compare`` runs one."""
@@ -88,6 +93,28 @@ def session_speech(
     return content, voice
 
 
+def session_legs(
+    t: np.ndarray,
+    leg: np.ndarray,
+    utterances: list[Any],
+    graph: Any,
+    leg_names: tuple[str, ...],
+) -> dict[str, float]:
+    """``{"sm_max_abs": ..., "legs_in_step": ...}`` of a session, as
+    :func:`eval.legs.leg_metrics` measures them (:mod:`langenv.speech.in_step`), from its trace
+    and the speech timeline's utterances.
+
+    Args:
+        t: Sample times (s), shape ``(n,)``.
+        leg: The motion's leg index at those times (``info["leg"]``), shape ``(n,)``.
+        utterances: The timeline's utterances (``SpeechTimeline.utterances()``).
+        graph: The phrase graph spoken (its vertices' legs and kinds).
+        leg_names: The motion's legs (``LangCtrlEnv.motion_legs``).
+    """
+    _, spoken = graph_legs(graph)
+    return in_step(boundaries(t, leg, leg_names, spoken, said_words(utterances, graph)))
+
+
 class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
     """The env as the learned phrase chooser meets it (module docstring).
 
@@ -104,6 +131,7 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
         k_em: The base's misalignment feedback on the physical pace (1/s).
         w_content: Weight of the content share (module docstring).
         w_voice: Weight of the voice natural share.
+        w_legs: Weight of the share of legs in step.
         w_am: Weight of ``|AM|`` (1/s).
         w_am_fine: Weight of ``ln(1 + |AM| / am_scale)``.
         am_scale: Scale of that term (s), > 0.
@@ -131,6 +159,7 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
         k_em: float = 0.0,
         w_content: float = 10.0,
         w_voice: float = 5.0,
+        w_legs: float = 0.0,
         w_am: float = 1.0,
         w_am_fine: float = 0.5,
         am_scale: float = 0.1,
@@ -148,6 +177,7 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
         weights = {
             "w_content": w_content,
             "w_voice": w_voice,
+            "w_legs": w_legs,
             "w_am": w_am,
             "w_am_fine": w_am_fine,
             "w_am_far": w_am_far,
@@ -192,8 +222,9 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
         return getattr(inner, "current", inner)
 
     def _reset_trace(self) -> None:
-        self._chunks: list[tuple[np.ndarray, ...]] = []  # (t, a, em, motion_done, speech_done)
-        self._rows: list[tuple[float, float, float, bool, bool]] = []  # ticks not yet in a chunk
+        # (t, a, em, motion_done, speech_done, leg) per tick
+        self._chunks: list[tuple[np.ndarray, ...]] = []
+        self._rows: list[tuple[float, float, float, bool, bool, int]] = []  # not yet in a chunk
         self._ticks = 0
         self._done = False
         self._final: tuple[float, dict[str, Any]] | None = None
@@ -206,6 +237,7 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
                 float(info["em"]),
                 bool(info["motion_done"]),
                 bool(info["speech_done"]),
+                int(info["leg"]),
             )
         )
 
@@ -217,7 +249,7 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
 
     def _trace(self) -> tuple[np.ndarray, ...]:
         self._flush()
-        return tuple(np.concatenate([c[k] for c in self._chunks]) for k in range(5))
+        return tuple(np.concatenate([c[k] for c in self._chunks]) for k in range(6))
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -274,6 +306,7 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
                             rows["em"],
                             rows["motion_done"].astype(bool),
                             rows["speech_done"].astype(bool),
+                            rows["leg"].astype(np.int64),
                         )
                     )
                     self._ticks += run.steps
@@ -309,18 +342,22 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
     def _final_reward(self, info: dict[str, Any], terminated: bool) -> float:
         """The episode's reward (module docstring); its terms and metrics go into ``info``."""
         plant = self._plant()
-        t, a, em, md, sd = self._trace()
+        t, a, em, md, sd, leg = self._trace()
         keep = np.append(np.diff(t) > 0.0, True)  # the trace strictly increasing
-        t, a, em, md, sd = t[keep], a[keep], em[keep], md[keep], sd[keep]
+        t, a, em, md, sd, leg = t[keep], a[keep], em[keep], md[keep], sd[keep], leg[keep]
         t_motion = info.get("t_motion")
         t_motion = float(t_motion) if t_motion is not None else float(t[-1])
-        content, voice = session_speech(t, a, sd, plant.speech.utterances(), plant.graph, t_motion)
+        said = plant.speech.utterances()
+        content, voice = session_speech(t, a, sd, said, plant.graph, t_motion)
+        legs = session_legs(t, leg, said, plant.graph, plant.motion_legs)
         w = np.append(np.diff(t), t[-1] - t[-2]) * ~(md & sd)
         em_mean = float(np.sum(w * np.abs(em)) / np.sum(w)) if np.sum(w) > 0 else 0.0
+        in_legs = legs["legs_in_step"]
         wt = self.weights
         terms = {
             "reward_content": wt["w_content"] * (content if math.isfinite(content) else 0.0),
             "reward_voice": wt["w_voice"] * (voice if math.isfinite(voice) else 0.0),
+            "reward_legs": wt["w_legs"] * (in_legs if math.isfinite(in_legs) else 0.0),
             "reward_em": -wt["w_em"] * em_mean,
         }
         am = info.get("am")
@@ -332,5 +369,5 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
             terms["reward_am"] = -wt["w_stop"]
             terms["reward_am_far"] = 0.0
         info.update(terms)
-        info.update(content_share=content, voice_natural=voice, em_mean_abs=em_mean)
+        info.update(content_share=content, voice_natural=voice, em_mean_abs=em_mean, **legs)
         return float(sum(terms.values()))

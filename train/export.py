@@ -234,6 +234,8 @@ class EvalScore:
             a run of the alignment recipes).
         voice_natural: Mean share of the speech heard at a natural voice (NaN likewise).
         within: Share of the sessions with ``|AM| <= 1 s``.
+        legs_in_step: Mean share of the leg boundaries whose words start within 1 s of the
+            leg, over the sessions that have boundaries (NaN: none, or not recorded).
     """
 
     steps: int
@@ -244,6 +246,7 @@ class EvalScore:
     content_share: float = float("nan")
     voice_natural: float = float("nan")
     within: float = float("nan")
+    legs_in_step: float = float("nan")
 
     @property
     def speech(self) -> bool:
@@ -270,6 +273,7 @@ class EvalScore:
                 "content_share": round(self.content_share, 6),
                 "voice_natural": round(self.voice_natural, 6),
                 "abs_am_le_1s": round(self.within, 6),
+                "legs_in_step": round(self.legs_in_step, 6),
                 "abs_am": round(self.abs_am, 6),
                 "em_mean_abs": round(self.em_mean_abs, 6),
             }
@@ -287,7 +291,8 @@ class EvalScore:
 
 CONTENT_RULE = (
     "highest periodic-evaluation mean content share among checkpoints with a share of "
-    "|AM| <= 1 s no lower than the base's and a mean voice natural no lower than the base's - 0.02"
+    "|AM| <= 1 s no lower than the base's, a mean voice natural no lower than the base's - 0.02 "
+    "and a mean share of legs in step no lower than the base's (where recorded)"
 )
 """How ``--best`` chooses among the evaluations of a phrase chooser's run (content recorded),
 against its base's figures on the same people (``RUN/eval/base.npz``, written by ``train.ppo``
@@ -323,8 +328,8 @@ def eval_scores(run: Path) -> list[EvalScore]:
         steps = np.asarray(data["timesteps"], dtype=int)
         am, em, a_dev = (np.asarray(data[k], dtype=float) for k in EVAL_METRICS[:3])
         nan = np.full(am.shape, np.nan)
-        content, voice = (
-            np.asarray(data[k], dtype=float) if k in data else nan for k in EVAL_METRICS[3:5]
+        content, voice, legs = (
+            np.asarray(data[k], dtype=float) if k in data else nan for k in EVAL_METRICS[3:6]
         )
     out = []
     for i, n in enumerate(steps):
@@ -341,9 +346,19 @@ def eval_scores(run: Path) -> list[EvalScore]:
                 float(content[i].mean()) if speech else float("nan"),
                 float(voice[i].mean()) if speech else float("nan"),
                 float(np.mean(am[i] <= 1.0)),
+                _finite_mean(legs[i]),
             )
         )
     return sorted(out, key=lambda e: e.steps)
+
+
+def _finite_mean(x: Any) -> float:
+    """The mean of the finite values (NaN when there are none)."""
+    import numpy as np
+
+    x = np.asarray(x, dtype=float)
+    x = x[np.isfinite(x)]
+    return float(np.mean(x)) if x.size else float("nan")
 
 
 def base_score(run: Path) -> EvalScore | None:
@@ -366,6 +381,7 @@ def base_score(run: Path) -> EvalScore | None:
             float(np.mean(data["content_share"])),
             float(np.mean(data["voice_natural"])),
             float(np.mean(am <= 1.0)),
+            _finite_mean(data["legs_in_step"]) if "legs_in_step" in data else float("nan"),
         )
 
 
@@ -393,26 +409,36 @@ def best_steps(run: Path, name: str) -> EvalScore:
         for e in eligible:
             print(
                 f"{e.steps:>9} steps: content {e.content_share:.4f}, voice natural "
-                f"{e.voice_natural:.4f}, |AM| <= 1 s {e.within:.3f}, mean |AM| {e.abs_am:.3f} s "
-                f"({e.n_users} users)",
+                f"{e.voice_natural:.4f}, |AM| <= 1 s {e.within:.3f}, legs in step "
+                f"{e.legs_in_step:.3f}, mean |AM| {e.abs_am:.3f} s ({e.n_users} users)",
                 file=sys.stderr,
             )
         base = base_score(run)
         if base is not None:
-            top, loud = base.within, base.voice_natural
+            top, loud, legs = base.within, base.voice_natural, base.legs_in_step
             print(
                 f"    base: content {base.content_share:.4f}, voice natural "
-                f"{base.voice_natural:.4f}, |AM| <= 1 s {base.within:.3f}",
+                f"{base.voice_natural:.4f}, |AM| <= 1 s {base.within:.3f}, legs in step "
+                f"{base.legs_in_step:.3f}",
                 file=sys.stderr,
             )
         else:
             top = max(e.within for e in eligible)
             loud = max(e.voice_natural for e in eligible)
-        ok = [e for e in eligible if e.within >= top and e.voice_natural >= loud - 0.02]
+            recorded = [e.legs_in_step for e in eligible if e.legs_in_step == e.legs_in_step]
+            legs = max(recorded, default=float("nan"))
+        ok = [
+            e
+            for e in eligible
+            if e.within >= top
+            and e.voice_natural >= loud - 0.02
+            and not e.legs_in_step < legs - 1e-12  # NaN on either side: not recorded
+        ]
         if not ok:
             raise ValueError(
-                f"{run}: no checkpoint holds the base's share of |AM| <= 1 s ({top:.3f}) and "
-                f"its voice natural - 0.02 ({loud - 0.02:.4f}) on the held-out users"
+                f"{run}: no checkpoint holds the base's share of |AM| <= 1 s ({top:.3f}), "
+                f"its voice natural - 0.02 ({loud - 0.02:.4f}) and its legs in step "
+                f"({legs:.3f}) on the held-out users"
             )
         best = max(ok, key=lambda e: (e.content_share, -e.steps))
         print(f"chosen: {best.steps} steps (content {best.content_share:.4f})", file=sys.stderr)

@@ -1500,8 +1500,11 @@ def _learn(
 #: ``|AM|`` at the end (s; NaN when a session did not end by itself), mean ``|EM|`` over its
 #: decisions (s) and mean ``|a - 1|`` over its decisions while speech goes on; and where the
 #: env reports them at the end (``train.choices.ChoicePoints``: the session's own metrics, its
-#: mean ``|EM|`` over time) ``content_share`` and ``voice_natural`` (NaN otherwise).
-EVAL_METRICS: tuple[str, ...] = ("abs_am", "em_mean_abs", "a_dev", "content_share", "voice_natural")
+#: mean ``|EM|`` over time) ``content_share``, ``voice_natural`` and ``legs_in_step`` (NaN
+#: otherwise, and for a session without leg boundaries).
+EVAL_METRICS: tuple[str, ...] = (
+    "abs_am", "em_mean_abs", "a_dev", "content_share", "voice_natural", "legs_in_step"
+)  # fmt: skip
 
 
 #: The base's figures on the held-out users (``eval/`` of a run; :data:`EVAL_METRICS`, one per
@@ -1515,6 +1518,13 @@ def _is_chooser(env: Any) -> bool:
         return False
     spec = env.get_attr("residual_spec", indices=[0])[0]
     return getattr(spec, "decisions", "steps") == "choices"
+
+
+def _nanmean(values: Sequence[float]) -> float:
+    """The mean of the finite values (NaN when there are none)."""
+    x = np.asarray(values, dtype=float)
+    x = x[np.isfinite(x)]
+    return float(np.mean(x)) if x.size else math.nan
 
 
 class _ZeroCorrection:
@@ -1568,7 +1578,8 @@ class _MetricsEvalCallback(EvalCallback):
                 f"[eval of the base] held-out users: content "
                 f"{np.mean(self._episode['content_share']):.4f}, voice natural "
                 f"{np.mean(self._episode['voice_natural']):.4f}, |AM| <= 1 s "
-                f"{np.mean(np.asarray(self._episode['abs_am']) <= 1.0):.3f}",
+                f"{np.mean(np.asarray(self._episode['abs_am']) <= 1.0):.3f}, legs in step "
+                f"{_nanmean(self._episode['legs_in_step']):.3f}",
                 file=sys.stderr,
             )
 
@@ -1594,8 +1605,11 @@ class _MetricsEvalCallback(EvalCallback):
                 within = float(np.mean(np.asarray(self._episode["abs_am"]) <= 1.0))
                 self.logger.record("eval/content_share", content)
                 self.logger.record("eval/voice_natural", voice)
+                legs = _nanmean(self._episode["legs_in_step"])
+                self.logger.record("eval/legs_in_step", legs)
                 speech = (
                     f", content {content:.4f}, voice natural {voice:.4f}, |AM| <= 1 s {within:.3f}"
+                    f", legs in step {legs:.3f}"
                 )
             print(
                 f"[eval @ {self.num_timesteps} steps] held-out users: mean |AM| {am:.3f} s, "
@@ -1633,7 +1647,7 @@ class _MetricsEvalCallback(EvalCallback):
             self._episode["em_mean_abs"].append(em)
             a_dev = float(np.mean(self._a_steps)) if self._a_steps else math.nan
             self._episode["a_dev"].append(a_dev)
-            for key in ("content_share", "voice_natural"):
+            for key in ("content_share", "voice_natural", "legs_in_step"):
                 value = info.get(key)
                 self._episode[key].append(float(value) if value is not None else math.nan)
             self._em_steps, self._a_steps = [], []
