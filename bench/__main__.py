@@ -21,6 +21,8 @@ Figures (all measured here, on this machine, in this process):
 | ``audio_rtf`` | seconds of speech rendered by the variable-rate phase vocoder per second of wall time |
 | ``robot_compute_median_ms``, ``robot_compute_p999_ms``, ``robot_compute_max_ms`` | the UR bridge's loop against the fake ur-rtde (virtual clock, no audio): compute time per 2 ms period, wall clock (read, control, speech, LC policy, log, ``speedL``) over 3 whole sessions (targets: median < 0.5 ms, p99.9 < 1.5 ms); preemption by other processes included |
 | ``robot_cpu_median_ms``, ``robot_cpu_p999_ms`` | the same periods in the thread's CPU time: what the loop's code costs |
+| ``live_wall_over_sim``, ``live_late_ticks`` | the live mode's headless real-time loop (LC at 25 Hz, speech to a WAV) over 3 s of simulated time: its wall time over the simulated time (target: 1, within 0.5 s) and the ticks that ran late |
+| ``ur_no_answer_s`` | how long the UR bridge takes to refuse a host that does not answer (a non-routable address, ``connect_timeout`` 1 s; at most that) |
 | ``compare_s`` | wall time of the main job: ``eval.compare`` with AC, LC-noAP and LC on 12 synthetic users (all outputs) |
 | ``sweep_sps_1``, ``sweep_sps_2`` | sessions per second of a small sweep (``bench/sweep.py``) with 1 and 2 local worker processes |
 | ``sweep_scaling`` | ``sweep_sps_2 / sweep_sps_1`` |
@@ -291,6 +293,45 @@ def measure_robot(sessions: int = 3) -> dict[str, float]:
     }
 
 
+def measure_live(seconds: float = 3.0) -> dict[str, float]:
+    """The headless real-time loop's pace, and the time to refuse a silent robot."""
+    import tempfile
+    from pathlib import Path
+
+    import gymnasium as gym
+
+    import langenv
+    from langenv.live.loop import RealTimeLoop
+    from langenv.live.sinks import WavSink
+    from policies.analytic import make_analytic
+
+    env = gym.make(langenv.ENV_ID, phrase_graph="lc", decision_hz=25)
+    with tempfile.TemporaryDirectory() as tmp:
+        wav = Path(tmp) / "live.wav"
+        loop = RealTimeLoop(
+            env, make_analytic("lc", decision_hz=25), lambda r, sr: WavSink(r, wav, sr), prefill=0.5
+        )
+        report = loop.run(seconds)
+    env.close()
+    return {
+        "live_wall_over_sim": report.wall_s / report.sim_s,
+        "live_late_ticks": float(report.late_ticks),
+        "ur_no_answer_s": _no_answer_s(),
+    }
+
+
+def _no_answer_s(host: str = "10.255.255.1", timeout: float = 1.0) -> float:
+    """Wall time of the bridge's reachability probe against an address nobody answers."""
+    from langenv.robot.ur.bridge import _probe
+
+    t0 = time.perf_counter()
+    try:
+        _probe(host, timeout)
+    except OSError:
+        pass
+    return time.perf_counter() - t0
+
+
 SECTIONS: dict[str, Callable[[], dict[str, float]]] = {
     "physics": measure_physics,
     "nominal": measure_nominal,
@@ -301,6 +342,7 @@ SECTIONS: dict[str, Callable[[], dict[str, float]]] = {
     "audio": measure_audio,
     "compare": measure_compare,
     "robot": measure_robot,
+    "live": measure_live,
     "sweep": measure_sweep,
 }
 

@@ -496,7 +496,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         sessions = load_sessions(args.sessions, "*.csv")
         direct, episodes = fit_params(sessions)
     except (SessionDataError, ConfigError) as exc:
-        print(f"eval.calibrate: error: {exc}", file=sys.stderr)
+        print(f"langctrl calibrate: error: {exc}", file=sys.stderr)
         return 2
     print(f"{len(sessions)} sessions, {len(episodes)} resistance episodes")
     print(f"direct fit: {round_params(direct)}")

@@ -44,7 +44,6 @@ import functools
 import json
 import multiprocessing
 import os
-import re
 import shutil
 import sys
 import time
@@ -80,7 +79,10 @@ class CompareArgs:
     Attributes:
         policies: Comma-separated policies: ``ac``, ``lc-noap``, ``lc``, ``lc-em``, ``lc-end``,
             ``ppo:PATH``.
-        users: ``synthetic:N`` (N seeded synthetic users), or None with ``sessions``.
+        users: ``synthetic:N`` (N seeded synthetic users) or ``listening:N`` (the same people,
+            listening to the robot: :mod:`eval.users`), or None with ``sessions``.
+        listening: ``KEY=VALUE,...`` of :class:`~langenv.users.ListeningParams` for
+            ``listening:N`` (None: its defaults).
         sessions: Directory of session CSVs (at least ``t, cooperation``) to replay, one episode
             per CSV, the CSV's stem as the user name.
         pattern: Glob of the session CSVs in ``sessions``.
@@ -125,6 +127,7 @@ class CompareArgs:
     exercise: str | None = None
     policy_graphs: tuple[tuple[str, str], ...] = ()
     allow_mixed_graphs: bool = False
+    listening: str | None = None
 
 
 #: Most synthetic users one run accepts (``--users synthetic:N``).
@@ -178,8 +181,16 @@ def build_parser() -> argparse.ArgumentParser:
         "--users",
         default=None,
         metavar="synthetic:N",
-        help="synthetic:N: N seeded synthetic users, user i with seed SEED + i "
-        "(default: synthetic:12 unless --sessions is given)",
+        help="synthetic:N: N seeded synthetic users, user i with seed SEED + i; listening:N: the "
+        "same people listening to what the robot says (default: synthetic:12 unless --sessions "
+        "is given)",
+    )
+    p.add_argument(
+        "--listening",
+        default=None,
+        metavar="KEY=VALUE,...",
+        help="the listening people's parameters (langenv.users.ListeningParams, e.g. "
+        "latency=1.2,comply=0.4), with --users listening:N (default: its defaults)",
     )
     p.add_argument(
         "--sessions",
@@ -298,6 +309,7 @@ def parse_args(argv: Sequence[str] | None = None) -> CompareArgs:
         overwrite=ns.overwrite,
         exercise=ns.exercise,
         policy_graphs=policy_graphs,
+        listening=ns.listening,
         allow_mixed_graphs=ns.allow_mixed_graphs,
     )
 
@@ -396,7 +408,7 @@ def _spoken_graphs(names: list[str], labels: dict[str, str], args: CompareArgs) 
         trained = getattr(policy, "trained_graph", None)
         widened = getattr(policy, "widened_from", None)
         if widened is not None or (trained is not None and trained != spoken[spec].label):
-            line = f"eval.compare: {labels[spec]} speaks {spoken[spec].label}"
+            line = f"langctrl compare: {labels[spec]} speaks {spoken[spec].label}"
             line += f" (trained on {trained})" if trained is not None else ""
             if widened is not None:
                 line += (
@@ -475,12 +487,18 @@ def _users(args: CompareArgs) -> list[tuple[str, int, str | None]]:
                 raise UsageError(f"--sessions: {exc}") from None
         return [(p.stem, args.seed + i, str(p)) for i, p in enumerate(paths)]
     assert args.users is not None
-    kind, _, count = args.users.partition(":")
-    if kind != "synthetic" or not re.fullmatch(r"[0-9]+", count) or int(count) < 1:
-        raise UsageError(f"--users must be synthetic:N with N >= 1, got {args.users!r}")
-    if int(count) > MAX_USERS:
-        raise UsageError(f"--users: at most {MAX_USERS} synthetic users per run, got {count}")
-    return [(f"s{args.seed + i}", args.seed + i, None) for i in range(int(count))]
+    spec = _user_spec(args)
+    return [(name, seed, None) for name, seed in spec.names(args.seed)]
+
+
+def _user_spec(args: CompareArgs) -> Any:
+    """``--users`` and ``--listening`` (:func:`eval.users.parse_users`), or :class:`UsageError`."""
+    from eval.users import parse_users
+
+    try:
+        return parse_users(str(args.users), args.listening, MAX_USERS)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
 
 
 def _check_out(out: Path, overwrite: bool) -> None:
@@ -568,9 +586,11 @@ def run_episode(job: Job) -> dict[str, Any]:
         options = {"user": job.user_model}
     elif job.user_params is not None:
         options = {"user": SyntheticUser(job.user_params)}
+    base: Any = env.unwrapped
+    if options is None and type(base.user) is not SyntheticUser:  # a reused env's last person
+        options = {"user": SyntheticUser()}
     obs, info = env.reset(seed=job.seed, options=options)
     policy.reset()
-    base: Any = env.unwrapped
     rec = EpisodeRecorder(policy=policy.name, user=job.user)
     rec.append(_with_scene(info, base))
     law = policy.pace_law() if hz == 500 and hasattr(policy, "pace_law") else None
@@ -682,9 +702,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.video:
             _check_video()
         users = _users(args)
+        if args.listening is not None and args.sessions is not None:
+            raise UsageError("--listening sets listening people: give --users listening:N")
+        person = _user_spec(args).model() if args.sessions is None else None
         tmp = _make_tmp(out)
     except UsageError as exc:
-        print(f"eval.compare: error: {exc}", file=sys.stderr)
+        print(f"langctrl compare: error: {exc}", file=sys.stderr)
         return 2
     try:
         (tmp / "sessions").mkdir()
@@ -703,6 +726,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 labels[n],
                 args.video,
                 exercise=args.exercise,
+                user_model=person,
             )
             for n in names
             for (u, s, sess) in users
@@ -713,7 +737,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         (tmp / "config.json").write_text(json.dumps(cfg, indent=2) + "\n")
         move_into_place(tmp, out, args.overwrite)
     except OutTaken as exc:
-        print(f"eval.compare: error: {exc}; the outputs are in {tmp}", file=sys.stderr)
+        print(f"langctrl compare: error: {exc}; the outputs are in {tmp}", file=sys.stderr)
         return 1
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -753,11 +777,12 @@ def run_jobs(jobs: list[Job], workers: int) -> list[dict[str, Any]]:
     """
     from tqdm import tqdm
 
-    bar = tqdm(total=len(jobs), desc="episodes", unit="ep", file=sys.stderr)
+    bar = tqdm(total=len(jobs), desc=bar_label(jobs), unit="ep", file=sys.stderr)
     rows: list[dict[str, Any] | None] = [None] * len(jobs)
     try:
         if workers == 1:
             for k, job in enumerate(jobs):
+                bar.set_postfix_str(_job_name(job), refresh=False)
                 rows[k] = run_episode(job)
                 bar.update()
         else:
@@ -773,6 +798,7 @@ def run_jobs(jobs: list[Job], workers: int) -> list[dict[str, Any]]:
                 try:
                     for future in as_completed(futures):
                         rows[futures[future]] = future.result()
+                        bar.set_postfix_str(_job_name(jobs[futures[future]]), refresh=False)
                         bar.update()
                 except BaseException:  # episodes not yet handed to a worker are not run
                     pool.shutdown(wait=False, cancel_futures=True)
@@ -782,6 +808,27 @@ def run_jobs(jobs: list[Job], workers: int) -> list[dict[str, Any]]:
     done = [row for row in rows if row is not None]
     assert len(done) == len(jobs)
     return done
+
+
+def bar_label(jobs: Sequence[Job]) -> str:
+    """What a progress bar of ``jobs`` runs: their exercise(s) and policies (``"hand_to_mouth:
+    ac, lc-noap, lc episodes"``), so that a job of several runs says which one it is on."""
+    exercises = sorted({_exercise_name(j.exercise) for j in jobs})
+    policies = list(dict.fromkeys(_job_name(j) for j in jobs))
+    where = exercises[0] if len(exercises) == 1 else f"{len(exercises)} exercises"
+    who = ", ".join(policies) if len(policies) <= 4 else f"{len(policies)} policies"
+    return f"{where}: {who} episodes"
+
+
+def _job_name(job: Job) -> str:
+    return job.name if job.name is not None else job.policy
+
+
+def _exercise_name(exercise: str | None) -> str:
+    """An exercise argument as a bar names it: a shipped name, or a file's stem."""
+    from langenv.exercise import DEFAULT_EXERCISE
+
+    return DEFAULT_EXERCISE if exercise is None else Path(exercise).stem
 
 
 def decision_rate(job: Job) -> int:

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import math
 import os
-import tempfile
 import zipfile
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -23,6 +22,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from langenv.errors import ConfigError, SessionDataError
+from langenv.files import temp_file
 from langenv.speech.voice import check_voice
 
 __all__ = [
@@ -371,13 +371,13 @@ class EpisodeLog:
         for name in (*SCENE_TRACES, "path", "leg"):
             if getattr(self, name) is not None:
                 payload[name] = getattr(self, name)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        fd, tmp = temp_file(path.parent, prefix=f".{path.name}.", suffix=".tmp")
         try:
             with os.fdopen(fd, "wb") as fh:
                 _savez_fast(fh, payload)
             os.replace(tmp, path)
         except BaseException:
-            Path(tmp).unlink(missing_ok=True)
+            tmp.unlink(missing_ok=True)
             raise
         return path
 

@@ -11,7 +11,7 @@ and controller, the medians of motion time, ``|AM|``, mean ``|EM|``, the share o
 and the hand's largest distance from the path (from the logged joint positions: the handle's
 position by forward kinematics, its distance to the nearest point of the exercise's path).
 Then the headline per exercise: over LC's sessions, the largest ``|AM|``, how many end within
-1 s, the means of the silence share and of the share of the voice heard natural, and how many of
+1 s, the means of the pause share and of the share of the voice heard natural, and how many of
 the legs start their words within 1 s of the leg (``legs in step``, :mod:`eval.legs`).
 ``--table-only`` reads existing runs without running anything. Exit status 1 when an episode ended
 in a protective stop or left the path by more than the safety's ``max_deviation``, LC's median
@@ -99,7 +99,7 @@ def exercise_rows(run_dir: Path, name: str) -> list[dict[str, Any]]:
 
 def headline_row(run_dir: Path, name: str) -> dict[str, Any]:
     """LC's headline on one exercise's run: every session's |AM| (max, share within 1 s), the
-    means over sessions of the silence share and the share of the voice heard natural, and its
+    means over sessions of the pause share and the share of the voice heard natural, and its
     legs in step: of the leg boundaries of every session (:mod:`eval.legs`), those whose words
     start within 1 s of the leg."""
     from eval.episode import EpisodeLog
@@ -128,7 +128,7 @@ def headline_row(run_dir: Path, name: str) -> dict[str, Any]:
 def headline_table(rows: list[dict[str, Any]]) -> str:
     """The headline rows as a Markdown table (legs in step: n/a for a script without marks)."""
     lines = [
-        "| exercise | LC sessions | max abs(AM) (s) | within 1 s | silence (mean) | voice natural "
+        "| exercise | LC sessions | max abs(AM) (s) | within 1 s | pauses (mean) | voice natural "
         "(mean) | legs in step |",
         "|---|---|---|---|---|---|---|",
     ]
@@ -186,7 +186,14 @@ def build_parser() -> argparse.ArgumentParser:
         "--users",
         default="synthetic:48",
         metavar="synthetic:N",
-        help="users per exercise and controller (default: %(default)s)",
+        help="users per exercise and controller: synthetic:N, or listening:N (the same people "
+        "listening to the robot) (default: %(default)s)",
+    )
+    p.add_argument(
+        "--listening",
+        default=None,
+        metavar="KEY=VALUE,...",
+        help="the listening people's parameters, with --users listening:N (default: none)",
     )
     p.add_argument(
         "--seed",
@@ -237,6 +244,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
             args = ["--exercise", name, "--policies", ",".join(POLICIES), "--users", ns.users]
             args += ["--seed", str(ns.seed), "--workers", str(ns.workers), "--out", str(run_dir)]
+            args += ["--listening", ns.listening] if ns.listening is not None else []
             if compare([*args, "--overwrite"]) != 0:
                 return 1
         rows += exercise_rows(run_dir, name)

@@ -23,7 +23,10 @@ recording is:
 
 With ``--users synthetic:N`` the same N seeded synthetic users (seeds ``S .. S+N-1``) run under
 each controller, and their median motion time per controller and their cooperation quantiles
-(10/50/90 %, pooled over the motion) are compared with the recordings'.
+(10/50/90 %, pooled over the motion) are compared with the recordings'. ``--users listening:N``
+runs the same people listening to what the robot says (:class:`~langenv.users.ListeningUser`,
+``--listening KEY=VALUE,...`` for its parameters; :mod:`eval.users`); the checks are then named
+``listening ...``.
 
 Each figure is checked against :class:`FidelityTargets` and marked PASS or FAIL. Writes
 ``OUT/fidelity.md`` (tables), ``OUT/fidelity.png`` (figure) and ``OUT/fidelity.json`` (all
@@ -348,8 +351,10 @@ def synthetic_checks(
     rec_traces: Sequence[Trace],
     syn_traces: Sequence[Trace],
     targets: FidelityTargets,
+    kind: str = "synthetic",
 ) -> tuple[list[Check], dict[str, Any]]:
     """Synthetic users against the recordings: motion time per controller, cooperation quantiles.
+    ``kind`` names the people in the checks (``synthetic`` or ``listening``, :mod:`eval.users`).
 
     Returns:
         The checks and the figures behind them (for ``fidelity.json``).
@@ -366,7 +371,7 @@ def synthetic_checks(
         figures["motion_time"][c] = {"synthetic": s, "recorded": r}
         checks.append(
             Check(
-                f"synthetic motion time {c}",
+                f"{kind} motion time {c}",
                 f"{s:.2f} vs {r:.2f} s ({s / r:.3f})",
                 _fmt_range(lo, hi),
                 lo <= s / r <= hi,
@@ -379,7 +384,7 @@ def synthetic_checks(
         figures["coop_quantiles"][f"{lev:g}"] = {"synthetic": s, "recorded": r}
         checks.append(
             Check(
-                f"synthetic cooperation q{round(lev * 100)}",
+                f"{kind} cooperation q{round(lev * 100)}",
                 f"{s:.3f} vs {r:.3f}",
                 f"within {targets.coop_tol:g}",
                 abs(s - r) <= targets.coop_tol,
@@ -390,7 +395,10 @@ def synthetic_checks(
 
 # ------------------------------------------------------------------------------------ running
 def _simulate(
-    jobs: Sequence[tuple[str, str, int, str | None]], workers: int, user_params: Any = None
+    jobs: Sequence[tuple[str, str, int, str | None]],
+    workers: int,
+    user_params: Any = None,
+    user_model: Any = None,
 ) -> list[tuple[str, str, Any]]:
     """Run ``(policy, user name, seed, session CSV or None)`` episodes; return their logs."""
     from eval.compare import Job, run_jobs
@@ -409,6 +417,7 @@ def _simulate(
                 None,
                 phrase_graph=STUDY_GRAPH,
                 user_params=user_params,
+                user_model=user_model if sess is None else None,
             )
             for pol, user, seed, sess in jobs
         ]
@@ -429,7 +438,9 @@ def replay_traces(sessions: Sequence[Any], workers: int) -> list[Trace]:
     return [trace_from_log(log, user, pol) for user, pol, log in _simulate(jobs, workers)]
 
 
-def synthetic_traces(n: int, seed: int, workers: int, params: Any = None) -> list[Trace]:
+def synthetic_traces(
+    n: int, seed: int, workers: int, params: Any = None, user_model: Any = None
+) -> list[Trace]:
     """``n`` synthetic users (seeds ``seed..seed+n-1``) under each of the three controllers.
 
     Args:
@@ -437,11 +448,13 @@ def synthetic_traces(n: int, seed: int, workers: int, params: Any = None) -> lis
         seed: Seed of the first (``env.reset(seed=...)`` draws the user).
         workers: Worker processes.
         params: :class:`~langenv.users.SyntheticUserParams` (default: the calibrated ones).
+        user_model: A :class:`~langenv.users.User` reset with each seed instead (e.g. a
+            :class:`~langenv.users.ListeningUser`).
     """
     jobs: list[tuple[str, str, int, str | None]] = [
         (c, f"s{seed + i}", seed + i, None) for c in CONTROLLERS.values() for i in range(n)
     ]
-    logs = _simulate(jobs, workers, params)
+    logs = _simulate(jobs, workers, params, user_model)
     return [trace_from_log(log, user, pol) for user, pol, log in logs]
 
 
@@ -713,7 +726,15 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         metavar="synthetic:N",
         help="also run N synthetic users under each controller and compare their motion times "
-        "and cooperation with the recordings' (default: none)",
+        "and cooperation with the recordings'; listening:N: the same people listening to the "
+        "robot (default: none)",
+    )
+    p.add_argument(
+        "--listening",
+        default=None,
+        metavar="KEY=VALUE,...",
+        help="the listening people's parameters (langenv.users.ListeningParams), with --users "
+        "listening:N (default: its defaults)",
     )
     p.add_argument(
         "--seed",
@@ -744,16 +765,18 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     args = parse_args(argv)
     t0 = time.perf_counter()
-    n_syn = 0
-    if args.users is not None:
-        kind, _, count = args.users.partition(":")
-        if kind != "synthetic" or not count.isdigit() or int(count) < 1:
-            print(
-                f"eval.fidelity: error: --users must be synthetic:N, got {args.users!r}",
-                file=sys.stderr,
-            )
+    n_syn, spec = 0, None
+    if args.users is not None or args.listening is not None:
+        from eval.users import parse_users
+
+        try:
+            if args.users is None:
+                raise ValueError("--listening sets listening people: give --users listening:N")
+            spec = parse_users(args.users, args.listening)
+        except ValueError as exc:
+            print(f"langctrl fidelity: error: {exc}", file=sys.stderr)
             return 2
-        n_syn = int(count)
+        n_syn = spec.count
     try:
         sessions = [
             s for s in load_sessions(args.sessions, "*.csv") if controller_of(s.name) is not None
@@ -764,7 +787,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             )
         rec_traces = [trace_from_session(s, str(controller_of(s.name))) for s in sessions]
     except (SessionDataError, ValueError, OSError) as exc:
-        print(f"eval.fidelity: error: {exc}", file=sys.stderr)
+        print(f"langctrl fidelity: error: {exc}", file=sys.stderr)
         return 2
     sim_traces = replay_traces(sessions, args.workers)
     rec, sim = measure(rec_traces), measure(sim_traces)
@@ -773,8 +796,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     syn_traces = None
     syn_figs = None
     if n_syn:
-        syn_traces = synthetic_traces(n_syn, args.seed, args.workers)
-        syn_checks, syn_figs = synthetic_checks(rec, rec_traces, syn_traces, targets)
+        assert spec is not None
+        syn_traces = synthetic_traces(n_syn, args.seed, args.workers, user_model=spec.model())
+        syn_checks, syn_figs = synthetic_checks(rec, rec_traces, syn_traces, targets, spec.kind)
         checks += syn_checks
     args.out.mkdir(parents=True, exist_ok=True)
     md = render_markdown(checks, rec, sim, rec_traces, sim_traces, syn_figs)

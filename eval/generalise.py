@@ -2,7 +2,7 @@
 
 Run::
 
-    python -m eval.generalise --model runs/speech/best/ppo_speech.zip --out out/generalise
+    python -m eval.generalise --model runs/speech/best.zip --out out/generalise
     python -m eval.generalise --model M1.zip --model M2.zip --role test --users 48 \
         --population both --out out/test_look_1
 
@@ -663,12 +663,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         split = _split(ns)
         split.pairs(ns.role, ns.users * len(split.exercises(ns.role)))  # enough users
     except (ConfigError, ModelError, FileNotFoundError, KeyError) as exc:
-        print(f"eval.generalise: error: {exc}", file=sys.stderr)
+        print(f"langctrl generalise: error: {exc}", file=sys.stderr)
         return 2
     if ns.role == "test":
         print(
-            "eval.generalise: this is a look at the TEST exercises and users: record it and its "
-            "figures in docs/history.md (at most two looks per study)",
+            "langctrl generalise: this is a look at the TEST exercises and users: record it and "
+            "its figures in docs/history.md (at most two looks per study)",
             file=sys.stderr,
         )
     specs = [*analytic, *learned_specs]

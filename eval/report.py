@@ -281,7 +281,8 @@ def study_findings(
         out.append(Finding(claim, _absent({lc}), None))
 
     claim = (
-        f"{n_lc} keeps |a - 1| <= {A_TOLERANCE:g} for a larger share of speech time than {n_noap}"
+        f"{n_lc} keeps |a - 1| <= {A_TOLERANCE:g} for a larger share of all speech time (pooled) "
+        f"than {n_noap}"
     )
     if {lc_noap, lc} <= present:
         shares = []

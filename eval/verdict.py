@@ -34,7 +34,7 @@ from eval.report import (
     study_findings,
 )
 
-__all__ = ["STOP_COLUMNS", "print_verdict"]
+__all__ = ["SHARES_NOTE", "STOP_COLUMNS", "print_verdict"]
 
 STOP_COLUMNS: tuple[str, ...] = (
     "protective_stops",
@@ -59,6 +59,12 @@ _SHARE_COLUMNS = {
 ``content_share`` of the motion's duration (words heard, :mod:`eval.metrics`), for
 ``legs_in_step`` of the legs whose words start within 1 s of the leg (:mod:`eval.legs`; n/a
 for a graph without ``@leg`` marks)."""
+
+SHARES_NOTE = (
+    "% columns: the mean over sessions of each session's share of its speech time (content %: "
+    "of its motion); summary.md gives their medians, the third finding pools all speech time"
+)
+"""The line under the table that says which statistic each share is (one name per measure)."""
 
 
 def _values(rows: Sequence[Row], policy: str, column: str) -> np.ndarray:
@@ -181,6 +187,8 @@ def print_verdict(
     for cells in body:
         table.add_row(*cells)
     console.print(table)
+    if any(name in _SHARE_COLUMNS.values() for name in header):
+        console.print(SHARES_NOTE, markup=False)
     mixed = mixed_graph_policies(rows, policies)
     if mixed:
         names = ", ".join(display_name(p) for p in mixed)

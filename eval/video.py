@@ -25,7 +25,6 @@ import argparse
 import math
 import os
 import sys
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from fractions import Fraction
@@ -38,6 +37,7 @@ import numpy as np
 from eval.episode import EpisodeLog
 from eval.report import display_name
 from langenv.errors import ConfigError, LangEnvError
+from langenv.files import temp_file
 
 __all__ = [
     "DEFAULT_FPS",
@@ -483,12 +483,8 @@ def write_video(
     track[: min(audio.size, n_audio)] = audio[:n_audio]
 
     frames = SessionFrames(log, t0 + n_frames / fps, fps=fps, model_path=model_path)
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".mp4", dir=out.parent)
+    fd, tmp = temp_file(out.parent, prefix=f".{out.name}.", suffix=".mp4")
     os.close(fd)
-    tmp = Path(tmp_name)
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o666 & ~umask)  # as a plain open() would create it
     try:
         with av.open(str(tmp), "w", format="mp4", options={"movflags": "+faststart"}) as box:
             vs = box.add_stream("libx264", rate=fps, options={"crf": str(CRF), "preset": PRESET})
@@ -572,10 +568,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the process exit code."""
     args = parse_args(argv)
     if args.out.suffix.lower() != ".mp4":
-        print(f"eval.video: error: --out must end in .mp4, got {args.out}", file=sys.stderr)
+        print(f"langctrl video: error: --out must end in .mp4, got {args.out}", file=sys.stderr)
         return 2
     if not args.out.parent.is_dir():
-        print(f"eval.video: error: --out: no directory {args.out.parent}", file=sys.stderr)
+        print(f"langctrl video: error: --out: no directory {args.out.parent}", file=sys.stderr)
         return 2
     try:
         log = EpisodeLog.load_npz(args.log)
@@ -584,7 +580,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             log, args.out, audio, sr, fps=args.fps, model_path=args.model_path, progress=None
         )
     except LangEnvError as exc:
-        print(f"eval.video: error: {exc}", file=sys.stderr)
+        print(f"langctrl video: error: {exc}", file=sys.stderr)
         return 2
     print(f"wrote {path} ({len(log.utterances)} phrases, {log.t[-1] - log.t[0]:.1f} s)")
     return 0

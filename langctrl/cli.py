@@ -62,6 +62,7 @@ COMMANDS: MappingProxyType[str, Command] = MappingProxyType(
         "video": Command("eval.video", "a session video (MP4) from an episode log", "tool"),
         "report": Command("eval.report", "summary.md from a sessions.csv", "tool"),
         "calibrate": Command("eval.calibrate", "fit the synthetic users to recordings", "tool"),
+        "listening": Command("eval.listening", "fit the listening person's follow to AC", "tool"),
     }
 )
 

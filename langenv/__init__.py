@@ -6,7 +6,7 @@ Importing the package registers the Gymnasium environment ``LangCtrl-v0``
     import gymnasium as gym
     import langenv  # noqa: F401
 
-    env = gym.make("LangCtrl-v0", users="synthetic", decision_hz=25)
+    env = gym.make("LangCtrl-v0", users="synthetic", decision_hz=25)  # 60 s sessions
 """
 
 from __future__ import annotations
@@ -32,5 +32,5 @@ if ENV_ID not in registry:
         id=ENV_ID,
         entry_point="langenv.env:make_env",
         vector_entry_point="langenv.batch:make_vector_env",
-        max_episode_steps=1500,  # 60 s at the default decision_hz=25
+        # no step-counting TimeLimit: the env truncates at max_seconds (60 s) at any decision_hz
     )

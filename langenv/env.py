@@ -31,9 +31,10 @@ from langenv.robot.io_arm import IOArm, MeasuredUser
 from langenv.safety import SafetyLimits
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.graph import PhraseGraph, graph_path
+from langenv.speech.hearing import Ear
 from langenv.speech.legs import LegPlan, leg_plan
 from langenv.speech.timeline import SpeechTimeline
-from langenv.users import CallableUser, ReplayUser, SyntheticUser, User
+from langenv.users import CallableUser, Listener, ListeningUser, ReplayUser, SyntheticUser, User
 
 __all__ = ["LAW_CHUNK", "LangCtrlEnv", "LawSteps", "make_env"]
 
@@ -149,9 +150,10 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
 
     ## Episode end
 
-    Terminates when both speech and motion are over, or at a **protective stop** (below). Truncation
-    through ``max_episode_steps`` at registration (1500 steps = 60 s at the default 25 Hz; pass
-    ``max_episode_steps=60 * decision_hz`` to ``gymnasium.make`` for other rates).
+    Terminates when both speech and motion are over, or at a **protective stop** (below).
+    Truncates at the session's length, ``max_seconds`` (60 s), whatever the decision rate: the
+    step that reaches it returns ``truncated=True`` (``info["am"]`` is then None). A
+    ``max_episode_steps`` given to ``gymnasium.make`` adds Gymnasium's step-counting limit on top.
 
     ## Safety
 
@@ -185,18 +187,21 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     comes back as ``last``; without one, take the next step with
     ``env.step(policy.act(env.unwrapped.observation()))`` (a phrase boundary) and call it again. The episode is the
     same, bit for bit, as the policy taking every step, at a few times the speed (``eval.compare``
-    runs 500 Hz aligners this way). Steps it takes bypass wrappers (count them for a time limit).
+    runs 500 Hz aligners this way). Steps it takes bypass wrappers (count them for a
+    ``max_episode_steps`` wrapper); it stops a step before ``max_seconds``, so that the step that
+    truncates is ``env.step``'s.
 
     ## Arguments
 
     | argument | default | meaning |
     |---|---|---|
-    | ``users`` | ``"synthetic"`` | ``"synthetic"``, ``"replay"`` (with ``session``), a :class:`~langenv.users.User` or a callable ``f(t, hand_velocity, tangent) -> (3,)`` N |
+    | ``users`` | ``"synthetic"`` | ``"synthetic"``, ``"listening"`` (a synthetic person who responds to the words' intents, :class:`~langenv.users.ListeningUser`), ``"replay"`` (with ``session``), a :class:`~langenv.users.User` or a callable ``f(t, hand_velocity, tangent) -> (3,)`` N |
     | ``session`` | ``None`` | session CSV (``t, cooperation``) for ``users="replay"`` |
     | ``exercise`` | ``"external_rotation"`` | a shipped exercise's name (``python -m langenv.exercise list``), an exercise YAML path or an :class:`~langenv.exercise.Exercise` |
     | ``phrase_graph`` | the exercise's (``script.graph``: for the study's exercise ``"default"``) | YAML path or a shipped graph: ``"default"`` (= ``"lc"``, LC's graph with pauses and fillers), ``"study"`` (the study's LC graph), ``"lc-noap"``, ``"ac"`` |
     | ``trajectory`` | ``None`` | a :class:`~langenv.control.trajectory.Trajectory` instead of the exercise's path; with ``exercise``, that exercise's path in another frame (its legs, which name the script's) |
-    | ``decision_hz`` | 25 | agent decisions per second; must divide 500 |
+    | ``decision_hz`` | 25 | agent decisions per second; must divide 500 (an analytic policy holds the paper's law at its own rate, ``policy.decision_hz``) |
+    | ``max_seconds`` | 60 | the session's length (s): the episode truncates there at any ``decision_hz``; ``None``: no limit |
     | ``choice_mode`` | ``"target"`` | next-phrase action design: ``"target"`` or ``"scores"`` |
     | ``w_em``, ``w_pace``, ``w_am`` | 1, 1, 1 | reward weights |
     | ``sensor_noise`` | 0 | force sensor noise std (N) |
@@ -215,6 +220,11 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
 
     ## Version history
 
+    * v0 (langctrl 0.6): the time limit is a session length, ``max_seconds`` (60 s at any
+      ``decision_hz``), instead of 1500 steps at registration (3 s at 500 Hz); episodes that
+      ended before 60 s are unchanged. ``users="listening"`` added (a person who responds to
+      the words' intents, told what they hear: :class:`~langenv.users.Listener`); the shipped
+      scripts mark intents; episodes of every other person unchanged.
     * v0 (langctrl 0.5): ``exercise`` added (exercises as data), ``robot`` (a
       :class:`~langenv.robot.io.RobotIO`) and ``robot_acceleration`` added, the default phrase
       graph has pauses and fillers (the study's is ``"study"``); the study's exercise with the
@@ -257,6 +267,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         robot: RobotIO | None = None,
         robot_acceleration: float = 1.0,
         max_children: int | None = None,
+        max_seconds: float | None = 60.0,
     ) -> None:
         super().__init__()
         if (
@@ -278,6 +289,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self.width, self.height = _pixels("width", width), _pixels("height", height)
         self.decision_hz = int(decision_hz)
         self.ticks_per_step = PHYSICS_HZ // self.decision_hz
+        self.max_seconds, self.max_ticks = _session_length(max_seconds)
         self.choice_mode = choice_mode
         self.w_em, self.w_pace, self.w_am = weights
         if safety is not None and not isinstance(safety, SafetyLimits):
@@ -344,6 +356,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self._choice_u: list[float] = [0.0] * n_choice
         self._pause_factor = 1.0  # the pause rule's target over t_x (target mode: 2**(2u))
         self._renderer: Any = None
+        self._ear: Ear | None = None
         self.time = 0.0
         self.t_a = 0.0
         self.t_h = 0.0
@@ -414,6 +427,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self.motion.reset()
         self.paces.reset()
         self.speech.reset()
+        self._ear = Ear(self.speech) if isinstance(self.user, Listener) else None
         self._reset_episode_state()
         self._update_speech_eta()
         return self._observation(), self._info()
@@ -502,7 +516,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             raise ConfigError(f"max_steps must be >= 0, got {max_steps}")
         arm = self.motion.arm
         n_q = arm.data.qpos.shape[0] if isinstance(arm, Arm) else 0
-        n = min(int(max_steps), LAW_CHUNK) if self.runs_compiled else 0
+        n = self._law_steps_left(max_steps)
         rows = np.zeros((n, len(ek.ROW_FIELDS) + n_q + 3))
         rewards = np.zeros(n)
         phrase, in_pause = self.speech.phrase, self.speech.in_pause
@@ -623,7 +637,24 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         total = reward.total(r_em, r_pace, r_am)
         info = self._info()
         info.update(reward_em=r_em, reward_pace=r_pace, reward_am=r_am)
-        return self._observation(), float(total), self._terminated, False, info
+        return self._observation(), float(total), self._terminated, self.truncated, info
+
+    @property
+    def truncated(self) -> bool:
+        """Whether the episode has reached its length (``max_seconds``) without ending."""
+        return (
+            not self._terminated
+            and self.max_ticks is not None
+            and round(self.time * PHYSICS_HZ) >= self.max_ticks
+        )
+
+    def _law_steps_left(self, max_steps: int) -> int:
+        """Steps :meth:`run_law` may take: at most ``max_steps`` and :data:`LAW_CHUNK`, and one
+        fewer than the steps left to the session's length (that last step is Python's)."""
+        n = min(int(max_steps), LAW_CHUNK)
+        if self.max_ticks is not None:
+            n = min(n, self.max_ticks - round(self.time * PHYSICS_HZ) - 1)
+        return max(0, n) if self.runs_compiled else 0
 
     def _law_array(self, law: PaceLaw) -> np.ndarray:
         """``law`` and the reward weights as :func:`langenv.env_kernels.run_law` reads them
@@ -706,6 +737,8 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             hz = self._horizons()
             speech.step(self.dt, a, self._choose, hz, pause_factor=self._pause_factor)
         self.time += self.dt
+        if self._ear is not None:
+            self._listen(a)
         self._coop_hist[self._coop_i % self._coop_hist.size] = motion.cooperation
         self._coop_i += 1
         self._update_speech_eta()
@@ -717,6 +750,22 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         if not motion_on and not speech_on:
             self._end_episode()
         return em, pace
+
+    def _listen(self, a: float) -> None:
+        """Tell a person who listens (:class:`~langenv.users.Listener`) the words heard in this
+        tick and, if they need it, the speech's lead over the motion: the speech's progress
+        minus the motion's, in seconds of the whole speech, while the speech runs (0 once it
+        is over; :mod:`langenv.users.listening`)."""
+        user: Any = self.user
+        assert self._ear is not None
+        for t, _, intent in self._ear.step(self.dt, a):
+            user.hear(t, intent)
+        if user.perceives:  # while the speech runs; once it is over there is nothing to follow
+            sp = self.speech
+            said = sp.content_time
+            left = self.t_a if self._legs.segments == 1 else sp.eta(self._hz)
+            lead = 0.0 if sp.done else said - self.motion.progress * (said + left)
+            user.perceive(self.time, lead)
 
     def _end_episode(self) -> None:
         """Motion and speech are over: the episode terminates with its alignment ``am``."""
@@ -886,6 +935,18 @@ def _non_negative(name: str, value: Any) -> float:
     return v
 
 
+def _session_length(value: Any) -> tuple[float | None, int | None]:
+    """``max_seconds`` checked, and its ticks (rounded up): ``(None, None)`` for no limit."""
+    if value is None:
+        return None, None
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ConfigError(f"max_seconds must be a number of seconds or None, got {value!r}")
+    v = float(value)
+    if not (math.isfinite(v) and v > 0.0):
+        raise ConfigError(f"max_seconds must be finite and > 0 (s), got {value!r}")
+    return v, math.ceil(round(v * PHYSICS_HZ, 6))
+
+
 def _pixels(name: str, value: Any) -> int:
     """A positive integer (a render size), or :class:`ConfigError` naming ``name``."""
     if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
@@ -910,12 +971,14 @@ def _make_user(users: Any, session: str | Path | None) -> User:
     if isinstance(users, str):
         if users == "synthetic":
             return SyntheticUser()
+        if users == "listening":
+            return ListeningUser()
         if users == "replay":
             if session is None:
                 raise ConfigError("users='replay' needs session=PATH to a session CSV")
             return ReplayUser.from_csv(session)
         raise ConfigError(
-            f"users must be 'synthetic', 'replay', a User or a callable; got {users!r}"
+            f"users must be 'synthetic', 'listening', 'replay', a User or a callable; got {users!r}"
         )
     if hasattr(users, "reset") and hasattr(users, "force"):
         return users

@@ -125,6 +125,11 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="CSV",
         help="with --robot: write the session CSV here (default: none)",
     )
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace an existing --audio-out, --trace-out or --log-out file (default: refuse)",
+    )
     return p
 
 
@@ -155,6 +160,8 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     ):
         if path is not None and not path.parent.is_dir():
             p.error(f"{flag}: no directory {path.parent}")
+        if path is not None and path.exists() and not ns.overwrite:
+            p.error(f"{flag} {path}: exists; give --overwrite to replace it")
     if ns.user is None:
         ns.user = "synthetic" if ns.headless else "drag"
     if ns.headless and ns.user == "drag":
@@ -186,7 +193,7 @@ def _make_env(ns: argparse.Namespace, policy: Any, user: Any) -> Any:
         langenv.ENV_ID,
         phrase_graph=spoken.ref,
         decision_hz=hz,
-        max_episode_steps=int(120 * hz),
+        max_seconds=120.0,
         **kwargs,
     )
 
@@ -325,10 +332,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         line = run(ns)
     except LangEnvError as exc:
-        print(f"langenv.play: error: {exc}", file=sys.stderr)
+        print(f"langctrl play: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("langenv.play: stopped", file=sys.stderr)
+        print("langctrl play: stopped", file=sys.stderr)
         return 130
     print(line)
     return 0

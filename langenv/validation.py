@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import difflib
+import io
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import fields
+from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
@@ -20,6 +23,8 @@ __all__ = [
     "check_time_axis",
     "dataclass_from_dict",
     "finite_positive",
+    "suggest",
+    "yaml_text",
 ]
 
 MAX_SESSION_S = 600.0
@@ -33,6 +38,20 @@ samples are fine (values are interpolated in between)."""
 
 
 T = TypeVar("T")
+
+
+def yaml_text(text: str, path: str | Path) -> io.StringIO:
+    """``text`` as a stream named ``path``, for ``yaml.safe_load`` and ``yaml.compose``: their
+    errors then say where (``in "FILE", line L, column C``), not ``"<unicode string>"``."""
+    stream = io.StringIO(text)
+    stream.name = str(path)
+    return stream
+
+
+def suggest(word: str, known: Iterable[str]) -> str:
+    """``" (did you mean 'X'?)"`` for the known name closest to a mistyped ``word``, or ``""``."""
+    close = difflib.get_close_matches(str(word), sorted(known), n=1, cutoff=0.6)
+    return f" (did you mean {close[0]!r}?)" if close else ""
 
 
 def dataclass_from_dict(cls: type[T], data: object, where: str) -> T:

@@ -19,7 +19,6 @@ speaks the exercise's phrase graph (:meth:`PPOEnsemble.use_graph`).
 from __future__ import annotations
 
 import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -28,6 +27,7 @@ import numpy as np
 import yaml
 
 from langenv.exercise.script import SpokenGraph
+from langenv.files import temp_file
 from policies.learned import PPOPolicy, file_sha256
 
 __all__ = ["MANIFEST_KIND", "PPOEnsemble", "write_manifest"]
@@ -166,12 +166,12 @@ def write_manifest(out: Path, models: list[Path]) -> Path:
     for model in models:
         model = Path(model)
         if not model.is_file():
-            raise FileNotFoundError(f"train.ensemble: not found: {model}")
+            raise FileNotFoundError(f"langctrl ensemble: not found: {model}")
         try:
             rel = model.resolve().relative_to(out.parent.resolve())
         except ValueError:
             raise ValueError(
-                f"train.ensemble: {model} must lie in the manifest's folder {out.parent}"
+                f"langctrl ensemble: {model} must lie in the manifest's folder {out.parent}"
             ) from None
         entries.append({"file": rel.as_posix(), "sha256": file_sha256(model)})
     text = (
@@ -179,8 +179,7 @@ def write_manifest(out: Path, models: list[Path]) -> Path:
         "# (policies/ensemble.py). Written by python -m train.ensemble.\n"
         + yaml.safe_dump({"kind": MANIFEST_KIND, "members": entries}, sort_keys=False)
     )
-    fd, name = tempfile.mkstemp(prefix=f".{out.name}.", suffix=out.suffix, dir=out.parent)
-    tmp = Path(name)
+    fd, tmp = temp_file(out.parent, prefix=f".{out.name}.", suffix=out.suffix)
     try:
         with os.fdopen(fd, "w") as fh:
             fh.write(text)

@@ -102,6 +102,27 @@ def test_the_command_line_reports_a_bad_script_and_writes_nothing(
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.txt"]  # no file, no temporary
 
 
+def test_every_error_of_a_script_is_shown_at_once(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A script with three errors on three lines: all three, in order, each with its line and
+    column; the lines between them read as they are."""
+    script = tmp_path / "s.txt"
+    script.write_text(
+        "Reach forward.\n[Keep going. | Nice and slow.\nAnd back. (pause 3-1)\n"
+        "@voice robot\nAnd you're done.\n"
+    )
+    assert main(["author", str(script), "--out", str(tmp_path / "g.yaml")]) == 1
+    err = capsys.readouterr().err.splitlines()
+    assert [line.split(": ")[1].rsplit(":", 2)[1:] for line in err] == [
+        ["2", "1"],
+        ["3", "11"],
+        ["4", "1"],
+    ]
+    assert "is not closed" in err[0] and "reversed" in err[1] and "@voice" in err[2]
+    assert not (tmp_path / "g.yaml").exists()
+
+
 def test_a_graph_error_the_script_makes_names_its_line(tmp_path: Path) -> None:
     script = tmp_path / "s.txt"
     long = "this is far too long to be a filler word"

@@ -73,10 +73,11 @@ def test_sessions_equal_the_single_env_until_their_first_episode_ends() -> None:
     venv.close()
 
 
-def test_make_vec_builds_it_with_the_registered_time_limit() -> None:
+def test_make_vec_builds_it_with_the_sessions_time_limit() -> None:
     venv = gym.make_vec(langenv.ENV_ID, num_envs=2, vectorization_mode="vector_entry_point")
     assert isinstance(venv.unwrapped, LangCtrlVectorEnv)
-    assert venv.unwrapped.max_episode_steps == 1500
+    assert venv.unwrapped.max_episode_steps is None  # no step count: each session's 60 s
+    assert [e.max_seconds for e in venv.unwrapped.envs] == [60.0, 60.0]
     assert venv.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
     single = gym.make(langenv.ENV_ID)
     assert venv.single_observation_space == single.observation_space

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 import pytest
 
@@ -40,7 +41,16 @@ def test_robot_section_prints_the_loop_figures(capsys: pytest.CaptureFixture[str
         "robot_compute_p999_ms",
         "robot_cpu_median_ms",
     }
-    assert 0.0 < figures["robot_cpu_median_ms"] < 50.0  # a sanity bound, not a timing target
+    assert all(math.isfinite(v) and v > 0.0 for v in figures.values())  # measured, not judged
+
+
+def test_live_section_prints_its_figures() -> None:
+    """The real-time loop's pace and the time to refuse a silent robot: figures, not judged."""
+    from bench.__main__ import measure_live
+
+    figures = measure_live(seconds=0.5)
+    assert set(figures) == {"live_wall_over_sim", "live_late_ticks", "ur_no_answer_s"}
+    assert all(math.isfinite(v) and v >= 0.0 for v in figures.values())
 
 
 @pytest.mark.slow

@@ -93,7 +93,7 @@ def test_cli_rejects_bad_arguments(tmp_path: Path, capsys: pytest.CaptureFixture
     with pytest.raises(SystemExit):
         main(["--sessions", str(tmp_path), "--duration", "0,-1"])
     assert main(["--sessions", str(tmp_path)]) == 2  # no CSVs: a named error, no traceback
-    assert "eval.calibrate: error" in capsys.readouterr().err
+    assert "langctrl calibrate: error" in capsys.readouterr().err
     with pytest.raises(ConfigError, match="calibration seeds"):
         from eval.calibrate import closed_loop_fit
 

@@ -178,3 +178,35 @@ def test_console_script_runs_the_jobs() -> None:
         [sys.executable, "-m", "langctrl", "exercise", "list"], **run
     )
     assert module.returncode == 0 and "external_rotation" in module.stdout
+
+
+def test_no_message_names_a_python_module_for_a_command() -> None:
+    """An error (or a note) says the command the user typed, ``langctrl compare: error``, not
+    the module behind it (``eval.compare: error``)."""
+    import re
+
+    prefix = re.compile(r"f?[\"'](eval|train|langenv|policies|bench)(\.[a-z_]+)+: ")
+    found = []
+    for package in ("eval", "train", "langenv", "policies", "bench"):
+        for path in sorted((REPO / package).rglob("*.py")):
+            for i, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+                if prefix.search(line):
+                    found.append(f"{path.relative_to(REPO)}:{i}: {line.strip()}")
+    assert found == []
+
+
+@pytest.mark.parametrize(
+    ("name", "args"),
+    [
+        ("compare", ["--policies", "no_such_policy", "--users", "synthetic:1"]),
+        ("export", ["no_such_run", "--steps", "1", "--out", "x"]),
+        ("exercise", ["check", "no_such_exercise"]),
+    ],
+)
+def test_a_job_s_error_names_the_command(
+    name: str, args: list[str], capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    if name == "compare":
+        args = [*args, "--out", str(tmp_path / "out")]
+    assert main([name, *args]) != 0
+    assert capsys.readouterr().err.startswith(f"langctrl {name}: error: ")

@@ -237,3 +237,12 @@ def test_a_failing_parallel_episode_raises_its_error(tmp_path: Path) -> None:
     jobs.insert(1, Job("lc", "ghost", 9, missing, str(tmp_path), False, False, 50))
     with pytest.raises(Exception, match="no_such_session"):
         run_jobs(jobs, 2)
+
+
+def test_the_progress_bar_says_which_exercise_and_policies_it_runs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A job of several runs (langctrl exercises: one per exercise) shows which one each bar is."""
+    args = ["--policies", "ac", "--users", "synthetic:1", "--exercise", "hand_to_mouth"]
+    assert main([*args, "--no-audio", "--no-figures", "--out", str(tmp_path / "o")]) == 0
+    assert "hand_to_mouth: ac episodes" in capsys.readouterr().err

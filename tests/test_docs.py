@@ -71,3 +71,31 @@ def test_the_site_builds_without_a_warning(tmp_path: Path) -> None:
     assert res.returncode == 0, res.stderr[-4000:]
     assert (tmp_path / "api" / "env" / "index.html").is_file()
     assert (tmp_path / "cli" / "index.html").read_text().count("usage: langctrl") > 11
+
+
+def _nav_pages(items: object) -> list[tuple[str, str]]:
+    """``(name, page)`` of every page in the site's navigation."""
+    out: list[tuple[str, str]] = []
+    for item in items if isinstance(items, list) else []:
+        for name, value in item.items():
+            if isinstance(value, str):
+                out.append((name, value))
+            else:
+                out.extend(_nav_pages(value))
+    return out
+
+
+def test_the_navigation_calls_each_page_by_its_title() -> None:
+    """One name per page: the site's navigation names a page by (a part of) its own title."""
+    import yaml
+
+    nav = yaml.safe_load((REPO / "mkdocs.yml").read_text(encoding="utf-8"))["nav"]
+    wrong = []
+    for name, page in _nav_pages(nav):
+        if page == "index.md":
+            continue  # the home page is the README
+        text = (DOCS / page).read_text(encoding="utf-8")
+        title = next(line[2:] for line in text.splitlines() if line.startswith("# "))
+        if name.lower() not in title.lower():
+            wrong.append(f"{page}: nav {name!r}, title {title!r}")
+    assert wrong == []

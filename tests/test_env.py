@@ -59,9 +59,67 @@ def test_sb3_env_checker() -> None:
     env.close()
 
 
-def test_registered_with_time_limit() -> None:
+def _steps_to_truncation(env: gym.Env, limit: int) -> tuple[int, dict]:  # type: ignore[type-arg]
+    """Steps of a neutral action until the episode ends (at most ``limit``), and the last info."""
+    env.reset(seed=0)
+    action = np.zeros(env.action_space.shape, np.float32)
+    for k in range(1, limit + 1):
+        _, _, term, trunc, info = env.step(action)
+        if term or trunc:
+            assert trunc and not term
+            return k, info
+    return limit + 1, info
+
+
+def test_the_time_limit_is_a_session_length_not_a_step_count() -> None:
+    """The registration counts no steps: at the analytic policies' own 500 Hz a session is not
+    cut at 3 s (1,500 steps), but at the env's 60 s like at 25 Hz."""
     spec = gym.spec(langenv.ENV_ID)
-    assert spec.max_episode_steps == 1500
+    assert spec.max_episode_steps is None
+    env = gym.make(langenv.ENV_ID, users=zero_user, decision_hz=500)
+    assert env.unwrapped.max_seconds == 60.0  # type: ignore[attr-defined]
+    steps, info = _steps_to_truncation(env, 1500)
+    assert steps == 1501 and not info["motion_done"]  # 3 s: still going
+
+
+@pytest.mark.parametrize(("hz", "steps"), [(25, 13), (500, 250), (100, 50)])
+def test_max_seconds_truncates_at_the_same_time_at_any_rate(hz: int, steps: int) -> None:
+    env = gym.make(langenv.ENV_ID, users=zero_user, decision_hz=hz, max_seconds=0.5)
+    got, info = _steps_to_truncation(env, 2 * steps)
+    assert got == steps  # the first step at or past 0.5 s (25 Hz: 0.52 s)
+    assert info["am"] is None and info["time"] == pytest.approx(steps / hz)
+
+
+def test_the_batch_truncates_where_the_single_env_does() -> None:
+    from langenv.batch import LangCtrlVectorEnv
+
+    venv = LangCtrlVectorEnv(2, decision_hz=25, max_seconds=0.5, autoreset_mode="Disabled")
+    venv.reset(seed=0)
+    for k in range(1, 14):
+        _, _, term, trunc, _ = venv.step(np.zeros((2, *venv.single_action_space.shape)))
+        assert not term.any() and trunc.tolist() == [k == 13] * 2
+    venv.close()
+
+
+def test_run_law_leaves_the_truncating_step_to_python() -> None:
+    env = gym.make(langenv.ENV_ID, users=zero_user, decision_hz=500, max_seconds=0.5)
+    base: LangCtrlEnv = env.unwrapped  # type: ignore[assignment]
+    policy = load_policy("lc-noap")
+    env.reset(seed=0)
+    taken, trunc, term = 0, False, False
+    while not (trunc or term):
+        run = base.run_law(policy.pace_law(), max_steps=10_000)
+        taken += run.steps
+        assert run.last is None and taken < 250
+        _, _, term, trunc, _ = env.step(policy.act(base.observation()))
+        taken += 1
+    assert trunc and taken == 250
+
+
+@pytest.mark.parametrize("bad", [0, -1.0, float("nan"), "60", True])
+def test_max_seconds_refuses_a_bad_length(bad: object) -> None:
+    with pytest.raises(ConfigError, match="max_seconds"):
+        LangCtrlEnv(max_seconds=bad)  # type: ignore[arg-type]
 
 
 def test_make_vec() -> None:

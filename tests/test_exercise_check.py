@@ -78,13 +78,31 @@ def test_self_contacts_are_seen_and_none_at_home() -> None:
 
 
 def test_a_joint_near_its_limit_is_refused(tmp_path: Path) -> None:
-    xml = UR5_XML.read_text().replace(
-        '<joint name="elbow"/>', '<joint name="elbow" range="-1.6 1.6"/>'
-    )
-    model = tmp_path / "ur5_narrow.xml"
-    model.write_text(xml)
-    kinds = _kinds(_ex(_line("out", [-0.10, -0.55, 0.06]), _line("back", START)), model)
-    assert "joint_margin" in kinds
+    """The path takes the elbow from 1.64 to 1.93 rad: with a range of +-2 rad it stays in
+    reach, 0.07 rad from the end; with +-1.6 rad the arm cannot reach it, and says why."""
+    legs = (_line("out", [-0.10, -0.55, 0.06]), _line("back", START))
+    for limit, kind in (("2.0", "joint_margin"), ("1.7", "unreachable")):
+        xml = UR5_XML.read_text().replace(
+            '<joint name="elbow"/>', f'<joint name="elbow" range="-{limit} {limit}"/>'
+        )
+        model = tmp_path / "ur5_narrow.xml"
+        model.write_text(xml)
+        problems = exercise_problems(_ex(*legs), model).problems
+        assert kind in {p.kind for p in problems}
+        assert any("'elbow'" in p.detail for p in problems if p.kind == kind)
+
+
+def test_an_unreachable_stretch_is_one_problem_along_the_leg() -> None:
+    """Out of reach from 0.30 m along the way out to 0.35 m along the way back: one problem,
+    said in metres along the leg (not an internal sample index), and nothing of the arm's
+    meaningless poses there (joint limits, contacts), nor of the reachable start."""
+    ex = _ex(_line("reach", [-0.35, -1.2, 0.06]), _line("home", START))
+    problems = exercise_problems(ex).problems
+    (far,) = [p for p in problems if p.kind == "unreachable"]
+    assert far.leg == "reach" and far.at == pytest.approx(0.30, abs=0.011)
+    assert "0.70 m of the path" in far.detail and "along leg 'home'" in far.detail
+    assert {p.kind for p in problems} == {"unreachable", "singular"}  # on the way there
+    assert all("m along it" in str(p) and "point " not in str(p) for p in problems)
 
 
 def test_a_bend_too_tight_for_the_speed_is_refused() -> None:

@@ -35,6 +35,70 @@ def test_check_passes_a_shipped_exercise(capsys: pytest.CaptureFixture[str]) -> 
     assert "OK" in out and "motion at cooperation 1" in out
 
 
+def _unscripted(tmp_path: Path, script: str) -> Path:
+    """Shoulder flexion, its script section replaced by ``script``."""
+    text = SHIPPED_EXERCISES["shoulder_flexion"].read_text(encoding="utf-8")
+    lines = [line for line in text.splitlines() if not line.startswith("script:")]
+    path = tmp_path / "mine.yaml"
+    path.write_text("\n".join([*lines, script]) + "\n")
+    return path
+
+
+@pytest.mark.parametrize(
+    ("script", "warned"),
+    [("script: {graph: study}", ("graph", "single")),
+     ("script: {graph: scripts/shoulder_flexion_lc.yaml}", ("single",))],
+)  # fmt: skip
+def test_check_warns_of_the_study_s_words_naming_the_entry(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+    script: str,
+    warned: tuple[str, ...],
+) -> None:
+    """A new exercise that speaks a shipped graph would say "move your hand away from your
+    body" (the study's external rotation) on any path: check says so, naming the entry."""
+    import langenv.exercise.__main__ as cli
+
+    path = _unscripted(tmp_path, script)
+    if "scripts/" in script:
+        (tmp_path / "scripts").symlink_to(SHIPPED_EXERCISES["shoulder_flexion"].parent / "scripts")
+    monkeypatch.setattr(cli, "_script_fit", lambda exercise: [])  # its own test: test_script_fit
+    assert main(["check", str(path)]) == 0
+    out = capsys.readouterr().out
+    lines = [line for line in out.splitlines() if line.startswith("warning: mine.yaml: script.")]
+    assert [line.split()[2] for line in lines] == [f"script.{r}" for r in warned]
+    assert all("move your hand away from your body" in line for line in lines)
+
+
+@pytest.mark.parametrize("script", ["", "script: {graph: lc}"])
+def test_check_refuses_the_study_s_marked_script_naming_the_entry(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], script: str
+) -> None:
+    """Left out (or named), script.graph is the study's script, whose lines are marked with
+    the legs of its external rotation: refused, naming the entry and what to do."""
+    assert main(["check", str(_unscripted(tmp_path, script))]) == 1
+    err = capsys.readouterr().err
+    assert "unknown_leg: script.graph" in err and "is left out or names a shipped graph" in err
+    assert "script: {graph: study}" in err
+
+
+def test_the_study_s_exercise_and_the_shipped_scripts_are_not_warned_about() -> None:
+    from langenv.exercise import resolve_exercise
+
+    for name in SHIPPED_EXERCISES:
+        ex = resolve_exercise(name)
+        assert [ex.script_warning(r) for r in ("graph", "single")] == [None, None], name
+
+
+def test_a_job_speaking_the_study_s_words_on_another_exercise_warns(tmp_path: Path) -> None:
+    from langenv.exercise.script import spoken_graph
+
+    path = _unscripted(tmp_path, "")
+    with pytest.warns(UserWarning, match=r"mine.yaml: script.single is the study's 'lc-noap'"):
+        assert spoken_graph("single", path).ref == "lc-noap"
+
+
 def test_check_refuses_an_unsafe_file_with_leg_and_reason(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -49,7 +113,12 @@ def test_check_refuses_a_malformed_file(tmp_path: Path, capsys: pytest.CaptureFi
     path = tmp_path / "bad.yaml"
     path.write_text(BAD.replace("line: {to: start}", "lines: {to: start}"))
     assert main(["check", str(path)]) == 1
-    assert "unknown_key" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "unknown_key" in err and "did you mean 'line'?" in err
+    assert err.rstrip().endswith("REFUSED (2 problems)")
+    path.write_text(BAD + "colour: red\n")
+    assert main(["check", str(path)]) == 1
+    assert capsys.readouterr().err.rstrip().endswith("REFUSED (1 problem)")
 
 
 def test_usage_errors_exit_2(capsys: pytest.CaptureFixture[str]) -> None:
@@ -60,18 +129,14 @@ def test_usage_errors_exit_2(capsys: pytest.CaptureFixture[str]) -> None:
     assert info.value.code == 2
 
 
-def test_render_draws_the_path_over_the_arm(tmp_path: Path) -> None:
+def test_render_draws_the_path_over_the_arm(tmp_path: Path, offscreen_gl: None) -> None:
+    """Skips only without off-screen OpenGL (probed on an empty model): any failure of our
+    renderer fails the test."""
     from PIL import Image
 
     out = tmp_path / "ex.png"
-    try:
-        code = main(
-            ["render", "shoulder_abduction", "--out", str(out), "--width", "320", "--height", "240"]
-        )
-    except Exception as exc:  # no off-screen OpenGL on this machine
-        pytest.skip(f"no off-screen rendering: {exc}")
-    if code != 0:
-        pytest.skip("no off-screen rendering here")
+    args = ["render", "shoulder_abduction", "--out", str(out), "--width", "320", "--height", "240"]
+    assert main(args) == 0
     image = Image.open(out)
     assert image.size == (320, 240)
     pixels = image.convert("RGB").getcolors(320 * 240)

@@ -148,7 +148,34 @@ def test_every_problem_is_reported_at_once_with_leg_and_line(tmp_path: Path) -> 
     kinds = [p.kind for p in info.value.problems]
     assert {"bad_value", "bad_vector", "unknown_key"} <= set(kinds)
     message = str(info.value)
-    assert "ex.yaml" in message and "leg 'back'" in message and "(line 11)" in message
+    assert "ex.yaml" in message and "leg 'back'" in message
+    assert "line.to (m) must be [x, y, z]" in message and "(line 12)" in message  # its key's line
+    assert "unknown key 'wobble'" in message and "(line 13)" in message
+
+
+def test_an_unknown_key_is_named_with_its_line_and_the_closest_known_one(
+    tmp_path: Path,
+) -> None:
+    """A typo at the top level or inside a leg names the key's own line (not the leg's first)
+    and the key it was probably meant to be."""
+    text = GOOD.replace("speed: 0.1", "sped: 0.1").replace(
+        "  - name: back\n    line: {to: start}", "  - name: back\n    line:\n      too: start"
+    )
+    with pytest.raises(ExerciseError) as info:
+        load_exercise(_write(tmp_path, text))
+    lines = str(info.value).splitlines()
+    top = next(line for line in lines if "'sped'" in line)
+    assert "did you mean 'speed'?" in top and top.endswith("(line 6)")
+    leg = next(line for line in lines if "'too'" in line)
+    assert "leg 'back'" in leg and "did you mean 'to'?" in leg and leg.endswith("(line 13)")
+
+
+def test_a_yaml_syntax_error_names_the_file_and_its_line(tmp_path: Path) -> None:
+    with pytest.raises(ExerciseError) as info:
+        load_exercise(_write(tmp_path, GOOD.replace("title: Out and back", "title: [Out")))
+    message = str(info.value)
+    assert "<unicode string>" not in message
+    assert f'in "{tmp_path / "ex.yaml"}", line 3' in message
 
 
 def test_a_spline_point_is_named(tmp_path: Path) -> None:

@@ -13,26 +13,7 @@ from langenv.errors import PhraseGraphError
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.coverage import coverage, speech_lengths
 from langenv.speech.graph import MAX_FILLER, Phrase, PhraseGraph, default_graph_path
-from langenv.speech.graph_kernels import eta as compiled_eta
-from langenv.speech.graph_kernels import fill as compiled_fill
-from langenv.speech.legs import LegPlan
-
-
-def one_leg(g: PhraseGraph) -> np.ndarray:
-    """The compiled legs of an unmarked graph (one segment, no gate), in ``g.order``."""
-    return LegPlan.whole(1).packed([0] * len(g.order), [False] * len(g.order))
-
-
-def c_eta(g: PhraseGraph, i: int, remaining: float, t_x: float) -> float:
-    """The compiled eta of vertex index ``i`` (of ``g.phrases``) of an unmarked graph."""
-    mid, slot, kid_ptr, kids = g.packed(tuple(g.phrases))
-    return float(compiled_eta(i, remaining, t_x, t_x, 0, 0, mid, slot, kid_ptr, kids, one_leg(g)))
-
-
-def c_fill(g: PhraseGraph, i: int, target: float) -> float:
-    """The compiled pause rule of vertex index ``i`` of an unmarked graph."""
-    mid, slot, kid_ptr, kids = g.packed(tuple(g.phrases))
-    return float(compiled_fill(i, target, mid, slot, kid_ptr, kids, one_leg(g)))
+from tests.compiled_graph import c_eta
 
 
 def write(tmp_path: Path, text: str, name: str = "g.yaml") -> Path:
@@ -142,12 +123,9 @@ def test_compiled_eta_equals_the_graph_s_bit_for_bit(
     g: PhraseGraph, frac: float, t_x: float
 ) -> None:
     order = tuple(g.phrases)
-    mid, slot, kid_ptr, kids = g.packed(order)
     for i, u in enumerate(order):
         remaining = frac * g.slot(u)
-        assert compiled_eta(
-            i, remaining, t_x, t_x, 0, 0, mid, slot, kid_ptr, kids, one_leg(g)
-        ) == g.eta(u, remaining, t_x)
+        assert c_eta(g, i, remaining, t_x) == g.eta(u, remaining, t_x)
 
 
 @settings(max_examples=40, deadline=None)
@@ -303,15 +281,17 @@ def test_phrase_objects_check_their_kind() -> None:
 
 
 # ---------------------------------------------------------------- the shipped graphs
-def test_the_default_graph_has_pauses_fillers_and_shorter_late_wordings(
+def test_the_default_graph_has_pauses_legs_and_shorter_late_wordings(
     clips: ClipLibrary,
 ) -> None:
     g = PhraseGraph.load(default_graph_path("default"), clips)
     study = PhraseGraph.load(default_graph_path("study"), clips)
-    assert g.pauses and g.fillers
+    assert g.pauses and g.segment_names == ("out", "back", "again")
+    # no filler before a leg's first words: they start as the hand enters the leg
+    assert not g.fillers and len(g.repeats) == 3  # a line that may repeat in every leg
     assert default_graph_path("lc") == default_graph_path("default")
     # the study's graph has no late wording shorter than "I want you to retract your arm"
-    assert g.t_min(g.start) < study.t_min(study.start) - 2.0
+    assert g.speech_range()[0] < study.t_min(study.start) - 2.0
     cov = coverage(g)
     assert cov.covers(8.0, 16.0), cov.natural
     assert not coverage(study).covers(8.0, 16.0)  # the study's graph starts at 10.4 s

@@ -335,3 +335,25 @@ def test_a_script_variant_keeps_its_legs(tmp_path: Path) -> None:
         out = vary_graph(graph, rng, GraphVariation(p_drop=0.3, p_add=0.3))
         assert out.legs == graph.legs and out.segment_names == graph.segment_names
         assert all(out.leg(u) in graph.legs for u in out.phrases)
+
+
+def test_a_plan_maps_segments_to_the_exercises_legs() -> None:
+    from types import SimpleNamespace
+
+    from langenv.speech.legs import leg_plan
+
+    names = ("out", "back", "again", "rest")
+    rests = {0: 9.0, 1: 6.0, 2: 3.0}
+
+    def plan(*legs: str) -> LegPlan:
+        graph = SimpleNamespace(segment_names=legs, legs=legs, path=Path("g.yaml"))
+        return leg_plan(graph, names, rests.__getitem__, "ex")
+
+    # a leg without words is spoken about by the segment before it; the first starts the motion
+    assert plan("out", "again") == LegPlan((1, 3), (6.0, 0.0))
+    assert plan("back", "rest") == LegPlan((2, 3), (3.0, 0.0))
+    assert plan() == LegPlan.whole(4)
+    with pytest.raises(ConfigError, match=r"g.yaml: leg 'up' is not a leg of exercise 'ex'"):
+        plan("out", "up")
+    with pytest.raises(ConfigError, match="not in the order of exercise 'ex'"):
+        plan("again", "out")

@@ -101,14 +101,14 @@ def test_headless_loop_keeps_real_time_and_streams_the_offline_rendering(tmp_pat
 
     # LC deciding at 25 Hz: the loop's cost per tick is small, so a loaded machine still keeps up
     policy = make_analytic("lc", decision_hz=25)
-    env = gym.make(langenv.ENV_ID, phrase_graph="lc", decision_hz=25, max_episode_steps=60 * 25)
+    env = gym.make(langenv.ENV_ID, phrase_graph="lc", decision_hz=25)
     wav = tmp_path / "live.wav"
     # a half-second buffer: a loaded test machine must not turn this into a test of its load
     loop = RealTimeLoop(env, policy, lambda ring, sr: WavSink(ring, wav, sr), prefill=0.5)
     report = loop.run(SECONDS)
     base = env.unwrapped
     assert report.ticks == round(SECONDS * 500) and report.sim_s == pytest.approx(SECONDS)
-    assert report.wall_s == pytest.approx(SECONDS, abs=0.5)
+    # its pace against the wall clock is a figure of the benchmarks (bench: live_wall_over_sim)
     assert report.late_ticks >= 0 and "late ticks" in report.summary()
     assert report.underruns == 0 and report.starved == 0
     live, sr = sf.read(wav, dtype="float32")
@@ -210,3 +210,18 @@ def test_missing_portaudio_is_a_clear_error(monkeypatch: pytest.MonkeyPatch) -> 
     monkeypatch.setattr(builtins, "__import__", fake_import)
     with pytest.raises(DeviceError, match="libportaudio2"):
         SoundCardSink(AudioRing(1024), 22050)
+
+
+def test_play_refuses_to_replace_an_output_without_overwrite(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """As every other job: an existing --audio-out (or --trace-out) is kept unless --overwrite."""
+    wav = tmp_path / "live.wav"
+    wav.write_bytes(b"RIFF the last session")
+    args = ["--headless", "--seconds", "1", "--audio-out", str(wav)]
+    with pytest.raises(SystemExit) as info:
+        parse_args(args)
+    assert info.value.code == 2
+    assert f"--audio-out {wav}: exists; give --overwrite to replace it" in capsys.readouterr().err
+    assert wav.read_bytes() == b"RIFF the last session"
+    assert parse_args([*args, "--overwrite"]).overwrite

@@ -113,7 +113,8 @@ def test_run_writes_model_checkpoints_logs_and_config(smoke_run: SmokeRun) -> No
     assert (smoke_run.checkpoints / "ppo_langctrl_2048_steps.zip").is_file()
     assert any((out / "tb").iterdir())
     assert (out / "eval" / "evaluations.npz").is_file()
-    assert (out / "best" / "ppo_langctrl.zip").is_file()
+    assert (out / "best_return" / "ppo_langctrl.zip").is_file()  # SB3's highest return
+    assert not (out / "best").exists()  # "best" is export --best's: runs/NAME/best.zip
     cfg = yaml.safe_load(cfg_path.read_text())
     assert cfg["train"]["seed"] >= 1_000_000
     assert cfg["residual"]["choice_mode"] == cfg["env_kwargs"]["choice_mode"]
@@ -139,6 +140,60 @@ def test_periodic_evaluation_records_the_metrics_and_best_exports_it(
     assert config["selected_by"]["steps"] == 2048
     assert config["selected_by"]["n_users"] == 1
     assert isinstance(PPOPolicy.load(tmp_path / "b.zip"), PPOPolicy)
+
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("ppo_smoke_run")
+def test_one_report_per_evaluation_on_the_projects_channel(smoke_run: SmokeRun) -> None:
+    """stdout holds the model's path only; each evaluation is one [eval @ N steps] line on
+    stderr (SB3's own evaluation lines, on stdout at any verbosity, are not printed)."""
+    assert smoke_run.first.stdout.splitlines() == [str(smoke_run.out / "ppo_langctrl.zip")]
+    lines = smoke_run.first.stderr.splitlines()
+    assert [line.split("]")[0] for line in lines if "[eval @" in line] == ["[eval @ 2048 steps"]
+    assert not any("rounded up" in line for line in lines)  # 2048: one whole rollout
+
+
+def test_export_best_s_help_says_both_of_its_rules(monkeypatch: pytest.MonkeyPatch) -> None:
+    """--best takes the most content for a phrase chooser and the lowest |AM| + |EM| otherwise:
+    the help says what the code does."""
+    from train.export import CONTENT_RULE, build_parser
+
+    monkeypatch.setenv("COLUMNS", "1000")  # no wrapping inside a hyphenated word
+    text = " ".join(build_parser().format_help().split())
+    assert " ".join(CONTENT_RULE.split()) in text
+    assert "lowest mean |AM| + mean |EM|" in text and "best_return/" in text
+
+
+def test_one_name_per_best_in_the_docs() -> None:
+    """ "best" is the model export --best chooses (runs/speech/best.zip); the training run's
+    SB3 model of the highest return is best_return/: no page or example names a best/ model."""
+    import re
+
+    pages = [REPO / "README.md", *(REPO / "docs").glob("*.md")]
+    pages += [*(REPO / "eval").glob("*.py"), *(REPO / "train").glob("*.py")]
+    found = [
+        f"{p.name}: {m.group(0)}"
+        for p in pages
+        for m in re.finditer(r"[\w/]*\bbest/[\w.]+", p.read_text(encoding="utf-8"))
+    ]
+    assert found == []
+
+
+@pytest.mark.parametrize(("asked", "total"), [(32, 1024), (1024, 1024), (1025, 2048)])
+def test_the_budget_is_rounded_up_to_whole_rollouts_and_said(asked: int, total: int) -> None:
+    """PPO trains whole rollouts (n_steps x n_envs): a budget of 32 trains 1,024 steps, so the
+    run's budget (its progress bar, its config, resume) is 1,024, and a line says why."""
+    from train.ppo import _resolve
+
+    config = REPO / "configs" / "ppo_speech.yaml"
+    run = _resolve(TrainArgs(config=config, total_timesteps=asked, n_envs=2))
+    assert run.total == total and run.asked == asked
+    note = run.budget_note()
+    if asked == total:
+        assert note is None
+    else:
+        assert note is not None and f"{asked:,} steps is rounded up to {total:,}" in note
+        assert "512 steps x 2 envs (1,024 steps)" in note
 
 
 @pytest.mark.slow
@@ -543,7 +598,7 @@ def test_resume_loses_nothing(tmp_path: Path) -> None:
     with np.load(out / "eval" / "evaluations.npz") as ev:
         assert ev["timesteps"].tolist() == [2048, 4096]
         means = ev["results"].mean(axis=1)
-    best = yaml.safe_load((out / "best" / "ppo_langctrl_config.yaml").read_text())
+    best = yaml.safe_load((out / "best_return" / "ppo_langctrl_config.yaml").read_text())
     assert best["num_timesteps"] == [2048, 4096][int(np.argmax(means))]
     assert best["eval_mean_reward"] == pytest.approx(float(means.max()))
 
@@ -582,7 +637,7 @@ def test_ctrl_c_exits_130_with_one_line(tmp_path: Path) -> None:
     assert warm.returncode == 0, warm.stderr[-3000:]
     cmd += ["--out", str(out)]
     proc = subprocess.Popen(
-        [*cmd, "--total-timesteps", "1000000"],
+        [*cmd, "--total-timesteps", "2048000"],  # whole rollouts: no line about rounding
         cwd=REPO,
         env=env,
         stdout=subprocess.PIPE,
@@ -612,7 +667,7 @@ def test_ctrl_c_exits_130_with_one_line(tmp_path: Path) -> None:
         pytest.fail("train.ppo did not end after five Ctrl-C")
     assert proc.returncode == 130, stderr[-3000:]
     lines = stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("train.ppo: interrupted at"), stderr[-3000:]
+    assert len(lines) == 1 and lines[0].startswith("langctrl train: interrupted at"), stderr[-3000:]
     assert "continue with --resume" in lines[0]
     assert point.is_file()
 

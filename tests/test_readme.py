@@ -191,3 +191,18 @@ def test_readme_block_runs(index: int, tmp_path: Path) -> None:
             check=False,
         )
         assert res.returncode == 0, f"{command}\n{res.stdout[-2000:]}\n{res.stderr[-3000:]}"
+
+
+def test_the_environment_example_runs_its_policy_at_the_policys_rate(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The README's Python example steps the env at the rate its policy holds its law at (an
+    analytic policy's 500 Hz), and its session ends with speech and motion together."""
+    (source,) = [c[0] for lang, c in _blocks() if lang == "python" and "gym.make" in c[0]]
+    monkeypatch.chdir(REPO)
+    scope: dict[str, Any] = {}
+    exec(compile(source, "README.md", "exec"), scope)
+    env, policy, info = scope["env"], scope["policy"], scope["info"]
+    assert env.unwrapped.decision_hz == policy.decision_hz
+    assert info["am"] is not None and abs(info["am"]) <= 1.0
+    assert "AM = " in capsys.readouterr().out

@@ -10,7 +10,6 @@ import re
 from itertools import pairwise
 from pathlib import Path
 
-import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -20,28 +19,9 @@ from langenv.speech.audio import ClipLibrary
 from langenv.speech.author import parse_script
 from langenv.speech.coverage import speech_lengths
 from langenv.speech.graph import Phrase, PhraseGraph
-from langenv.speech.graph_kernels import eta as compiled_eta
-from langenv.speech.graph_kernels import fill as compiled_fill
-from langenv.speech.legs import LegPlan
 from langenv.speech.repeat import MAX_REPEAT, SEP, WAIT_PLAN, Repeat, is_gap
 from langenv.speech.timeline import SpeechTimeline
-
-
-def one_leg(g: PhraseGraph) -> np.ndarray:
-    """The compiled legs of an unmarked graph (one segment, no gate), in ``g.order``."""
-    return LegPlan.whole(1).packed([0] * len(g.order), [False] * len(g.order))
-
-
-def c_eta(g: PhraseGraph, i: int, remaining: float, t_x: float) -> float:
-    """The compiled eta of vertex index ``i`` (of ``g.phrases``) of an unmarked graph."""
-    mid, slot, kid_ptr, kids = g.packed(tuple(g.phrases))
-    return float(compiled_eta(i, remaining, t_x, t_x, 0, 0, mid, slot, kid_ptr, kids, one_leg(g)))
-
-
-def c_fill(g: PhraseGraph, i: int, target: float) -> float:
-    """The compiled pause rule of vertex index ``i`` of an unmarked graph."""
-    mid, slot, kid_ptr, kids = g.packed(tuple(g.phrases))
-    return float(compiled_fill(i, target, mid, slot, kid_ptr, kids, one_leg(g)))
+from tests.compiled_graph import c_eta, c_fill
 
 
 def encourage(
@@ -204,12 +184,9 @@ def test_compiled_eta_equals_the_graph_s_bit_for_bit(
     g: PhraseGraph, frac: float, t_x: float
 ) -> None:
     order = tuple(g.phrases)
-    mid, slot, kid_ptr, kids = g.packed(order)
     for i, u in enumerate(order):
         remaining = frac * g.slot(u)
-        assert compiled_eta(
-            i, remaining, t_x, t_x, 0, 0, mid, slot, kid_ptr, kids, one_leg(g)
-        ) == g.eta(u, remaining, t_x)
+        assert c_eta(g, i, remaining, t_x) == g.eta(u, remaining, t_x)
 
 
 @settings(max_examples=40, deadline=None)
@@ -360,13 +337,10 @@ def _said(g: PhraseGraph, motion: float) -> list[tuple[str, float, float]]:
 
 def _compiled_agrees(g: PhraseGraph) -> None:
     order = tuple(g.phrases)
-    mid, slot, kid_ptr, kids = g.packed(order)
     for t_x in (0.0, 2.0, 7.5, 30.0):
         for i, u in enumerate(order):
             remaining = 0.5 * g.slot(u)
-            assert compiled_eta(
-                i, remaining, t_x, t_x, 0, 0, mid, slot, kid_ptr, kids, one_leg(g)
-            ) == g.eta(u, remaining, t_x)
+            assert c_eta(g, i, remaining, t_x) == g.eta(u, remaining, t_x)
 
 
 def test_a_pause_that_may_also_lead_elsewhere_keeps_its_bounds() -> None:
@@ -509,17 +483,12 @@ def test_only_the_silence_before_the_ending_words_outlasts_its_plan(
     and never right after a filler. Fails before the wait went before the ending words (a pause
     before an optional line was opened; a filler was followed by the wait)."""
     order = tuple(g.phrases)
-    mid, slot, kid_ptr, kids = g.packed(order)
     for i, u in enumerate(order):
         for t_x in (0.0, motion / 3, motion):
             remaining = 0.3 * g.slot(u)
-            assert compiled_eta(
-                i, remaining, t_x, t_x, 0, 0, mid, slot, kid_ptr, kids, one_leg(g)
-            ) == g.eta(u, remaining, t_x)
+            assert c_eta(g, i, remaining, t_x) == g.eta(u, remaining, t_x)
             if u in g.pauses:
-                assert compiled_fill(
-                    i, t_x, mid, slot, kid_ptr, kids, one_leg(g)
-                ) == g.pause_length(u, t_x)
+                assert c_fill(g, i, t_x) == g.pause_length(u, t_x)
     for u in g.opened:
         assert all(g.kind(v) != "pause" for v in g.children(u))
     if g.t_min(g.start) > motion:

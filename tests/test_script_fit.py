@@ -92,6 +92,61 @@ def test_speech_author_with_an_exercise_prints_the_warnings(
     assert "nowhere" in capsys.readouterr().err
 
 
+def _new_exercise(tmp_path: Path) -> Path:
+    """Shoulder flexion as a new exercise whose script files are not written yet."""
+    from langenv.exercise import SHIPPED_EXERCISES
+
+    text = SHIPPED_EXERCISES["shoulder_flexion"].read_text(encoding="utf-8")
+    old = (
+        "script: {graph: scripts/shoulder_flexion_lc.yaml, "
+        "single: scripts/shoulder_flexion_single.yaml}"
+    )
+    assert old in text
+    mine = tmp_path / "my.yaml"
+    mine.write_text(
+        text.replace(old, "script: {graph: scripts/my.yaml, single: scripts/my_single.yaml}")
+    )
+    (tmp_path / "scripts").mkdir()
+    return mine
+
+
+def test_the_first_script_of_a_new_exercise_is_authored_against_it(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    flexion_times: MotionTimes,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The exercise names the scripts about to be written: authoring them against it works (its
+    own script entries are what is being made), and then the exercise loads."""
+    import langenv.script_fit as fit
+
+    mine = _new_exercise(tmp_path)
+    monkeypatch.setattr(fit, "motion_times", lambda *a, **k: flexion_times)
+    script = tmp_path / "my.txt"
+    script.write_text(SHORT)
+    for out in ("my.yaml", "my_single.yaml"):
+        args = ["author", str(script), "--out", str(tmp_path / "scripts" / out)]
+        assert speech_main([*args, "--exercise", str(mine), "--cache-dir", str(tmp_path)]) == 0
+        assert "against exercise shoulder_flexion:" in capsys.readouterr().out
+    assert resolve_exercise(mine).graph == str(tmp_path / "scripts" / "my.yaml")
+
+
+def test_a_missing_script_is_still_refused_outside_authoring(tmp_path: Path) -> None:
+    from langenv.errors import ExerciseError
+
+    with pytest.raises(ExerciseError, match=r"script.graph: 'scripts/my.yaml'"):
+        resolve_exercise(_new_exercise(tmp_path))
+
+
+def test_motion_times_of_an_exercise_whose_words_are_not_written(tmp_path: Path) -> None:
+    """The words do not move the arm at pace 1: the population is timed without them."""
+    import langenv.script_fit as fit
+
+    ex = resolve_exercise(_new_exercise(tmp_path), unwritten_scripts=True)
+    shipped = resolve_exercise("shoulder_flexion")
+    assert fit._population(ex, 2) == fit._population(shipped, 2)
+
+
 def test_exercise_check_reports_the_script_against_the_people(
     capsys: pytest.CaptureFixture[str], flexion_times: MotionTimes
 ) -> None:

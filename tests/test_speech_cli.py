@@ -64,7 +64,7 @@ def test_check_prints_one_line(capsys: pytest.CaptureFixture[str]) -> None:
     assert "16 phrases" in out[0] and "paths" in out[0] and "study.yaml" in out[0]
     assert main(["check", "default"]) == 0
     out = capsys.readouterr().out.splitlines()
-    assert "fillers" in out[0] and "pauses" in out[0] and "default.yaml" in out[0]
+    assert "legs marked" in out[0] and "pauses" in out[0] and "default.yaml" in out[0]
 
 
 def test_check_accepts_shipped_names_and_lists_paths(capsys: pytest.CaptureFixture[str]) -> None:
@@ -191,7 +191,6 @@ def sound_span(y: np.ndarray, sr: int) -> tuple[float, float]:
 def test_render_duration_equals_the_trace(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    pytest.importorskip("langenv.speech.vocoder")
     t = np.arange(0.0, 20.0 + 1e-9, 0.02)
     a = 1.0 + 0.3 * np.sin(2 * np.pi * t / 5.0)
     t_x = np.maximum(0.0, 14.0 - 0.9 * t)
@@ -211,7 +210,6 @@ def test_render_duration_equals_the_trace(
 
 
 def test_render_outlasting_the_trace_goes_on_at_the_last_pace() -> None:
-    pytest.importorskip("langenv.speech.vocoder")
     g = PhraseGraph.load(default_graph_path("lc_noap"))
     clips = ClipLibrary()
     t = np.array([0.0, 2.0, 4.0])
@@ -226,7 +224,6 @@ def test_render_outlasting_the_trace_goes_on_at_the_last_pace() -> None:
 
 @pytest.mark.skipif(not SESSIONS.is_dir(), reason="recorded sessions not available")
 def test_render_a_recorded_session(tmp_path: Path) -> None:
-    pytest.importorskip("langenv.speech.vocoder")
     session = SESSIONS / "u1_lc.csv"
     out = tmp_path / "u1.flac"
     assert main(["render", "study", str(session), str(out)]) == 0
@@ -283,7 +280,6 @@ def test_render_never_replaces_a_file_without_overwrite(
 def test_render_voices_the_pace_as_asked(tmp_path: Path) -> None:
     """--voicing overrides the graph's voice: the study's (stretched) graph voiced naturally is
     what render_history makes of it with that voice; without it, the graph's own voice."""
-    pytest.importorskip("langenv.speech.vocoder")
     from langenv.speech.audio import ClipLibrary
     from langenv.speech.render import render_history
 

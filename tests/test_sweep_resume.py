@@ -143,7 +143,6 @@ def test_worker_killed_then_resumed(spec: Path, reference: list[str], tmp_path: 
 @pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="finds workers through /proc")
 def test_ray_driver_killed_then_resumed(spec: Path, reference: list[str], tmp_path: Path) -> None:
     """The same on local Ray: the driver (and the Ray it started) killed, resumed on Ray."""
-    pytest.importorskip("ray")
     out = tmp_path / "sweep"
     cmd = [sys.executable, "-m", "eval.sweep", str(spec), "--out", str(out), "--no-summary"]
     cmd += ["--backend", "ray", "--workers", "2", "--batch-size", "1"]
@@ -196,7 +195,6 @@ def test_ray_worker_killed_is_replaced_and_nothing_lost(
 ) -> None:
     """SIGKILL to one of local Ray's actors mid-sweep: Ray starts it again, its batches run
     again, and the sweep ends with exactly the uninterrupted rows (no resume needed)."""
-    pytest.importorskip("ray")
     out = tmp_path / "sweep"
     cmd = [sys.executable, "-m", "eval.sweep", str(spec), "--out", str(out), "--no-summary"]
     cmd += ["--backend", "ray", "--workers", "2", "--batch-size", "1"]

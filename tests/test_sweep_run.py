@@ -117,7 +117,6 @@ def test_two_workers_and_batches_of_one_give_the_same_rows(
 
 
 def test_ray_gives_the_same_rows(reference: list[dict[str, Any]], tmp_path: Path) -> None:
-    pytest.importorskip("ray")
     code, out = _sweep(tmp_path, "ray", "--backend", "ray", "--workers", "2", "--batch-size", "2")
     assert code == 0
     _same(_rows(out), reference)

@@ -79,3 +79,27 @@ def test_rich_on_a_terminal() -> None:
     print_verdict(rows(), ["ac", "lc-noap", "lc"], Path("out"), [], file=buf, terminal=True)
     text = buf.getvalue()
     assert "\x1b[" in text and "PASS" in text
+
+
+def test_each_share_says_which_statistic_it_is() -> None:
+    """The table's share is a mean over sessions, the third finding's pools all speech time, and
+    summary.md's is a median: three figures of one measure, each said for what it is."""
+    from eval.verdict import SHARES_NOTE
+
+    buf = io.StringIO()
+    print_verdict(rows(), ["ac", "lc-noap", "lc"], Path("out"), [], file=buf, terminal=False)
+    lines = buf.getvalue().splitlines()
+    assert lines[lines.index("study's findings:") - 1] == SHARES_NOTE
+    assert "mean over sessions" in SHARES_NOTE and "medians" in SHARES_NOTE
+    (third,) = [line for line in lines if "|a - 1| <= 0.1 for a larger share" in line]
+    assert "of all speech time (pooled)" in third
+
+
+def test_one_name_for_the_share_of_speech_time_in_pauses() -> None:
+    """compare's column and the exercises' headline name the pause share alike."""
+    from eval.exercises import headline_table
+
+    header, _ = verdict_table([{**r, "pause_share": 0.3} for r in rows()], ["ac", "lc-noap", "lc"])
+    row = {"exercise": "x", "sessions": 1, "max_am": 0.1, "within": 1, "silence": 0.3, "voice": 1}
+    headline = headline_table([row]).splitlines()[0]
+    assert "pauses %" in header and "| pauses (mean) |" in headline and "silence" not in headline

@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+import av
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -14,8 +15,6 @@ import langenv
 from eval.episode import EpisodeLog, EpisodeRecorder
 from langenv.errors import ConfigError
 from policies import load_policy
-
-av = pytest.importorskip("av")  # a dependency: installed by the README's set-up line
 
 FPS = 10  # fewer frames than the default 25, so the test stays fast on 2 cores
 GRAPH = """start: go
@@ -28,19 +27,6 @@ phrases:
     text: "Done."
     next: []
 """
-
-
-@pytest.fixture(scope="module")
-def gl() -> None:
-    """Skip when this machine has no off-screen OpenGL (the only reason SceneReplay can't start)."""
-    from eval.video import SceneReplay
-
-    try:
-        SceneReplay((16, 16)).close()
-    except ConfigError as exc:
-        if "cannot render off-screen" not in str(exc):
-            raise
-        pytest.skip(str(exc))
 
 
 def short_session(tmp_path: Path) -> EpisodeLog:
@@ -101,7 +87,7 @@ def decode(path: Path) -> dict[str, object]:
     return info
 
 
-def test_session_video_has_both_streams_in_sync(tmp_path: Path, gl: None) -> None:
+def test_session_video_has_both_streams_in_sync(tmp_path: Path, offscreen_gl: None) -> None:
     from eval.video import FRAME_SIZE, main, session_audio
 
     log = short_session(tmp_path)

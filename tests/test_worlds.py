@@ -100,4 +100,4 @@ def test_validation_cycles_its_pairs_on_the_scripts() -> None:
         ("shoulder_extension", 900_000),
     ]
     graph = env.envs["shoulder_extension"].unwrapped.graph
-    assert seen[0]["graph_t_max"] == graph.t_max(graph.start)  # the script itself
+    assert seen[0]["graph_t_max"] == graph.speech_range()[1]  # the script itself

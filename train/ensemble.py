@@ -73,14 +73,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
     if args.out.exists() and not args.overwrite:
         print(
-            f"train.ensemble: error: {args.out} exists; give --overwrite to replace it",
+            f"langctrl ensemble: error: {args.out} exists; give --overwrite to replace it",
             file=sys.stderr,
         )
         return 2
     try:
         path = write_manifest(args.out, list(args.models))
     except (FileNotFoundError, ValueError) as exc:
-        print(f"train.ensemble: error: {exc}", file=sys.stderr)
+        print(f"langctrl ensemble: error: {exc}", file=sys.stderr)
         return 2
     print(path)
     return 0

@@ -13,7 +13,9 @@ paths as :func:`train.ppo.recorded_path` records them), and loads the result onc
 Nothing is written when an input is missing, nor over an existing ``OUT.*`` without
 ``--overwrite``.
 
-``--best`` exports the checkpoint with the best periodic-evaluation *score* instead: the lowest
+``--best`` exports the checkpoint the periodic evaluations on the held-out users favour instead:
+for a phrase chooser's run (content recorded) the most content among the checkpoints that keep
+the base's alignment and natural voice (:data:`CONTENT_RULE`); for any other run the lowest
 mean ``|AM|`` + mean ``|EM|`` of the held-out users (``train.ppo``'s ``eval_seed`` onwards,
 recorded in ``RUN/eval/evaluations.npz``) among the evaluations made at a checkpoint's step count
 (``eval_freq`` a multiple of ``checkpoint_freq``), the earliest on a tie; so the choice is
@@ -96,7 +98,9 @@ def build_parser() -> argparse.ArgumentParser:
     which.add_argument(
         "--best",
         action="store_true",
-        help="the checkpoint with the lowest held-out mean |AM| + mean |EM| (periodic evaluation)",
+        help="the checkpoint the periodic evaluations on the held-out users favour: for a phrase "
+        f"chooser's run the {CONTENT_RULE}; for any other run the lowest mean |AM| + mean |EM| "
+        "(not the run's best_return/, SB3's highest return)",
     )
     p.add_argument(
         "--out",
@@ -154,7 +158,7 @@ def export(args: ExportArgs) -> Path:
 
     run_config = args.run / "run_config.yaml"
     if not run_config.is_file():
-        raise FileNotFoundError(f"train.export: not found: {run_config}")
+        raise FileNotFoundError(f"langctrl export: not found: {run_config}")
     config = yaml.safe_load(run_config.read_text())
     if not isinstance(config, dict):
         raise ValueError(f"{run_config}: not a run config")
@@ -171,7 +175,7 @@ def export(args: ExportArgs) -> Path:
     sources = (*checkpoint_files(args.run / "checkpoints", name, steps), run_config)
     for f in sources:
         if not f.is_file():
-            raise FileNotFoundError(f"train.export: not found: {f}")
+            raise FileNotFoundError(f"langctrl export: not found: {f}")
     config["num_timesteps"] = steps
     if chosen is not None:
         config["selected_by"] = chosen.record(config)
@@ -188,7 +192,7 @@ def export(args: ExportArgs) -> Path:
     targets = model_files(args.out)
     taken = [t for t in targets if t.exists()]
     if taken and not args.overwrite:
-        raise FileExistsError(f"train.export: {taken[0]} exists; give --overwrite to replace it")
+        raise FileExistsError(f"langctrl export: {taken[0]} exists; give --overwrite to replace it")
     targets[0].parent.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(sources[0], targets[0])
     shutil.copyfile(sources[1], targets[1])
@@ -202,7 +206,7 @@ def _set_terminal(config: dict[str, Any], run_config: Path, terminal: float) -> 
     import math
 
     if not (math.isfinite(terminal) and terminal >= 0.0):
-        raise ValueError(f"train.export: --terminal must be finite and >= 0, got {terminal!r}")
+        raise ValueError(f"langctrl export: --terminal must be finite and >= 0, got {terminal!r}")
     residual = _residual(config, run_config, "no base to give a terminal phase")
     residual["terminal"] = float(terminal)
     config["terminal_at_export"] = float(terminal)
@@ -311,7 +315,9 @@ def eval_scores(run: Path) -> list[EvalScore]:
 
     path = run / "eval" / "evaluations.npz"
     if not path.is_file():
-        raise FileNotFoundError(f"train.export: not found: {path} (a run with periodic evaluation)")
+        raise FileNotFoundError(
+            f"langctrl export: not found: {path} (a run with periodic evaluation)"
+        )
     with np.load(path) as data:
         missing = [k for k in ("timesteps", *EVAL_METRICS[:3]) if k not in data]
         if missing:
@@ -454,7 +460,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         path = export(args)
     except (FileNotFoundError, FileExistsError, ValueError) as exc:
-        print(f"train.export: error: {exc}", file=sys.stderr)
+        print(f"langctrl export: error: {exc}", file=sys.stderr)
         return 2
     print(path)
     return 0

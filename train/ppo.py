@@ -19,8 +19,9 @@ What a run writes into ``--out``:
 
 * ``NAME.zip``, ``NAME_vecnormalize.pkl``, ``NAME_config.yaml``: the final model, its
   observation/reward normalisation and the run's full config (what ``PPOPolicy.load`` reads);
-* ``best/NAME.*``: the same three files for the best periodic evaluation (its config records
-  the evaluation's mean return, ``eval_mean_reward``);
+* ``best_return/NAME.*``: the same three files at the periodic evaluation with the highest mean
+  return (SB3's rule; its config records it, ``eval_mean_reward``). The model a run is meant
+  to give is chosen by ``train.export --best`` (its own rule), not this one;
 * ``checkpoints/NAME_<steps>_steps.zip`` and ``NAME_vecnormalize_<steps>_steps.pkl``: snapshots
   every ``checkpoint_freq`` steps (what ``train.export`` reads), taken at that step, i.e. with the
   weights of the last update before it;
@@ -61,7 +62,6 @@ import re
 import shutil
 import signal
 import sys
-import tempfile
 import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, fields, replace
@@ -80,6 +80,8 @@ from stable_baselines3.common.callbacks import (
 from stable_baselines3.common.vec_env import SubprocVecEnv, VecNormalize
 
 from langenv.errors import ConfigError
+from langenv.files import temp_dir
+from langenv.validation import yaml_text
 
 __all__ = [
     "TrainArgs",
@@ -115,7 +117,8 @@ class TrainArgs:
         out: Output directory.
         name: File stem of the saved model (``NAME.zip``, ...).
         total_timesteps: Training budget (env steps, all envs together); ``None``: the YAML's
-            ``n_timesteps``.
+            ``n_timesteps``. Rounded up to whole rollouts (``n_steps x n_envs``), which is what
+            PPO trains; a line on stderr says so.
         seed: Seed of the first training env (env ``i`` gets ``seed + i``) and of PPO; >= 1e6 so
             that no training user is an evaluation user.
         eval_seed: Seed of the first held-out periodic-evaluation user.
@@ -227,8 +230,8 @@ def build_parser() -> argparse.ArgumentParser:
         type=int,
         default=None,
         metavar="STEPS",
-        help="training budget, env steps of all envs together "
-        f"{default('total_timesteps', 'its n_timesteps')}",
+        help="training budget, env steps of all envs together, rounded up to whole rollouts "
+        f"(n_steps x n_envs) {default('total_timesteps', 'its n_timesteps')}",
     )
     p.add_argument(
         "--seed",
@@ -381,7 +384,7 @@ def _read_config(path: Path, seen: tuple[Path, ...]) -> dict[str, Any]:
         chain = " -> ".join(str(p) for p in (*seen, path.resolve()))
         raise ConfigError(f"{path}: 'inherit' forms a cycle: {chain}")
     try:
-        data = yaml.safe_load(path.read_text())
+        data = yaml.safe_load(yaml_text(path.read_text(), path))
     except yaml.YAMLError as exc:
         raise ConfigError(f"{path}: not valid YAML: {exc}") from None
     if not isinstance(data, dict):
@@ -524,8 +527,34 @@ class _Run:
     wrapper: _WrapperChain | None
     normalize: dict[str, Any] | None
     n_envs: int
-    total: int
+    total: int  # the budget asked for, rounded up to whole rollouts (what PPO trains)
     worlds: Any = None  # langenv.worlds.WorldSplit, from the config's ``worlds`` section
+    asked: int = 0  # the budget asked for (--total-timesteps or the config's n_timesteps)
+
+    @property
+    def rollout(self) -> int:
+        """Steps of one PPO rollout, all envs together (``n_steps x n_envs``)."""
+        return int(self.hyper.get("n_steps", _SB3_N_STEPS)) * self.n_envs
+
+    def budget_note(self) -> str | None:
+        """A line saying that the budget was rounded up to whole rollouts, or None."""
+        if self.asked in (0, self.total):
+            return None
+        n_steps = self.rollout // self.n_envs
+        return (
+            f"the budget of {self.asked:,} steps is rounded up to {self.total:,}: PPO trains "
+            f"whole rollouts of {n_steps:,} steps x {self.n_envs} envs ({self.rollout:,} steps)"
+        )
+
+
+_SB3_N_STEPS = 2048  # PPO's n_steps when the config gives none
+BEST_RETURN = "best_return"
+"""The run's folder of the model at its highest mean evaluation return (SB3's best model)."""
+
+
+def whole_rollouts(steps: int, rollout: int) -> int:
+    """``steps`` rounded up to a whole number of rollouts of ``rollout`` steps (at least one)."""
+    return max(1, math.ceil(steps / rollout)) * rollout
 
 
 def load_worlds(data: dict[str, Any], path: Path) -> Any:
@@ -555,7 +584,8 @@ def _resolve(args: TrainArgs, given: set[str] | None = None) -> _Run:
             defaults[key] = Path(defaults[key])
     args = replace(args, **defaults) if defaults else args
     n_envs = int(args.n_envs or hyper.get("n_envs", 1))
-    total = int(args.total_timesteps or float(hyper.get("n_timesteps", 100_000)))
+    asked = int(args.total_timesteps or float(hyper.get("n_timesteps", 100_000)))
+    total = whole_rollouts(asked, int(hyper.get("n_steps", _SB3_N_STEPS)) * n_envs)
     env_kwargs = dict(hyper.get("env_kwargs") or {})
     wrapper = _wrapper_class(hyper.get("env_wrapper"), args.config)
     normalize = _normalize_kwargs(hyper.get("normalize"), args.config)
@@ -565,7 +595,7 @@ def _resolve(args: TrainArgs, given: set[str] | None = None) -> _Run:
             f"{args.config}: with 'worlds' the exercises are the split's; remove "
             "env_kwargs.exercise"
         )
-    return _Run(args, hyper, env_kwargs, wrapper, normalize, n_envs, total, worlds)
+    return _Run(args, hyper, env_kwargs, wrapper, normalize, n_envs, total, worlds, asked)
 
 
 def _ppo_kwargs(run: _Run) -> dict[str, Any]:
@@ -644,7 +674,7 @@ def _make_envs(run: _Run) -> tuple[Any, Any]:
         ]
         env = make_batched_vec_env(
             run.n_envs,
-            {"max_episode_steps": run.env_kwargs.get("max_episode_steps", 1500)},
+            {"max_episode_steps": run.env_kwargs.get("max_episode_steps")},
             a.seed,
             [(_dotted(k), kw) for k, kw in chain],
             session_kwargs=sessions,
@@ -884,8 +914,8 @@ def code_version(installed: str) -> dict[str, str]:
         source = None
     if isinstance(source, str) and source != installed:
         print(
-            f"train.ppo: the installed metadata says langctrl {installed} but the code that runs "
-            f"is {source} ({root / 'pyproject.toml'}); recording {source} (reinstall: pip "
+            f"langctrl train: the installed metadata says langctrl {installed} but the code that "
+            f"runs is {source} ({root / 'pyproject.toml'}); recording {source} (reinstall: pip "
             "install -e .)",
             file=sys.stderr,
         )
@@ -1068,7 +1098,7 @@ def _save_resume_point(model: Any, ckpt_dir: Path, name: str) -> None:
     ckpt_dir.mkdir(parents=True, exist_ok=True)
     final = ckpt_dir / "resume"
     old = ckpt_dir / ".resume.old"
-    tmp = Path(tempfile.mkdtemp(prefix=".resume.tmp-", dir=ckpt_dir))
+    tmp = temp_dir(ckpt_dir, prefix=".resume.tmp-")
     try:
         model.save(tmp / f"{name}.zip")
         vn = model.get_vec_normalize_env()
@@ -1181,8 +1211,10 @@ def _resolve_resume(args: TrainArgs, given: set[str]) -> tuple[_Run, dict[str, A
     kwargs.update({k: getattr(args, k) for k in given if k in known and k != "config"})
     kwargs.update(out=out, resume=True)
     merged = TrainArgs(**kwargs)
+    asked = total
     if merged.total_timesteps is not None and "total_timesteps" in given:
-        total = merged.total_timesteps
+        asked = merged.total_timesteps
+        total = whole_rollouts(asked, int(hyper.get("n_steps", _SB3_N_STEPS)) * n_envs)
     merged = replace(merged, total_timesteps=total)
     run = _Run(
         merged,
@@ -1193,6 +1225,7 @@ def _resolve_resume(args: TrainArgs, given: set[str]) -> tuple[_Run, dict[str, A
         n_envs,
         total,
         load_worlds(config, path),
+        asked,
     )
     return run, config
 
@@ -1324,6 +1357,8 @@ def train(args: TrainArgs, given: set[str] | None = None) -> Path:
         run = _resolve(args, given)
         _check_fresh_out(run.args.out)
     a = run.args
+    if (note := run.budget_note()) is not None:
+        print(note, file=sys.stderr)
     torch.set_num_threads(a.torch_threads)
     if a.init_from is not None and not a.resume:
         init_files(a.init_from)  # a missing file fails before any env starts
@@ -1383,7 +1418,7 @@ def _learn(
 ) -> Path:
     """Run PPO to the budget with checkpoints, resume points and periodic evaluations."""
     a = run.args
-    ckpt_dir, eval_dir, best_dir = a.out / "checkpoints", a.out / "eval", a.out / "best"
+    ckpt_dir, eval_dir, best_dir = a.out / "checkpoints", a.out / "eval", a.out / BEST_RETURN
     eval_cb: _MetricsEvalCallback | None = None
 
     class _SaveBest(BaseCallback):
@@ -1411,10 +1446,14 @@ def _learn(
             log_path=str(eval_dir),
             deterministic=True,
             callback_on_new_best=_SaveBest(),
+            verbose=0,  # its report is the project's one line on stderr ([eval @ N steps])
         )
         callbacks.append(eval_cb)
         if a.resume:
-            n = _restore_history(eval_cb, eval_dir, best_dir / f"{a.name}_config.yaml", steps)
+            best_cfg = best_dir / f"{a.name}_config.yaml"
+            if not best_cfg.is_file():  # a run written before the folder had its name
+                best_cfg = a.out / "best" / best_cfg.name
+            n = _restore_history(eval_cb, eval_dir, best_cfg, steps)
             print(f"{n} earlier evaluations carried over", file=sys.stderr)
     for cb in callbacks:  # the schedules go on where the interrupted run was
         cb.n_calls = steps // run.n_envs
@@ -1444,7 +1483,7 @@ def _learn(
             else "nothing to resume from yet"
         )
         print(
-            f"train.ppo: interrupted at {model.num_timesteps} steps; {where}; continue with "
+            f"langctrl train: interrupted at {model.num_timesteps} steps; {where}; continue with "
             "--resume",
             file=sys.stderr,
         )
@@ -1620,7 +1659,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         path = train(args, given)
     except (FileNotFoundError, ConfigError) as exc:
-        print(f"train.ppo: error: {exc}", file=sys.stderr)
+        print(f"langctrl train: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         return 130

@@ -259,8 +259,7 @@ def make_batched_vec_env(
     """
     from langenv.batch import LangCtrlVectorEnv
 
-    kwargs = dict(env_kwargs)
-    kwargs.setdefault("max_episode_steps", 1500)
+    kwargs = dict(env_kwargs)  # without max_episode_steps: each session's max_seconds
     venv = LangCtrlVectorEnv(
         n_envs,
         autoreset_mode=AutoresetMode.SAME_STEP,

@@ -63,13 +63,13 @@ def widen(src: Path, max_children: int, out: Path) -> Path:
     zip_out, pkl_out, cfg_out = model_files(out)
     for f in (zip_in, pkl_in, cfg_in):
         if not f.is_file():
-            raise FileNotFoundError(f"train.widen: not found: {f}")
+            raise FileNotFoundError(f"langctrl widen: not found: {f}")
     if zip_out.exists():
-        raise FileExistsError(f"train.widen: {zip_out} exists")
+        raise FileExistsError(f"langctrl widen: {zip_out} exists")
     config = yaml.safe_load(cfg_in.read_text())
     old_k = int(config["residual"]["max_children"])
     if max_children <= old_k:
-        raise ConfigError(f"train.widen: --max-children {max_children} must exceed {old_k}")
+        raise ConfigError(f"langctrl widen: --max-children {max_children} must exceed {old_k}")
     model = PPO.load(zip_in, device="cpu")
     n_old = int(np.prod(model.observation_space.shape or (0,)))
     at, n_new = child_inputs(old_k, max_children)  # where the new child blocks go
@@ -77,7 +77,7 @@ def widen(src: Path, max_children: int, out: Path) -> Path:
     state = model.policy.state_dict()
     for key in _FIRST_LAYERS:
         if key not in state or tuple(state[key].shape[1:]) != (n_old,):
-            raise ConfigError(f"train.widen: {zip_in}: no first layer {key} of {n_old} inputs")
+            raise ConfigError(f"langctrl widen: {zip_in}: no first layer {key} of {n_old} inputs")
         state[key] = _insert_columns(state[key], at, n_new)
     policy = type(model.policy)(space, model.action_space, model.lr_schedule, **model.policy_kwargs)
     policy.load_state_dict(state)
@@ -168,7 +168,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         path = widen(ns.model, ns.max_children, ns.out)
     except (FileNotFoundError, FileExistsError, ValueError, KeyError, TypeError) as exc:
-        print(f"train.widen: error: {exc}", file=sys.stderr)
+        print(f"langctrl widen: error: {exc}", file=sys.stderr)
         return 2
     print(path)
     return 0

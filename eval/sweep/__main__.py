@@ -141,7 +141,7 @@ def _prepare(spec: SweepSpec, out: Path, sessions: list[SweepSession], resuming:
             raise SweepError(out, "", f"holds another sweep than {spec.file} (see its sweep.yaml)")
         if old.get("version") != langenv.__version__:
             print(
-                f"eval.sweep: warning: the sweep began with version {old.get('version')}, "
+                f"langctrl sweep: warning: the sweep began with version {old.get('version')}, "
                 f"this is {langenv.__version__} (each row records its own)",
                 file=sys.stderr,
             )
@@ -195,7 +195,7 @@ def _main(ns: argparse.Namespace) -> int:
         _prepare(spec, out, sessions, ns.resume or ns.retry_failed or bool(ns.only))
         store = SweepStore(out, row_schema(spec))
     except SweepError as exc:
-        print(f"eval.sweep: error: {exc}", file=sys.stderr)
+        print(f"langctrl sweep: error: {exc}", file=sys.stderr)
         return 1
     try:
         todo = _todo(sessions, store.statuses(), ns, out)
@@ -204,7 +204,7 @@ def _main(ns: argparse.Namespace) -> int:
             store.drop_superseded()
         rows = store.read().to_pylist()
     except SweepError as exc:
-        print(f"eval.sweep: error: {exc}", file=sys.stderr)
+        print(f"langctrl sweep: error: {exc}", file=sys.stderr)
         return 1
     finally:
         store.close()
@@ -291,17 +291,17 @@ def _report(
         coords = [*COORDINATES, "users", *spec.param_names]
         write_summary(rows, coords, out)
     print(
-        f"eval.sweep: {len(rows)}/{len(sessions)} sessions in {out} "
+        f"langctrl sweep: {len(rows)}/{len(sessions)} sessions in {out} "
         f"({len(rows) - len(failed)} ok, {len(failed)} failed; {wall:.1f} s, sessions {ran:.1f} s)"
     )
     if missing:
-        print(f"eval.sweep: {len(missing)} sessions have no row yet: --resume runs them")
+        print(f"langctrl sweep: {len(missing)} sessions have no row yet: --resume runs them")
     for r in failed[:5]:
         last = (r["error"] or "").strip().splitlines()[-1:] or ["?"]
         print(f"  failed {r['session_id']} (seed {r['seed']}): {last[0]}", file=sys.stderr)
     if failed:
         print(
-            "eval.sweep: run them again with --retry-failed (or --only SESSION_ID)",
+            "langctrl sweep: run them again with --retry-failed (or --only SESSION_ID)",
             file=sys.stderr,
         )
     return 1 if failed or missing else 0

@@ -101,6 +101,7 @@ def _sessions(spec: SweepSpec) -> Iterator[SweepSession]:
                         if resolved[n].scope == "env"
                     )
                     for user_set in spec.users:
+                        person = _person(user_set)
                         for user, seed, session in user_set.users:
                             coords = {**base, "users": user_set.name, "user": user}
                             job = Job(
@@ -117,6 +118,17 @@ def _sessions(spec: SweepSpec) -> Iterator[SweepSession]:
                                 params=tuple(job_params),
                                 env_params=tuple(env_params),
                                 save_log=False,
+                                user_model=person,
                                 **job_exercise(exercise),
                             )
                             yield SweepSession(session_id(coords, seed), coords, seed, job)
+
+
+def _person(user_set: Any) -> Any:
+    """The person a user set's sessions reset with: a listening one for ``{listening: N}``,
+    None (the env's synthetic person, or a replay) otherwise."""
+    if user_set.listening is None:
+        return None
+    from langenv.users import ListeningUser
+
+    return ListeningUser(user_set.listening)

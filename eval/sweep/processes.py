@@ -85,8 +85,8 @@ class ProcessBackend:
                 if restarts > MAX_RESTARTS:
                     raise
                 print(
-                    f"eval.sweep: a worker died; restarting the pool ({restarts}/{MAX_RESTARTS}), "
-                    f"{len(pending)} batches to run again",
+                    f"langctrl sweep: a worker died; restarting the pool "
+                    f"({restarts}/{MAX_RESTARTS}), {len(pending)} batches to run again",
                     file=sys.stderr,
                 )
 

@@ -38,8 +38,11 @@ values                 a list, or ``{linspace: [lo, hi, n]}``, ``{logspace: [lo,
                        ``{choice: [v, ...]}``; ``sample.n`` points drawn with ``sample.seed``,
                        crossed with the grid (a parameter is in the grid or the space, not both)
 ``users``              ``{synthetic: N, first_seed: S}`` (user ``i`` is ``s{S+i}`` with seed
-                       ``S + i``, as in ``eval.compare``) or ``{sessions: DIR, pattern: GLOB,
-                       first_seed: S}`` (recorded sessions replayed); optional ``name``
+                       ``S + i``, as in ``eval.compare``), ``{listening: N, first_seed: S,
+                       params: {latency: 1.2, ...}}`` (the same people listening to the robot,
+                       ``params`` fields of ``ListeningParams``; ``eval.users``) or ``{sessions:
+                       DIR, pattern: GLOB, first_seed: S}`` (recorded sessions replayed);
+                       optional ``name``
 =====================  =====================================================================
 
 Every session of one user has that user's seed, whatever the policy or parameters: comparisons
@@ -62,6 +65,7 @@ import numpy as np
 
 from eval.sweep.errors import SweepError
 from eval.sweep.exercises import DEFAULT_EXERCISE, SWEEP_EXERCISES
+from langenv.validation import yaml_text
 
 __all__ = [
     "COORDINATES",
@@ -141,10 +145,13 @@ class UserSet:
     Attributes:
         name: The set's name (its coordinate ``users`` in rows).
         users: ``(user name, seed, session CSV path or None)`` per user.
+        listening: For listening people (``{listening: N}``): their
+            :class:`~langenv.users.ListeningParams`; None otherwise.
     """
 
     name: str
     users: tuple[tuple[str, int, str | None], ...]
+    listening: Any = None
 
 
 @dataclass(frozen=True)
@@ -204,7 +211,7 @@ def _key_lines(text: str) -> dict[str, int]:
 
     lines: dict[str, int] = {}
     try:
-        root = yaml.compose(text)
+        root = yaml.compose(text)  # its errors are load_spec's, named there
     except yaml.YAMLError:
         return lines
     if isinstance(root, yaml.MappingNode):
@@ -233,7 +240,7 @@ def load_spec(path: str | Path) -> SweepSpec:
     file = Path(path)
     try:
         text = file.read_text(encoding="utf-8")
-        data = yaml.safe_load(text)
+        data = yaml.safe_load(yaml_text(text, file))
     except OSError as exc:
         raise SweepError(file, "", f"cannot read the sweep file ({exc.strerror or exc})") from None
     except yaml.YAMLError as exc:
@@ -600,27 +607,54 @@ def _user_set(where: str, item: Any, problems: _Problems) -> UserSet | None:
             where, f"give {{synthetic: N, first_seed: S}} or {{sessions: DIR}}, got {item!r}"
         )
         return None
-    allowed = {"synthetic", "sessions", "pattern", "first_seed", "name"}
+    allowed = {"synthetic", "listening", "params", "sessions", "pattern", "first_seed", "name"}
     for key in set(item) - allowed:
         problems.add(f"{where}.{key}", f"unknown key; known: {', '.join(sorted(allowed))}")
     seed = item.get("first_seed", 0)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         problems.add(f"{where}.first_seed", f"must be an integer >= 0, got {seed!r}")
         return None
-    if ("synthetic" in item) == ("sessions" in item):
-        problems.add(where, "give exactly one of synthetic: N and sessions: DIR")
+    kinds = [k for k in ("synthetic", "listening", "sessions") if k in item]
+    if len(kinds) != 1:
+        problems.add(where, "give exactly one of synthetic: N, listening: N and sessions: DIR")
         return None
-    if "synthetic" in item:
-        count = item["synthetic"]
+    if "params" in item and kinds[0] != "listening":
+        problems.add(f"{where}.params", "sets listening people's parameters: give listening: N")
+        return None
+    if kinds[0] in ("synthetic", "listening"):
+        kind = kinds[0]
+        count = item[kind]
         if isinstance(count, bool) or not isinstance(count, int) or not 1 <= count <= 1_000_000:
             problems.add(
-                f"{where}.synthetic",
+                f"{where}.{kind}",
                 f"empty grid: must be an integer in [1, 1000000], got {count!r}",
             )
             return None
-        name = str(item.get("name", f"synthetic:{count}@{seed}"))
-        return UserSet(name, tuple((f"s{seed + i}", seed + i, None) for i in range(count)))
+        listening = None
+        label = f"{kind}:{count}@{seed}"
+        if kind == "listening":
+            listening = _listening(f"{where}.params", item.get("params", {}), problems)
+            if listening is None:
+                return None
+            if item.get("params"):
+                label += "[" + ",".join(f"{k}={v}" for k, v in item["params"].items()) + "]"
+        name = str(item.get("name", label))
+        users = tuple((f"s{seed + i}", seed + i, None) for i in range(count))
+        return UserSet(name, users, listening)
     return _session_set(where, item, seed, problems)
+
+
+def _listening(where: str, value: Any, problems: _Problems) -> Any:
+    """The listening people's parameters from ``params`` (a mapping of fields), or None."""
+    from langenv.errors import ConfigError
+    from langenv.users import ListeningParams
+    from langenv.validation import dataclass_from_dict
+
+    try:
+        return dataclass_from_dict(ListeningParams, value, "ListeningParams")
+    except (ConfigError, TypeError) as exc:
+        problems.add(where, str(exc))
+        return None
 
 
 def _session_set(

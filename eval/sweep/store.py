@@ -126,7 +126,8 @@ class SweepStore:
                 bad.mkdir(exist_ok=True)
                 os.replace(path, bad / path.name)
                 print(
-                    f"eval.sweep: {path.name} unreadable ({exc}); moved to {bad}", file=sys.stderr
+                    f"langctrl sweep: {path.name} unreadable ({exc}); moved to {bad}",
+                    file=sys.stderr,
                 )
         if not tables:
             return self.schema.empty_table()

@@ -76,8 +76,8 @@ class LangCtrlVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
 
     Args:
         num_envs: Sessions, >= 1.
-        max_episode_steps: Truncation after this many steps of an episode (the registration's
-            1500 by default through ``make_vec``); None: none.
+        max_episode_steps: Truncation after this many steps of an episode as well; None (the
+            default): only at each session's length, ``max_seconds`` (60 s), as the single env.
         autoreset_mode: See above (an ``AutoresetMode`` or its value, ``"NextStep"``...).
         parallel: ``"pool"`` (a thread pool whose workers each run a share of the sessions in
             compiled code without the GIL: the default), ``"prange"`` (Numba's own threads;
@@ -176,6 +176,10 @@ class LangCtrlVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         self._names: list[tuple[str, ...]] = [()] * n
         self._compiled = np.zeros(n, bool)
         self._elapsed = np.zeros(n, np.int64)
+        never = np.iinfo(np.int64).max // 2
+        self._max_ticks = np.array(
+            [e.max_ticks if e.max_ticks is not None else never for e in self.envs], np.int64
+        )
         self._autoreset = np.zeros(n, bool)
         self._obs = np.zeros((n, *self.single_observation_space.shape), np.float32)  # type: ignore[misc]
         self._info = np.zeros((n, len(bk.INFO)))
@@ -261,6 +265,7 @@ class LangCtrlVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
             truncated[i] = trunc
             _add_info(infos, info, i, n)
         self._elapsed[stepping] += 1
+        truncated |= stepping & ~terminated & (self._elapsed * self._ticks >= self._max_ticks)
         if self.max_episode_steps is not None:
             truncated |= stepping & (self._elapsed >= self.max_episode_steps)
         done = terminated | truncated

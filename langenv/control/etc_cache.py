@@ -19,12 +19,13 @@ from __future__ import annotations
 
 import hashlib
 import os
-import tempfile
 import warnings
 import zipfile
 from pathlib import Path
 
 import numpy as np
+
+from langenv.files import temp_file
 
 __all__ = ["etc_cache_dir", "load_tables", "store_tables", "tables_digest"]
 
@@ -103,13 +104,13 @@ def store_tables(key: tuple[object, ...], prm: np.ndarray, tab: np.ndarray) -> N
     try:
         name = f"{tables_digest(key)}.npz"
         root.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=root, suffix=".npz.part")
+        fd, tmp = temp_file(root, suffix=".npz.part")
         try:
             with os.fdopen(fd, "wb") as f:
                 np.savez(f, prm=prm, tab=tab)
             os.replace(tmp, root / name)
         except BaseException:
-            Path(tmp).unlink(missing_ok=True)
+            tmp.unlink(missing_ok=True)
             raise
     except OSError as exc:
         if not _warned:

@@ -72,10 +72,14 @@ def _check(specs: Sequence[str]) -> int:
             status = 1
             for line in str(exc).splitlines():
                 print(f"error: {line}", file=sys.stderr)
-            print(f"{spec}: REFUSED ({len(exc.problems)} problems)", file=sys.stderr)
+            n = len(exc.problems)
+            print(f"{spec}: REFUSED ({n} problem{'' if n == 1 else 's'})", file=sys.stderr)
             continue
         print(report.summary())
         print(f"  OK (checked in {report.seconds:.2f} s)")
+        for role in ("graph", "single"):
+            if (warning := report.exercise.script_warning(role)) is not None:
+                print(warning)
         for line in _script_fit(report.exercise):
             print(line)
     return status
@@ -105,7 +109,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         for spec in names if args.command != "list" else []:
             exercise_path(spec)  # an unknown name or a missing file is a usage error
     except ConfigError as exc:
-        print(f"python -m langenv.exercise: error: {exc}", file=sys.stderr)
+        print(f"langctrl exercise: error: {exc}", file=sys.stderr)
         return 2
     try:
         if args.command == "list":

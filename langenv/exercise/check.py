@@ -111,6 +111,11 @@ def _script_problems(exercise: Exercise) -> list[Problem]:
         found = leg_problems(graph.legs, exercise.leg_names, graph_path(ref))
         hint = "; give the exercise a script of its own (docs/scripts.md) or an unmarked graph "
         hint += "(script: {graph: study})"
+        if exercise.script_warning(key) is not None:  # left out: the study's marked script
+            hint = (
+                f" (script.{key} is left out or names a shipped graph: the study's script, "
+                "marked with the legs of its shoulder external rotation)" + hint
+            )
         out += [
             Problem("unknown_leg", leg, None, f"script.{key}: {where}: {why}{hint}")
             for leg, where, why in found

@@ -25,6 +25,7 @@ from langenv.exercise.spec import (
     Leg,
     Problem,
 )
+from langenv.validation import suggest, yaml_text
 
 __all__ = ["UNITS", "load_exercise"]
 
@@ -43,18 +44,48 @@ _FIELDS = {
 _TOOL = frozenset({"turn", "axis"})
 
 
-class _Problems(list[Problem]):
-    """Problems found so far (a list with helpers)."""
+Where = tuple[str | int, ...]
+"""A place in the file: the keys and list indexes down to it (``("legs", 0, "line", "to")``)."""
 
-    def add(self, kind: str, detail: str, leg: str | None = None, point: int | None = None) -> None:
+
+class _Problems(list[Problem]):
+    """Problems found so far (a list with helpers), and the file's lines of its keys."""
+
+    def __init__(self, lines: dict[Where, int] | None = None) -> None:
+        super().__init__()
+        self.lines = lines or {}
+
+    def add(
+        self,
+        kind: str,
+        detail: str,
+        leg: str | None = None,
+        point: int | None = None,
+        at: Where | None = None,
+    ) -> None:
+        """Add a problem; ``at`` names the key it is about, whose line the detail then gives."""
+        if at is not None and at in self.lines:
+            detail = f"{detail} (line {self.lines[at]})"
         self.append(Problem(kind, leg, point, detail))
 
+    def unknown(
+        self, key: Any, known: frozenset[str], at: Where, leg: str | None = None, what: str = ""
+    ) -> None:
+        """An unknown key at ``at``, with the closest known one and all of them."""
+        detail = (
+            f"{what}unknown key {key!r}{suggest(key, known)}; known: {', '.join(sorted(known))}"
+        )
+        self.add("unknown_key", detail, leg, at=(*at, key))
 
-def load_exercise(path: str | Path) -> Exercise:
+
+def load_exercise(path: str | Path, *, unwritten_scripts: bool = False) -> Exercise:
     """Read, validate and build the exercise of a YAML file.
 
     Args:
         path: The exercise file (``.yaml``).
+        unwritten_scripts: Accept ``script`` entries that name files not written yet (a
+            script being authored against its exercise: ``speech author --exercise``); they
+            stay the paths they name.
 
     Returns:
         The exercise (its ``trajectory`` built, in SI units).
@@ -76,20 +107,20 @@ def load_exercise(path: str | Path) -> Exercise:
     import yaml
 
     try:
-        data = yaml.safe_load(source)
+        data = yaml.safe_load(yaml_text(source, path))
     except yaml.YAMLError as exc:
         raise ExerciseError(
             [Problem("unreadable", None, None, f"invalid YAML: {exc}")], path
         ) from None
     lines = _leg_lines(source)
-    found = _Problems()
+    found = _Problems(_key_lines(source))
     if not isinstance(data, dict):
         found.add(
             "not_mapping", "the file must be a mapping of the keys " + ", ".join(sorted(_TOP))
         )
         raise ExerciseError(found, path)
     for key in sorted(set(data) - _TOP, key=str):
-        found.add("unknown_key", f"unknown key {key!r}; known: {', '.join(sorted(_TOP))}")
+        found.unknown(key, _TOP, ())
     for key in _REQUIRED:
         if key not in data:
             found.add("missing_key", f"{key!r} is required")
@@ -119,7 +150,7 @@ def load_exercise(path: str | Path) -> Exercise:
                 found.add("bad_value", f"{what} must lie in [{lo}, {hi}], got {value}")
             elif value is not None:
                 fields[key] = value
-    fields.update(_script(data.get("script", {}), path, found))
+    fields.update(_script(data.get("script", {}), path, found, unwritten_scripts))
     fields["description"] = _comment_block(source)
     legs = _legs(data.get("legs"), found, lines, fields.get("start")) if "legs" in data else []
     if found:
@@ -128,6 +159,32 @@ def load_exercise(path: str | Path) -> Exercise:
         return Exercise(legs=tuple(legs), **fields)
     except ExerciseError as exc:
         raise ExerciseError([_at_line(p, lines) for p in exc.problems], path) from None
+
+
+def _key_lines(source: str) -> dict[Where, int]:
+    """Line (1-based) of each key and list item of the file, by its place (:data:`Where`)."""
+    import yaml
+
+    try:
+        root = yaml.compose(source)
+    except yaml.YAMLError:
+        return {}
+    out: dict[Where, int] = {}
+
+    def walk(node: Any, at: Where) -> None:
+        if isinstance(node, yaml.MappingNode):
+            for k, v in node.value:
+                if isinstance(k, yaml.ScalarNode):
+                    key = (*at, k.value)
+                    out.setdefault(key, k.start_mark.line + 1)
+                    walk(v, key)
+        elif isinstance(node, yaml.SequenceNode):
+            for i, item in enumerate(node.value):
+                out[(*at, i)] = item.start_mark.line + 1
+                walk(item, (*at, i))
+
+    walk(root, ())
+    return out
 
 
 def _leg_lines(source: str) -> dict[str, int]:
@@ -167,14 +224,18 @@ def _comment_block(source: str) -> str:
     return "\n".join(out).strip()
 
 
-def _number(value: Any, what: str, found: _Problems, leg: str | None) -> float | None:
+def _number(
+    value: Any, what: str, found: _Problems, leg: str | None, at: Where | None = None
+) -> float | None:
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        found.add("bad_value", f"{what} must be a finite number, got {value!r}", leg)
+        found.add("bad_value", f"{what} must be a finite number, got {value!r}", leg, at=at)
         return None
     return float(value)
 
 
-def _vector(value: Any, what: str, found: _Problems, leg: str | None) -> np.ndarray | None:
+def _vector(
+    value: Any, what: str, found: _Problems, leg: str | None, at: Where | None = None
+) -> np.ndarray | None:
     ok = (
         isinstance(value, list)
         and len(value) == 3
@@ -182,21 +243,25 @@ def _vector(value: Any, what: str, found: _Problems, leg: str | None) -> np.ndar
     )
     if not ok or not all(math.isfinite(v) for v in value):
         found.add(
-            "bad_vector", f"{what} must be [x, y, z], three finite numbers; got {value!r}", leg
+            "bad_vector",
+            f"{what} must be [x, y, z], three finite numbers; got {value!r}",
+            leg,
+            at=at,
         )
         return None
     return np.array(value, dtype=np.float64)
 
 
-def _script(script: Any, path: Path, found: _Problems) -> dict[str, str]:
-    """``graph`` and ``single`` of the ``script`` section, resolved (shipped name or path)."""
+def _script(script: Any, path: Path, found: _Problems, unwritten: bool) -> dict[str, str]:
+    """``graph`` and ``single`` of the ``script`` section, resolved (shipped name or path; a
+    missing file only when ``unwritten``)."""
     from langenv.speech.graph import SHIPPED_GRAPHS
 
     if not isinstance(script, dict):
         found.add("not_mapping", "script must be a mapping with 'graph' and/or 'single'")
         return {}
     for key in sorted(set(script) - _SCRIPT, key=str):
-        found.add("unknown_key", f"script: unknown key {key!r}; known: graph, single")
+        found.unknown(key, _SCRIPT, ("script",), what="script: ")
     out = {}
     for key in ("graph", "single"):
         if key not in script:
@@ -209,7 +274,7 @@ def _script(script: Any, path: Path, found: _Problems) -> dict[str, str]:
             out[key] = ref
             continue
         file = (path.parent / ref).resolve()
-        if not file.is_file():
+        if not file.is_file() and not (unwritten and not file.exists()):
             found.add(
                 "bad_graph",
                 f"script.{key}: {ref!r} is neither a shipped graph ({', '.join(SHIPPED_GRAPHS)}) "
@@ -244,8 +309,9 @@ def _leg(item: Any, i: int, found: _Problems, start: np.ndarray | None) -> Leg |
         found.add("missing_key", f"legs[{i}] needs a 'name' (a non-empty string)")
         name = f"#{i}"
     n_before = len(found)
+    at: Where = ("legs", i)
     for key in sorted(set(item) - _LEG, key=str):
-        found.add("unknown_key", f"unknown key {key!r}; known: {', '.join(sorted(_LEG))}", name)
+        found.unknown(key, _LEG, at, name)
     kinds = [k for k in LEG_KINDS if k in item]
     if len(kinds) != 1:
         found.add(
@@ -260,21 +326,17 @@ def _leg(item: Any, i: int, found: _Problems, start: np.ndarray | None) -> Leg |
         )
         return None
     for key in sorted(set(body) - _FIELDS[kind], key=str):
-        found.add(
-            "unknown_key",
-            f"{kind}: unknown key {key!r}; known: {', '.join(sorted(_FIELDS[kind]))}",
-            name,
-        )
+        found.unknown(key, _FIELDS[kind], (*at, kind), name, what=f"{kind}: ")
     args: dict[str, Any] = {"name": name, "kind": kind}
     if kind == "line":
-        args.update(_line(body, name, found))
+        args.update(_line(body, name, found, (*at, kind)))
     elif kind == "arc":
-        args.update(_arc(body, name, found))
+        args.update(_arc(body, name, found, (*at, kind)))
     else:
-        args.update(_spline(body, name, found))
-    args.update(_tool(item.get("tool"), name, found))
+        args.update(_spline(body, name, found, (*at, kind)))
+    args.update(_tool(item.get("tool"), name, found, (*at, "tool")))
     if "waypoint" in item:
-        args["waypoint"] = _vector(item["waypoint"], "waypoint (m)", found, name)
+        args["waypoint"] = _vector(item["waypoint"], "waypoint (m)", found, name, (*at, "waypoint"))
     if len(found) > n_before:
         return None
     if isinstance(args.get("end"), str):  # line.to: start
@@ -288,80 +350,88 @@ def _leg(item: Any, i: int, found: _Problems, start: np.ndarray | None) -> Leg |
         return None
 
 
-def _line(body: dict[str, Any], name: str, found: _Problems) -> dict[str, Any]:
+def _line(body: dict[str, Any], name: str, found: _Problems, at: Where) -> dict[str, Any]:
     if "to" not in body:
-        found.add("missing_key", "line needs 'to': [x, y, z] or 'start'", name)
+        found.add("missing_key", "line needs 'to': [x, y, z] or 'start'", name, at=at)
         return {}
     if body["to"] == "start":
         return {"end": "start"}
-    end = _vector(body["to"], "line.to (m)", found, name)
+    end = _vector(body["to"], "line.to (m)", found, name, (*at, "to"))
     return {} if end is None else {"end": end}
 
 
-def _arc(body: dict[str, Any], name: str, found: _Problems) -> dict[str, Any]:
+def _arc(body: dict[str, Any], name: str, found: _Problems, at: Where) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for key in ("center", "axis", "angle"):
         if key not in body:
-            found.add("missing_key", f"arc needs {key!r}", name)
+            found.add("missing_key", f"arc needs {key!r}", name, at=at)
     if "center" in body:
-        out["center"] = _vector(body["center"], "arc.center (m)", found, name)
+        out["center"] = _vector(body["center"], "arc.center (m)", found, name, (*at, "center"))
     if "axis" in body:
-        axis = _vector(body["axis"], "arc.axis", found, name)
+        axis = _vector(body["axis"], "arc.axis", found, name, (*at, "axis"))
         if axis is not None and float(np.linalg.norm(axis)) < 1e-9:
-            found.add("degenerate", "arc.axis must be non-zero", name)
+            found.add("degenerate", "arc.axis must be non-zero", name, at=(*at, "axis"))
         out["axis"] = axis
     if "angle" in body:
-        angle = _number(body["angle"], "arc.angle (deg)", found, name)
+        angle = _number(body["angle"], "arc.angle (deg)", found, name, (*at, "angle"))
         if angle is not None and not 0.0 < abs(angle) <= 360.0:
             found.add(
-                "bad_value", f"arc.angle must satisfy 0 < |angle| <= 360 deg, got {angle}", name
+                "bad_value",
+                f"arc.angle must satisfy 0 < |angle| <= 360 deg, got {angle}",
+                name,
+                at=(*at, "angle"),
             )
         if angle is not None:
             out["angle"] = math.radians(angle)
     return out
 
 
-def _spline(body: dict[str, Any], name: str, found: _Problems) -> dict[str, Any]:
+def _spline(body: dict[str, Any], name: str, found: _Problems, at: Where) -> dict[str, Any]:
     out: dict[str, Any] = {}
     pts = body.get("through")
     if not isinstance(pts, list) or not pts:
-        found.add("missing_key", "spline needs 'through': a list of [x, y, z] points", name)
+        found.add("missing_key", "spline needs 'through': a list of [x, y, z] points", name, at=at)
     else:
         good = []
         for j, p in enumerate(pts):
             before = len(found)
-            v = _vector(p, f"spline.through[{j}] (m)", found, name)
+            v = _vector(p, f"spline.through[{j}] (m)", found, name, (*at, "through", j))
             if v is None:
                 found[before] = Problem("bad_vector", name, j, found[before].detail)
             else:
                 good.append(v)
         out["through"] = np.array(good)
     if "tolerance" in body:
-        tol = _number(body["tolerance"], "spline.tolerance (m)", found, name)
+        tol = _number(body["tolerance"], "spline.tolerance (m)", found, name, (*at, "tolerance"))
         if tol is not None:
             out["tolerance"] = tol
     return out
 
 
-def _tool(raw: Any, name: str, found: _Problems) -> dict[str, Any]:
+def _tool(raw: Any, name: str, found: _Problems, at: Where) -> dict[str, Any]:
     if raw is None:
         return {}
     if not isinstance(raw, dict):
-        found.add("not_mapping", "tool must be a mapping {turn: deg, axis: [x, y, z]}", name)
+        found.add("not_mapping", "tool must be a mapping {turn: deg, axis: [x, y, z]}", name, at=at)
         return {}
     for key in sorted(set(raw) - _TOOL, key=str):
-        found.add("unknown_key", f"tool: unknown key {key!r}; known: axis, turn", name)
+        found.unknown(key, _TOOL, at, name, what="tool: ")
     out: dict[str, Any] = {}
     if "turn" in raw:
-        turn = _number(raw["turn"], "tool.turn (deg)", found, name)
+        turn = _number(raw["turn"], "tool.turn (deg)", found, name, (*at, "turn"))
         if turn is not None and abs(turn) > 360.0:
-            found.add("bad_value", f"tool.turn must lie in [-360, 360] deg, got {turn}", name)
+            found.add(
+                "bad_value",
+                f"tool.turn must lie in [-360, 360] deg, got {turn}",
+                name,
+                at=(*at, "turn"),
+            )
         elif turn is not None:
             out["tool_turn"] = math.radians(turn)
     if "axis" in raw:
-        axis = _vector(raw["axis"], "tool.axis", found, name)
+        axis = _vector(raw["axis"], "tool.axis", found, name, (*at, "axis"))
         if axis is not None and float(np.linalg.norm(axis)) < 1e-9:
-            found.add("degenerate", "tool.axis must be non-zero", name)
+            found.add("degenerate", "tool.axis must be non-zero", name, at=(*at, "axis"))
         elif axis is not None:
             out["tool_axis"] = axis
     return out

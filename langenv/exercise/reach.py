@@ -131,10 +131,65 @@ class _Contacts:
         return out
 
 
+class _Findings:
+    """The problems found along the path: at most one of each kind per leg (its first place),
+    and each run of consecutive samples out of reach as one ``unreachable`` problem."""
+
+    def __init__(self, exercise: Exercise) -> None:
+        self.exercise = exercise
+        self.out: list[Problem] = []
+        self._seen: set[tuple[str, str]] = set()
+        self._run: list[tuple[int, int, float, np.ndarray, float, float, str]] = []
+
+    def report(self, kind: str, k: int, j: int, detail: str, s: float | None = None) -> None:
+        """A problem of ``kind`` at sample ``j`` of leg ``k`` (arc length ``s``, m)."""
+        name = self.exercise.leg_names[k]
+        if (kind, name) in self._seen:
+            return
+        self._seen.add((kind, name))
+        at = None if s is None else max(0.0, s - self.exercise.leg_span(k)[0])
+        detail += _turn_hint(self.exercise, k, kind)
+        self.out.append(Problem(kind, name, j, detail, at))
+
+    def unreached(
+        self, k: int, j: int, s: float, target: np.ndarray, res: float, rot: float, why: str
+    ) -> None:
+        """Sample ``j`` of leg ``k`` is out of reach (residuals in m and rad; ``why``: the
+        joints held at the ends of their ranges, or "")."""
+        self._run.append((k, j, s, target, res, rot, why))
+
+    def reached(self) -> None:
+        """A sample in reach: a run out of reach before it ends there."""
+        if not self._run:
+            return
+        (k, j, s, first, res, rot, why), (k1, _, s1, last, *_) = self._run[0], self._run[-1]
+        where = f"{np.round(first, 4).tolist()} m"
+        if len(self._run) > 1:
+            until = s1 - self.exercise.leg_span(k1)[0]
+            leg = "it" if k1 == k else f"leg {self.exercise.leg_names[k1]!r}"
+            where = (
+                f"{s1 - s:.2f} m of the path, from {where} to {np.round(last, 4).tolist()} m "
+                f"({until:.2f} m along {leg}),"
+            )
+        self._run = []
+        self.report(
+            "unreachable",
+            k,
+            j,
+            f"{where} not reached with the tool orientation asked for (residual {res:.3g} m, "
+            f"{math.degrees(rot):.2g} deg at the first point{why})",
+            s,
+        )
+
+
 def reach_problems(
     exercise: Exercise, model_path: str | Path | None = None
 ) -> tuple[list[Problem], ReachReport]:
     """The problems of the arm along the path (module docstring), and what it does there.
+
+    Where a sample is out of reach the arm's pose means nothing: only ``unreachable`` is said
+    of it (one problem for a run of such samples, from its first to its last point), and the
+    next sample is sought from the last pose in reach.
 
     Args:
         exercise: The exercise.
@@ -145,78 +200,93 @@ def reach_problems(
     """
     arm = Arm(model_path)
     home_rot = arm.hand_rotation()
-    lo, hi = arm.joint_range
     contacts = _Contacts(arm.path, arm.data.qpos.copy())
-    out: list[Problem] = []
-    seen: set[tuple[str, str]] = set()
-    names = exercise.leg_names
-
-    def report(kind: str, k: int, j: int, detail: str) -> None:
-        if (kind, names[k]) not in seen:
-            seen.add((kind, names[k]))
-            out.append(Problem(kind, names[k], j, detail + _turn_hint(exercise, k, kind)))
-
+    found = _Findings(exercise)
     try:
         arm.reset(exercise.start)
     except ConfigError as exc:  # start out of reach or in contact: carry on from home
-        report("unreachable", 0, 0, str(exc))
+        found.report("unreachable", 0, 0, str(exc), exercise.leg_span(0)[0])
     traj = exercise.trajectory
     samples = _samples(exercise)
     qs = np.zeros((len(samples), arm.n_joints))
-    margins, sigmas, clear = [], [], [CLEARANCE]
+    figures: dict[str, list[float]] = {"margin": [], "sigma": [], "clear": [CLEARANCE]}
+    good = arm.data.qpos.copy()
     for i, (k, j, s) in enumerate(samples):
-        target = traj.position(s)
-        rot = exercise.tool_rotation(s, home_rot)
+        target, rot = traj.position(s), exercise.tool_rotation(s, home_rot)
         res = solve_ik(arm.model, arm.data, arm._handles, arm._arm_jacobian, target, rot)
         rot_err = float(np.linalg.norm(rotation_vector(arm.hand_rotation(), rot)))
+        qs[i] = arm.joint_positions()
         if res > IK_ACCEPT or rot_err > ROT_ACCEPT:
-            report(
-                "unreachable",
-                k,
-                j,
-                f"{np.round(target, 4).tolist()} m not reached with the tool orientation asked for "
-                f"(residual {res:.3g} m, {math.degrees(rot_err):.2g} deg)",
-            )
-        q = arm.joint_positions()
-        qs[i] = q
-        margin = np.minimum(q - lo, hi - q)
-        margins.append(float(margin.min()))
-        if margin.min() < JOINT_MARGIN:
-            jn = int(np.argmin(margin))
-            report(
-                "joint_margin",
-                k,
-                j,
-                f"joint {arm.joint_names[jn]!r} at {q[jn]:.3f} rad, {margin[jn]:.3f} rad from the "
-                f"end of its range (at least {JOINT_MARGIN} rad)",
-            )
-        sigma = float(np.linalg.svd(arm._arm_jacobian(), compute_uv=False)[-1])
-        sigmas.append(sigma)
-        if sigma < MIN_SIGMA:
-            report(
-                "singular",
-                k,
-                j,
-                f"near a singularity at {np.round(target, 4).tolist()} m: the handle Jacobian's "
-                f"smallest singular value is {sigma:.3f} m/rad (at least {MIN_SIGMA:.3f})",
-            )
-        for pair, dist in contacts.contacts(arm.data.qpos):
-            if pair in contacts.ignored:
-                continue
-            clear.append(dist)
-            what = "the table" if "table" in pair else f"itself ({pair[0]} and {pair[1]})"
-            other = pair[1] if pair[0] == "table" else pair[0]
-            if "table" in pair:
-                what = f"the table ({other})"
-            report(
-                "collision",
-                k,
-                j,
-                f"the arm comes within {dist:.3f} m of {what} at {np.round(target, 4).tolist()} m "
-                f"(at least {CLEARANCE} m)",
-            )
+            found.unreached(k, j, s, target, res, rot_err, _held(arm, qs[i]))
+            arm.data.qpos[:] = good  # the next sample from the last pose in reach
+            continue
+        found.reached()
+        good = arm.data.qpos.copy()
+        _pose_checks(arm, contacts, found, (k, j, s), target, figures)
+    found.reached()
     qs.setflags(write=False)
     s_arr = np.array([s for _, _, s in samples])
     s_arr.setflags(write=False)
-    rep = ReachReport(s_arr, qs, min(margins), min(sigmas), min(clear))
-    return out, rep
+    lowest = {key: min(v, default=math.nan) for key, v in figures.items()}
+    rep = ReachReport(s_arr, qs, lowest["margin"], lowest["sigma"], lowest["clear"])
+    return found.out, rep
+
+
+def _held(arm: Arm, q: np.ndarray) -> str:
+    """``"; joint 'elbow' held at the end of its range"`` for the joints the IK left at a range's
+    end (what kept it from the point), or ``""``."""
+    lo, hi = arm.joint_range
+    margin = np.minimum(q - lo, hi - q)
+    names = [repr(n) for n, m in zip(arm.joint_names, margin, strict=True) if m < 1e-9]
+    return f"; joint {', '.join(names)} held at the end of its range" if names else ""
+
+
+def _pose_checks(
+    arm: Arm,
+    contacts: _Contacts,
+    found: _Findings,
+    sample: tuple[int, int, float],
+    target: np.ndarray,
+    figures: dict[str, list[float]],
+) -> None:
+    """Joint margins, manipulability and contacts of the arm's pose at a sample in reach."""
+    k, j, s = sample
+    lo, hi = arm.joint_range
+    q = arm.joint_positions()
+    margin = np.minimum(q - lo, hi - q)
+    figures["margin"].append(float(margin.min()))
+    if margin.min() < JOINT_MARGIN:
+        jn = int(np.argmin(margin))
+        found.report(
+            "joint_margin",
+            k,
+            j,
+            f"joint {arm.joint_names[jn]!r} at {q[jn]:.3f} rad, {margin[jn]:.3f} rad from the "
+            f"end of its range (at least {JOINT_MARGIN} rad)",
+            s,
+        )
+    sigma = float(np.linalg.svd(arm._arm_jacobian(), compute_uv=False)[-1])
+    figures["sigma"].append(sigma)
+    point = np.round(target, 4).tolist()
+    if sigma < MIN_SIGMA:
+        found.report(
+            "singular",
+            k,
+            j,
+            f"near a singularity at {point} m: the handle Jacobian's smallest singular value "
+            f"is {sigma:.3f} m/rad (at least {MIN_SIGMA:.3f})",
+            s,
+        )
+    for pair, dist in contacts.contacts(arm.data.qpos):
+        if pair in contacts.ignored:
+            continue
+        figures["clear"].append(dist)
+        other = pair[1] if pair[0] == "table" else pair[0]
+        what = f"the table ({other})" if "table" in pair else f"itself ({pair[0]} and {pair[1]})"
+        found.report(
+            "collision",
+            k,
+            j,
+            f"the arm comes within {dist:.3f} m of {what} at {point} m (at least {CLEARANCE} m)",
+            s,
+        )

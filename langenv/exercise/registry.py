@@ -14,7 +14,7 @@ from types import MappingProxyType
 
 from langenv.errors import ConfigError
 from langenv.exercise.load import load_exercise
-from langenv.exercise.spec import Exercise
+from langenv.exercise.spec import STUDY_EXERCISE, Exercise
 
 __all__ = [
     "DEFAULT_EXERCISE",
@@ -32,10 +32,10 @@ SHIPPED_EXERCISES: Mapping[str, Path] = MappingProxyType(
 )
 """The shipped exercise files by name (the file's stem)."""
 
-DEFAULT_EXERCISE = "external_rotation"
+DEFAULT_EXERCISE = STUDY_EXERCISE
 """The study's exercise (SPEC §2), the env's default."""
 
-_LOADED: dict[tuple[str, int, int], Exercise] = {}
+_LOADED: dict[tuple[str, int, int, bool], Exercise] = {}
 
 
 def exercise_path(spec: str | Path) -> Path:
@@ -56,10 +56,13 @@ def exercise_path(spec: str | Path) -> Path:
     )
 
 
-def resolve_exercise(spec: str | Path | Exercise | None) -> Exercise:
+def resolve_exercise(
+    spec: str | Path | Exercise | None, *, unwritten_scripts: bool = False
+) -> Exercise:
     """An :class:`Exercise` from a shipped name, a YAML path or an exercise (None: the study's).
 
-    A file is read once per process (again when it changes on disk).
+    A file is read once per process (again when it changes on disk). ``unwritten_scripts``:
+    its ``script`` entries may name files not written yet (:func:`load_exercise`).
 
     Raises:
         ConfigError: an unknown name or a missing file; ExerciseError: a bad file.
@@ -74,8 +77,8 @@ def resolve_exercise(spec: str | Path | Exercise | None) -> Exercise:
         )
     path = exercise_path(spec).resolve()
     st = path.stat()
-    key = (str(path), st.st_mtime_ns, st.st_size)
+    key = (str(path), st.st_mtime_ns, st.st_size, unwritten_scripts)
     ex = _LOADED.get(key)
     if ex is None:
-        ex = _LOADED[key] = load_exercise(path)
+        ex = _LOADED[key] = load_exercise(path, unwritten_scripts=unwritten_scripts)
     return ex

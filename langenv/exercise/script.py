@@ -28,6 +28,7 @@ machine that ran it.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -162,7 +163,13 @@ def spoken_graph(
             "AC and LC-noAP say the exercise's one wording (script.single): give them another "
             "in an exercise file"
         )
-    ref = str(override) if override is not None else resolve_exercise(exercise).graph_for(role)
+    if override is None:
+        ex = resolve_exercise(exercise)
+        if (warning := ex.script_warning(role)) is not None:
+            warnings.warn(warning.removeprefix("warning: "), UserWarning, stacklevel=2)
+        ref = ex.graph_for(role)
+    else:
+        ref = str(override)
     return SpokenGraph(ref, graph_label(ref), role, override is not None, graph_choices(ref))
 
 

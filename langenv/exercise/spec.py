@@ -72,6 +72,7 @@ __all__ = [
     "MAX_LEGS",
     "PROBLEM_KINDS",
     "SPEED_RANGE",
+    "STUDY_EXERCISE",
     "SWITCH_TOL_RANGE",
     "Exercise",
     "Leg",
@@ -122,6 +123,8 @@ GRAPH_ROLES = MappingProxyType(
 """What graph a policy speaks, by role (a policy declares its ``graph_role``; the exercise maps
 the role to a graph: :meth:`Exercise.graph_for`). A policy brings a rule, not a script."""
 
+STUDY_EXERCISE = "external_rotation"
+"""The study's exercise (SPEC §2), whose words the shipped graphs say."""
 LEG_KINDS = ("line", "arc", "spline")
 """The shapes a leg may take."""
 MAX_LEGS = 40
@@ -147,12 +150,15 @@ class Problem:
             its start), its segment (a bend too tight), or the spline's point (the format);
             None for the whole leg.
         detail: What is wrong and what is allowed, in words.
+        at: Where along the leg it lies (m from the leg's start) for a check along the path,
+            said instead of ``point`` (an internal sample or segment index); None otherwise.
     """
 
     kind: str
     leg: str | None
     point: int | None
     detail: str
+    at: float | None = None
 
     def __post_init__(self) -> None:
         if self.kind not in PROBLEM_KINDS:
@@ -162,7 +168,9 @@ class Problem:
 
     def __str__(self) -> str:
         where = f"leg {self.leg!r}: " if self.leg is not None else ""
-        if self.point is not None:
+        if self.at is not None:
+            where += f"{self.at:.2f} m along it: "
+        elif self.point is not None:
             where += f"point {self.point}: "
         return f"{where}{self.kind}: {self.detail}"
 
@@ -432,6 +440,24 @@ class Exercise:
         if role == "single":
             return self.single
         raise ConfigError(f"graph role must be one of {sorted(GRAPH_ROLES)}, got {role!r}")
+
+    def script_warning(self, role: str) -> str | None:
+        """A ``warning:`` line when the policies of graph role ``role`` would say the study's
+        words (a shipped graph: ``script.<role>`` left out or naming one) on an exercise other
+        than the study's; else None."""
+        from langenv.speech.graph import SHIPPED_GRAPHS
+
+        ref = self.graph_for(role)
+        if self.name == STUDY_EXERCISE or ref.replace("_", "-") not in SHIPPED_GRAPHS:
+            return None
+        who = "AC and LC-noAP" if role == "single" else "LC and the policies that choose phrases"
+        where = self.path.name if self.path is not None else self.name
+        return (
+            f"warning: {where}: script.{role} is the study's {ref!r} (the default where the file "
+            f"leaves it out): {who} would say the words of its shoulder external rotation ('move "
+            "your hand away from your body') on this exercise; write a script (docs/scripts.md) "
+            f"and name it in script.{role}"
+        )
 
     @property
     def leg_names(self) -> tuple[str, ...]:

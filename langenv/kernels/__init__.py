@@ -25,12 +25,13 @@ from __future__ import annotations
 
 import hashlib
 import os
-import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, TypeVar, cast
 
 import numba
+
+from langenv.files import temp_file
 
 __all__ = ["COMPILED", "SOURCES", "clear_stale_cache", "inline", "jit", "kernel"]
 
@@ -77,6 +78,7 @@ SOURCES = (
     "safety.py",
     "pacing.py",
     "speech/timeline.py",
+    "speech/legs.py",
 )
 """The files whose content the compiled kernels depend on: :data:`COMPILED` and the parts'
 declarations (``tests/test_architecture.py`` checks that every module importing
@@ -129,7 +131,7 @@ def clear_stale_cache(
         for path in stale:
             path.unlink(missing_ok=True)
         stamp_dir.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{_STAMP}.", dir=stamp_dir)
+        fd, tmp = temp_file(stamp_dir, prefix=f".{_STAMP}.")
         with os.fdopen(fd, "w") as fh:
             fh.write(digest.hexdigest())
         os.replace(tmp, stamp_file)

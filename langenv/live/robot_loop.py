@@ -161,7 +161,7 @@ class RobotLoop:
         own = dict(policy.env_kwargs).get("exercise")
         ex = resolve_exercise(exercise if exercise is not None else own)
         self.spoken = speak(policy, ex, graph)  # may fit a learned model to the graph
-        drop = ("users", "exercise")
+        drop = ("users", "exercise", "max_seconds")
         kwargs = {k: v for k, v in dict(policy.env_kwargs).items() if k not in drop}
         kwargs.setdefault("admittance", ex.admittance())
         self.exercise = ex
@@ -172,6 +172,7 @@ class RobotLoop:
             phrase_graph=self.spoken.ref,
             decision_hz=int(policy.decision_hz),
             robot_acceleration=acceleration,
+            max_seconds=max_seconds,  # the loop's own length, not the env's 60 s
             **kwargs,
         )
         self.robot, self.policy = robot, policy

@@ -22,7 +22,7 @@ import numpy as np
 from langenv.errors import ConfigError, DeviceError
 from langenv.live.ring import AudioRing
 
-__all__ = ["AudioSink", "SoundCardSink", "WavSink"]
+__all__ = ["AudioSink", "SoundCardSink", "WavSink", "check_output_device"]
 
 CARD_BLOCK = 256
 """Samples a sink reads per block (11.6 ms at 22.05 kHz)."""
@@ -127,6 +127,22 @@ class WavSink:
             self._file.write(rest)
             self.written += rest.size
         self._file.close()
+
+
+def check_output_device(device: Any = None) -> None:
+    """Check now, before anything connects or moves, that a :class:`SoundCardSink` can be made
+    (sounddevice, PortAudio and an output device ``device``).
+
+    Raises:
+        DeviceError: naming what is missing, and ``--audio-out`` as the way round it.
+    """
+    sd = _sounddevice()
+    try:
+        sd.query_devices(device, kind="output")
+    except (sd.PortAudioError, ValueError) as exc:
+        raise DeviceError(
+            f"no audio output device ({exc}); write the audio to a file with --audio-out X.wav"
+        ) from None
 
 
 def _sounddevice() -> Any:

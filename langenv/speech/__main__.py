@@ -15,13 +15,13 @@ import csv
 import math
 import os
 import sys
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from langenv.errors import LangEnvError, SessionDataError
+from langenv.files import temp_file
 from langenv.speech.audio import DEFAULT_RATE, DEFAULT_SR, DEFAULT_VOICE, ClipLibrary
 from langenv.speech.author import author
 from langenv.speech.coverage import coverage, format_coverage, speech_lengths
@@ -260,8 +260,10 @@ def _author(args: argparse.Namespace) -> int:
     if args.exercise is not None:
         from langenv.exercise import resolve_exercise
 
-        exercise = resolve_exercise(args.exercise)  # a bad exercise before anything is written
+        # a bad exercise before anything is written; its script may be the one being written
+        exercise = resolve_exercise(args.exercise, unwritten_scripts=True)
     legs = exercise.leg_names if exercise is not None else None
+    _every_error(args.script)
     graph = author(args.script, out, _clips(args), legs)
     print(f"wrote {out} from {args.script}")
     print(_summary(graph))
@@ -279,6 +281,18 @@ def _author(args: argparse.Namespace) -> int:
         for line in fit_report(graph, exercise):
             print(line)
     return 0
+
+
+def _every_error(script: Path) -> None:
+    """Raise every error of the script at once (:func:`~langenv.speech.script_check.read_script`),
+    not only its first; a file that cannot be read is left to ``author``, which names it."""
+    from langenv.speech.script_check import read_script
+
+    try:
+        source = script.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return
+    read_script(source, script)
 
 
 def _render(args: argparse.Namespace) -> int:
@@ -316,13 +330,13 @@ def _render(args: argparse.Namespace) -> int:
 
     import soundfile as sf
 
-    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.stem}.", suffix=out.suffix + ".part")
+    fd, tmp = temp_file(out.parent, prefix=f".{out.stem}.", suffix=out.suffix + ".part")
     os.close(fd)
     try:
         sf.write(tmp, y, clips.sr, format=fmt[0], subtype=fmt[1])
         os.replace(tmp, out)
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        tmp.unlink(missing_ok=True)
         raise
     said = " > ".join(u.phrase if u.length is None else f"({u.length:.2f} s)" for u in plan)
     end = f"speech ends at {plan[-1].t_end:.2f} s" if plan else "nothing said"

@@ -25,7 +25,6 @@ import json
 import os
 import subprocess
 import sys
-import tempfile
 import threading
 import warnings
 from pathlib import Path
@@ -34,6 +33,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from langenv.errors import AudioError, ConfigError
+from langenv.files import temp_file
 
 __all__ = [
     "DEFAULT_RATE",
@@ -496,13 +496,13 @@ class ClipLibrary:
             return
         try:
             self.cache_dir.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(dir=self.cache_dir, suffix=".npy.part")
+            fd, tmp = temp_file(self.cache_dir, suffix=".npy.part")
             try:
                 with os.fdopen(fd, "wb") as f:
                     np.save(f, y, allow_pickle=False)
                 os.replace(tmp, self.cache_dir / f"{digest}.npy")
             except BaseException:
-                Path(tmp).unlink(missing_ok=True)
+                tmp.unlink(missing_ok=True)
                 raise
         except OSError as exc:
             if not self._warned_cache:

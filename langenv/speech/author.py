@@ -28,6 +28,11 @@ A *script* says what the robot may say, one line per step of the exercise, in or
   silent, then says it so that it ends with the motion (``final_wait: true`` in the YAML; no line
   needed). ``@final-wait off`` (before the first step) makes the graph end as the paper's did,
   the last phrase said straight after the one before it.
+* ``<INTENT>`` right after a wording's words marks what the wording asks of the person, one of
+  :data:`~langenv.speech.intents.INTENTS` (``[Keep going.]<encourage> | [Relax your arm.]<relax>``);
+  the YAML keeps it (``intent:``) and a person who listens responds to it
+  (:mod:`langenv.users.listening`). Only a pause, a filler or the end of the alternative may
+  follow it.
 * ``@leg NAME`` on its own line starts the lines spoken for the exercise's leg ``NAME`` (the
   names in the exercise file): the speech keeps each leg's words in step with that leg of the
   motion. Marks follow the exercise's order, each leg once; when a script has marks, every step
@@ -52,7 +57,6 @@ from __future__ import annotations
 import json
 import os
 import re
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -60,8 +64,10 @@ from pathlib import Path
 import yaml
 
 from langenv.errors import PhraseGraphError, ScriptError
+from langenv.files import temp_file
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.graph import _MAX_PAUSE, DEFAULT_PAUSE, PhraseGraph
+from langenv.speech.intents import INTENTS, intent_problem
 from langenv.speech.repeat import DEFAULT_GAP, MAX_REPEAT
 from langenv.speech.voice import VOICES
 
@@ -72,7 +78,7 @@ _REPEAT_AT_END = re.compile(r"\(\s*repeat\b([^()]*)\)\s*$")
 _REPEAT_RE = re.compile(
     r"\s*(\d+)\s*(?:,?\s*gap\s+([0-9]*\.?[0-9]+)(?:\s*-\s*([0-9]*\.?[0-9]+))?)?\s*$"
 )
-_OPEN = {"[": "]", "{": "}", "(": ")"}
+_OPEN = {"[": "]", "{": "}", "(": ")", "<": ">"}
 _CLOSE = {v: k for k, v in _OPEN.items()}
 
 
@@ -88,6 +94,8 @@ class Vertex:
         line, column: Where the script wrote it (1-based).
         next: Ids of the vertices that may follow.
         leg: The leg whose lines it is in (``@leg``); None in a script without marks.
+        intent: What the wording asks of the person (``<INTENT>``,
+            :data:`~langenv.speech.intents.INTENTS`); None without a mark.
     """
 
     id: str
@@ -98,6 +106,7 @@ class Vertex:
     column: int
     next: list[str] = field(default_factory=list)
     leg: str | None = None
+    intent: str | None = None
 
 
 @dataclass(frozen=True)
@@ -159,6 +168,7 @@ class _Unit:
     column: int
     words: tuple[str, ...] = ()  # phrase: its wordings ("" = left out); filler: the fillers
     bounds: tuple[float, float] | None = None
+    intent: str | None = None  # phrase: the <INTENT> after its words
 
 
 class _Line:
@@ -201,9 +211,10 @@ class _Line:
         units: list[_Unit] = []
         pieces: list[tuple[str, bool]] = []  # (text, optional) of the phrase being read
         piece_col = 0
+        marked = 0  # the column of the <INTENT> that ended the last phrase (0: none since)
         i = 0
 
-        def flush() -> None:
+        def flush(intent: str | None = None) -> None:
             nonlocal pieces
             if pieces:
                 words = _wordings(pieces)
@@ -211,7 +222,8 @@ class _Line:
                     if w and not re.search(r"[^\W\d_]", w):
                         raise self.error(piece_col, f"{w!r} has no words to say")
                 if any(words):
-                    units.append(_Unit("phrase", piece_col, tuple(dict.fromkeys(words))))
+                    units.append(_Unit("phrase", piece_col, tuple(dict.fromkeys(words)), None,
+                                       intent))  # fmt: skip
             pieces = []
 
         while i < len(alt):
@@ -220,6 +232,13 @@ class _Line:
             if ch in _OPEN:
                 end = alt.index(_OPEN[ch], i)
                 inner = alt[i + 1 : end]
+                if ch == "<":
+                    marked = self._intent(col, inner, bool(pieces), marked)
+                    flush(inner.strip())
+                    i = end + 1
+                    continue
+                if ch == "[" and marked:
+                    raise self._after_intent(marked, col)
                 if ch == "[":
                     if not inner.strip():
                         raise self.error(
@@ -230,6 +249,7 @@ class _Line:
                     pieces.append((inner, True))
                 else:
                     flush()
+                    marked = 0
                     units.append(
                         self._pause(col, inner) if ch == "(" else self._fillers(col, inner)
                     )
@@ -239,6 +259,8 @@ class _Line:
             while j < len(alt) and alt[j] not in _OPEN:
                 j += 1
             text = alt[i:j]
+            if text.strip() and marked:
+                raise self._after_intent(marked, column + i + len(text) - len(text.lstrip()))
             if text.strip() and not pieces:
                 piece_col = column + i + (len(text) - len(text.lstrip()))
             if text.strip() or pieces:  # whitespace between two bracketed parts separates them
@@ -246,6 +268,29 @@ class _Line:
             i = j
         flush()
         return units
+
+    def _intent(self, col: int, inner: str, words: bool, marked: int) -> int:
+        """Check the ``<INTENT>`` at ``col`` (after words when ``words``); returns ``col``."""
+        if marked:
+            raise self.error(col, f"a wording carries one intent (it has one at column {marked})")
+        if not words:
+            raise self.error(
+                col, "an intent follows a wording's words, e.g. '[Keep going.]<encourage>'"
+            )
+        name = inner.strip()
+        if not name:
+            raise self.error(col, f"empty '<>': write one intent, one of {', '.join(INTENTS)}")
+        problem = intent_problem(name)
+        if problem:
+            raise self.error(col + 1 + len(inner) - len(inner.lstrip()), problem)
+        return col
+
+    def _after_intent(self, marked: int, col: int) -> ScriptError:
+        return self.error(
+            col,
+            f"words after the intent of column {marked}: an intent ends its wording (only a "
+            "pause, a filler or '|' may follow it)",
+        )
 
     def _pause(self, col: int, inner: str) -> _Unit:
         m = _PAUSE_RE.match(inner.strip())
@@ -308,14 +353,15 @@ class _Builder:
         self.leg: str | None = None  # the leg of the lines being read (the last @leg mark)
 
     def add(self, kind: str, text: str | None, bounds: tuple[float, float] | None, line: int,
-            col: int, parents: list[str]) -> str:  # fmt: skip
+            col: int, parents: list[str], intent: str | None = None) -> str:  # fmt: skip
         base = (
             f"pause_{line}" if kind == "pause" else _slug(text or "", 1 if kind == "filler" else 3)
         )
         vid, k = base, 2
         while vid in self.vertices:
             vid, k = f"{base}_{k}", k + 1
-        self.vertices[vid] = Vertex(vid, kind, text, bounds, line, col, leg=self.leg)
+        self.vertices[vid] = Vertex(vid, kind, text, bounds, line, col, leg=self.leg,
+                                    intent=intent)  # fmt: skip
         for p in parents:
             nxt = self.vertices[p].next
             if vid not in nxt:
@@ -331,7 +377,9 @@ class _Builder:
                     "the speech starts with one wording: the first step must be a single phrase "
                     "(no alternatives, optional words, pauses or fillers before it)",
                 )
-            return [self.add("phrase", unit.words[0], None, line.number, unit.column, [])]
+            return [
+                self.add("phrase", unit.words[0], None, line.number, unit.column, [], unit.intent)
+            ]
         if unit.kind == "pause":
             after = [p for p in frontier if self.vertices[p].kind == "pause"]
             if after:
@@ -344,7 +392,7 @@ class _Builder:
             bounds = unit.bounds
             return [self.add("pause", None, bounds, line.number, unit.column, frontier)]
         made = [
-            self.add(unit.kind, w, None, line.number, unit.column, frontier)
+            self.add(unit.kind, w, None, line.number, unit.column, frontier, unit.intent)
             for w in unit.words
             if w
         ]
@@ -374,7 +422,8 @@ def parse_script(
             follow each other, a script that can end with a pause, a script with no steps; a
             ``@leg`` mark inside a line, without one name, naming a leg twice, a leg ``legs``
             lacks or out of their order, and a step before the first mark of a script with
-            marks.
+            marks; an ``<INTENT>`` not in :data:`~langenv.speech.intents.INTENTS`, empty, not
+            right after a wording's words, a second one, or words after it.
     """
     path = Path(path)
     marks: dict[str, tuple[int, int]] = {}
@@ -613,6 +662,8 @@ def graph_yaml(script: Script, source_name: str) -> str:
             if v.kind == "filler":
                 out.append("    filler: true")
             out.append(f"    text: {json.dumps(v.text, ensure_ascii=False)}")
+            if v.intent is not None:
+                out.append(f"    intent: {v.intent}")
         out.append(f"    next: [{_ids(v.next)}]")
     return "\n".join(out) + "\n"
 
@@ -646,7 +697,8 @@ def author(
     text = graph_yaml(script, script_path.name)
     if not out.parent.is_dir():
         raise ScriptError(f"{out}: directory {out.parent} does not exist")
-    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.stem}.", suffix=".yaml")
+    fd, tmp_path = temp_file(out.parent, prefix=f".{out.stem}.", suffix=".yaml")
+    tmp = str(tmp_path)
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as f:
             f.write(text)

@@ -45,6 +45,7 @@ import numpy as np
 
 from langenv.errors import AudioError, ConfigError, PhraseGraphError
 from langenv.speech.audio import ClipLibrary
+from langenv.speech.intents import intent_problem
 from langenv.speech.legs import add_gates, leg_problems, segment_of, unrolled_legs
 from langenv.speech.repeat import (
     SEP,
@@ -100,7 +101,7 @@ SHIPPED_GRAPHS: Mapping[str, Path] = MappingProxyType(
 ``default`` (also ``lc``, LC's graph), ``study`` (the study's LC graph), ``lc-noap`` and ``ac``."""
 
 _TOP_KEYS = frozenset({"start", "pause", "phrases", "voice", "repeats", "final_wait", "legs"})
-_PHRASE_KEYS = frozenset({"text", "audio", "next", "filler", "pause", "leg"})
+_PHRASE_KEYS = frozenset({"text", "audio", "next", "filler", "pause", "leg", "intent"})
 _MAX_PAUSE = 10.0
 
 
@@ -233,6 +234,8 @@ class PhraseGraph:
             the whole motion as in the paper.
         leg_of: The leg of each of the graph's own vertices (required for all of them when
             ``legs`` is given).
+        intents: The intent (:data:`~langenv.speech.intents.INTENTS`) of those of the graph's
+            own phrases that carry one (:meth:`intent`); fillers and pauses carry none.
 
     The vertices given are the graph's *own*; :attr:`phrases` holds them unrolled (repeats and
     the wait before the last phrase, :mod:`langenv.speech.repeat`), which is what the timeline
@@ -260,6 +263,7 @@ class PhraseGraph:
         final_wait: bool = False,
         legs: Iterable[str] = (),
         leg_of: Mapping[str, str] | None = None,
+        intents: Mapping[str, str] | None = None,
     ) -> None:
         self.path: Path | None = None if path is None else Path(path)
         label = str(self.path) if self.path is not None else "<phrase graph>"
@@ -318,6 +322,8 @@ class PhraseGraph:
         own_legs = dict(leg_of or {})
         if not problems:
             problems += leg_problems(label, table, legs, own_legs)
+        own_intents = dict(intents or {})
+        problems += _intent_problems(label, table, own_intents)
         if problems:
             raise PhraseGraphError("\n".join(problems))
 
@@ -335,6 +341,8 @@ class PhraseGraph:
         """The exercise's legs the script speaks about, in order (empty: an unmarked graph)."""
         self.leg_of: Mapping[str, str] = MappingProxyType(own_legs)
         """The leg of each of the graph's own vertices (empty: an unmarked graph)."""
+        self.intent_of: Mapping[str, str] = MappingProxyType(own_intents)
+        """The intent of each of the graph's own phrases that carries one (:meth:`intent`)."""
         own = {pid: float(duration[pid]) for pid, ph in table.items() if not ph.is_pause}
         table, clip_len, opened = expand(table, own, reps, final_wait, Phrase)
         gates = self._segment(table, reps, own_legs)
@@ -464,14 +472,17 @@ class PhraseGraph:
             raise PhraseGraphError(f"{path}: cannot read phrase graph: {reason}") from None
         import yaml
 
+        from langenv.validation import yaml_text
+
         try:
-            data = yaml.safe_load(source)
+            data = yaml.safe_load(yaml_text(source, path))
         except yaml.YAMLError as exc:
             raise PhraseGraphError(f"{path}: invalid YAML: {exc}") from None
         start, pause, voice, phrases = _parse(path, data)
         assert isinstance(data, dict)
         repeats, problems = parse_repeats(path, data.get("repeats"))
         legs, leg_of = _parse_legs(path, data, problems)
+        intents = _parse_intents(path, data, problems)
         final_wait = data.get("final_wait", False)
         if not isinstance(final_wait, bool):
             problems.append(f"{path}: 'final_wait' must be true or false, got {final_wait!r}")
@@ -509,6 +520,7 @@ class PhraseGraph:
             final_wait=final_wait,
             legs=legs,
             leg_of=leg_of,
+            intents=intents,
         )
 
     def with_voice(self, voice: str) -> PhraseGraph:
@@ -532,6 +544,7 @@ class PhraseGraph:
             final_wait=self.final_wait,
             legs=self.legs,
             leg_of=self.leg_of,
+            intents=self.intent_of,
         )
 
     # ------------------------------------------------------------------ structure
@@ -595,6 +608,18 @@ class PhraseGraph:
             return self._leg[u]
         except KeyError:
             raise PhraseGraphError(f"{self._label}: no phrase {u!r}") from None
+
+    def intent(self, u: str) -> str | None:
+        """The intent (:data:`~langenv.speech.intents.INTENTS`) of the wording ``u`` says: its
+        own vertex's (an unrolled vertex, ``keep_going#3``, inherits it); None for a wording
+        without one, a filler or a pause.
+
+        Raises:
+            PhraseGraphError: naming the graph, for an id it lacks.
+        """
+        if self.kind(u) == "pause":
+            return None
+        return self.intent_of.get(self.origin(u))
 
     def segment(self, u: str) -> int:
         """The segment of ``u`` (:mod:`langenv.speech.legs`; 0 for an unmarked graph)."""
@@ -962,6 +987,37 @@ def _parse_legs(
                 continue
             leg_of[str(pid)] = leg
     return tuple(raw), leg_of
+
+
+def _parse_intents(path: Path, data: dict[str, Any], problems: list[str]) -> dict[str, str]:
+    """Each vertex's ``intent`` (problems appended, naming the file and the vertex)."""
+    intents: dict[str, str] = {}
+    for pid, spec in (data.get("phrases") or {}).items():
+        if isinstance(spec, dict) and "intent" in spec:
+            found = intent_problem(spec["intent"])
+            if found:
+                problems.append(f"{path}: vertex {pid!r}: {found}")
+                continue
+            intents[str(pid)] = spec["intent"]
+    return intents
+
+
+def _intent_problems(
+    label: str, table: Mapping[str, Phrase], intents: Mapping[str, str]
+) -> list[str]:
+    """An intent on a vertex the graph lacks, on a filler or pause, or not in the vocabulary."""
+    problems = []
+    for pid, name in intents.items():
+        ph = table.get(pid)
+        if ph is None:
+            problems.append(f"{label}: intent of {pid!r}: the graph has no such vertex")
+        elif ph.kind != "phrase":
+            problems.append(
+                f"{label}: {ph.kind} {pid!r}: only a phrase carries an intent, got {name!r}"
+            )
+        elif intent_problem(name):
+            problems.append(f"{label}: phrase {pid!r}: {intent_problem(name)}")
+    return problems
 
 
 def _parse_vertex(path: Path, pid: str, spec: object) -> tuple[Phrase | None, list[str]]:

@@ -267,7 +267,9 @@ def leg_plan(
     if unknown:
         raise ConfigError(
             f"{where}: leg {unknown[0]!r} is not a leg of {what} (its legs: "
-            f"{', '.join(leg_names)}); mark the script's lines with the exercise's leg names"
+            f"{', '.join(leg_names)}): speak a script marked with the exercise's legs (its "
+            "script.graph; `langctrl speech author SCRIPT --exercise EXERCISE` writes one) or "
+            "an unmarked graph (`study`)"
         )
     starts = [index[n] for n in names]
     if any(b <= a for a, b in itertools.pairwise(starts)):

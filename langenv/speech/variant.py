@@ -161,6 +161,11 @@ def _variant(
         if (kept := tuple(m for m in r.phrases if m in live))
     ]
     legs = {u: graph.leg_of[u.split("~", 1)[0]] for u in final} if graph.legs else {}
+    intents = {
+        u: graph.intent_of[u.split("~", 1)[0]]
+        for u in final
+        if u.split("~", 1)[0] in graph.intent_of
+    }
     return PhraseGraph(
         final,
         graph.start,
@@ -171,6 +176,7 @@ def _variant(
         final_wait=graph.final_wait,
         legs=graph.legs,
         leg_of=legs,
+        intents=intents,
     )
 
 

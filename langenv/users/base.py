@@ -21,6 +21,7 @@ __all__ = [
     "DEFAULT_DEADBAND",
     "DEFAULT_F_MAX",
     "CallableUser",
+    "Listener",
     "User",
     "UserForceFn",
     "against_motion",
@@ -62,6 +63,27 @@ class User(Protocol):
         Returns:
             Force (3,), N, robot base frame.
         """
+        ...
+
+
+@runtime_checkable
+class Listener(Protocol):
+    """A :class:`User` who listens to the robot: the env tells them what they hear.
+
+    The env calls :meth:`hear` when a wording's last word is heard and, when :attr:`perceives`,
+    :meth:`perceive` at every tick; both come before the force of the next tick.
+    """
+
+    perceives: bool
+    """Whether the person needs the speech's lead (the env computes it only then)."""
+
+    def hear(self, t: float, intent: str | None) -> None:
+        """A wording's last word is heard at ``t`` (s); ``intent`` its intent or None."""
+        ...
+
+    def perceive(self, t: float, lead: float) -> None:
+        """The speech's lead over the motion at ``t``: the speech's progress minus the
+        motion's, in seconds of speech (positive: the speech is ahead)."""
         ...
 
 

@@ -106,8 +106,8 @@ class WorldEnv(gym.Env[np.ndarray, np.ndarray]):
             "exercise": name,
             "user_seed": user_seed,
             "perturbation": self.user.kind,
-            "graph_t_min": graph.t_min(graph.start),
-            "graph_t_max": graph.t_max(graph.start),
+            "graph_t_min": graph.speech_range()[0],
+            "graph_t_max": graph.speech_range()[1],
         }
         return obs, {**info, "world": dict(self.world)}
 

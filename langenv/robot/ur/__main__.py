@@ -90,6 +90,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--yes", action="store_true", help="confirm the move to the start (no prompt)")
     p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace an existing --log-out or --audio-out file (default: refuse)",
+    )
+    p.add_argument(
         "--fake", action="store_true", help="drive the built-in fake UR (a loopback host only)"
     )
     return p
@@ -104,6 +109,8 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     for flag, path in (("--log-out", ns.log_out), ("--audio-out", ns.audio_out)):
         if path is not None and not path.parent.is_dir():
             p.error(f"{flag}: no directory {path.parent}")
+        if path is not None and path.exists() and not ns.overwrite:
+            p.error(f"{flag} {path}: exists; give --overwrite to replace it")
     return ns
 
 
@@ -127,6 +134,10 @@ def run(
 
     config = _config(ns)
     exercise = checked_exercise(ns.exercise)  # before anything connects or moves
+    if not ns.dry_run and ns.audio_out is None:
+        from langenv.live.sinks import check_output_device
+
+        check_output_device(ns.device)  # the sound card too: a session speaks through it
     fake = None
     if ns.fake:
         from langenv.robot.ur.fake_rtde import FakeUR
@@ -202,10 +213,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return run(ns)
     except LangEnvError as exc:
-        print(f"langenv.robot.ur: error: {exc}", file=sys.stderr)
+        print(f"langctrl robot: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("langenv.robot.ur: stopped", file=sys.stderr)
+        print("langctrl robot: stopped", file=sys.stderr)
         return 130
 
 

@@ -76,6 +76,20 @@ def ur_rtde_backend() -> Any:
     )
 
 
+def _no_rtde_answer(host: str, exc: RuntimeError) -> DeviceError:
+    """The error of a host that takes the connection but does not speak RTDE to us (ur-rtde
+    says ``read: End of file`` when it hangs up), in words and with what to check."""
+    why = str(exc).strip() or type(exc).__name__
+    hung_up = "end of file" in why.lower() or "reset by peer" in why.lower()
+    what = "took the connection and closed it" if hung_up else "did not answer as a UR"
+    return DeviceError(
+        f"the robot at {host} does not answer as a UR's RTDE interface: it {what} "
+        f"(ur-rtde: {why}); check that {host} is the robot (or URSim), that its controller is "
+        "started and the robot is in Remote Control, and that no other program holds its "
+        "RTDE connection"
+    )
+
+
 def _probe(host: str, timeout: float) -> None:
     """Open and close a TCP connection to the RTDE port (so a silent host fails in ``timeout``)."""
     with socket.create_connection((host, RTDE_PORT), timeout=timeout):
@@ -120,7 +134,7 @@ class URRobot(RobotContext):
             self._d = lib.DashboardClient(host)
             self._d.connect(round(1000 * config.connect_timeout))
         except RuntimeError as exc:
-            raise DeviceError(f"cannot connect to the robot at {host}: {exc}") from None
+            raise _no_rtde_answer(host, exc) from None
         self._enabled = self._ever_enabled = False
         self._period = config.period
         self._t = self._call(self._c.initPeriod)

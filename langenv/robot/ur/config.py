@@ -153,9 +153,11 @@ def load_ur_config(path: str | Path, **overrides: Any) -> URConfig:
     """
     import yaml
 
+    from langenv.validation import yaml_text
+
     path = Path(path)
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        data = yaml.safe_load(yaml_text(path.read_text(encoding="utf-8"), path))
     except (OSError, yaml.YAMLError) as exc:
         raise ConfigError(f"{path}: cannot read the UR set-up ({exc})") from exc
     data = {} if data is None else data
