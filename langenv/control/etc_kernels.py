@@ -3,11 +3,11 @@ leg, its tables, and the projection).
 
 The parameters and tables of a :class:`~langenv.control.motion_etc.FastETC` are packed in two
 float64 arrays: ``prm`` (:data:`~langenv.control.motion_etc.ETC_PARAMS`, then per leg a row of
-:data:`~langenv.control.motion_etc.ETC_LEG`) and ``tab`` (the tables, flat). :func:`estimate` is
-``FastETC.etc``; :func:`simulate` is the leg law :meth:`langenv.control.motion_etc._Law.simulate`
-(each state runs its own loop of the same discrete update, element by element, the same
-operations as the vectorised NumPy version, so the tables are bit-identical; building them takes
-a fraction of a second instead of seconds).
+:data:`~langenv.control.motion_etc.ETC_LEG`) and ``tab`` (the tables, flat).
+:func:`estimate_parts` is ``FastETC.times`` (``FastETC.etc`` their sum); :func:`simulate` is the
+leg law :meth:`langenv.control.motion_etc._Law.simulate` (each state runs its own loop of the
+same discrete update, element by element, the same operations as the vectorised NumPy version, so
+the tables are bit-identical; building them takes a fraction of a second instead of seconds).
 """
 
 from __future__ import annotations
@@ -23,7 +23,6 @@ from langenv.layout import Field, Layout
 __all__ = [
     "ETC_LEG",
     "ETC_PARAMS",
-    "estimate",
     "estimate_parts",
     "finish",
     "finish_parts",
@@ -261,32 +260,6 @@ def nominal_rest(prm: np.ndarray, tab: np.ndarray, k: int) -> float:
 
 
 @kernel
-def estimate(
-    prm: np.ndarray,
-    tab: np.ndarray,
-    path: np.ndarray,
-    leg: int,
-    s: float,
-    done: bool,
-    x: tuple[float, float, float],
-    v: tuple[float, float, float],
-    c: tuple[float, float, float],
-) -> float:
-    """``FastETC.etc``: the time to complete the exercise from the state (s).
-
-    Args:
-        prm, tab: The packed FastETC.
-        path: The packed trajectory.
-        leg, s, done: The guide state.
-        x: Hand position (m).
-        v: The admittance's reference velocity (m/s).
-        c: The velocity command (m/s).
-    """
-    t_leg, rest = estimate_parts(prm, tab, path, leg, s, done, x, v, c)
-    return t_leg + rest
-
-
-@kernel
 def estimate_parts(
     prm: np.ndarray,
     tab: np.ndarray,
@@ -298,8 +271,18 @@ def estimate_parts(
     v: tuple[float, float, float],
     c: tuple[float, float, float],
 ) -> tuple[float, float]:
-    """:func:`estimate` in two parts: the time to the current leg's switch (once done: the
-    braking time) and the rest of the exercise after it (0 once done) (s)."""
+    """``FastETC.times``: the time to complete the exercise from the state in two parts (s),
+    the time to the current leg's switch (once done: the braking time) and the rest of the
+    exercise after it (0 once done); ``FastETC.etc`` is their sum.
+
+    Args:
+        prm, tab: The packed FastETC.
+        path: The packed trajectory.
+        leg, s, done: The guide state.
+        x: Hand position (m).
+        v: The admittance's reference velocity (m/s).
+        c: The velocity command (m/s).
+    """
     if done:
         return math.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]) * prm[_P.inv_acc], 0.0
     s_end = prm[_LEG0 + _NL * leg + _L.end]

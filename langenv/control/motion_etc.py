@@ -306,7 +306,7 @@ class FastETC:
             _TABLES[key] = tables
         self.prm: np.ndarray = tables[0]
         """The law, the table grids and the legs, packed for
-        :func:`langenv.control.etc_kernels.estimate` (read-only)."""
+        :func:`langenv.control.etc_kernels.estimate_parts` (read-only)."""
         self.tab: np.ndarray = tables[1]
         """The tables, flat (read-only)."""
 
