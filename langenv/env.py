@@ -733,15 +733,15 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             self.time += self.dt
             self._terminated = True
             return 0.0, 0.0
+        hz = self._horizons()  # the motion's, after its tick: for the speech and its ETC
         if not speech.done:
-            hz = self._horizons()
             speech.step(self.dt, a, self._choose, hz, pause_factor=self._pause_factor)
         self.time += self.dt
         if self._ear is not None:
             self._listen(a)
         self._coop_hist[self._coop_i % self._coop_hist.size] = motion.cooperation
         self._coop_i += 1
-        self._update_speech_eta()
+        self._update_speech_eta(hz)
         if speech.done and self.t_speech_end is None:
             end = speech.t_end
             self.t_speech_end = end if end is not None else self.time
@@ -816,10 +816,12 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self._hz = self._legs.horizons(m.t_x, m.t_leg, m.state.leg)
         return self._hz
 
-    def _update_speech_eta(self) -> None:
+    def _update_speech_eta(self, hz: float | Sequence[float] | None = None) -> None:
         """``t_a`` and ``t_h``: the speech's and the motion's times to the end of the horizon
-        segment (the later of the motion's and the speech's plan's; :mod:`langenv.speech.legs`)."""
-        hz = self._horizons()
+        segment (the later of the motion's and the speech's plan's; :mod:`langenv.speech.legs`),
+        from the horizons ``hz`` of this tick (None: computed now)."""
+        if hz is None:
+            hz = self._horizons()
         if isinstance(hz, float):
             self.t_a, self.t_h = self.speech.eta(hz), hz
             return
