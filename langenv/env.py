@@ -33,6 +33,7 @@ from langenv.speech.audio import ClipLibrary
 from langenv.speech.graph import PhraseGraph, graph_path
 from langenv.speech.hearing import Ear
 from langenv.speech.legs import LegPlan, leg_plan
+from langenv.speech.shared import shared_clips, shared_graph
 from langenv.speech.timeline import SpeechTimeline
 from langenv.users import CallableUser, Listener, ListeningUser, ReplayUser, SyntheticUser, User
 
@@ -315,9 +316,9 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
                 raise ConfigError("render_mode needs the simulation: pass robot=None")
             arm = IOArm(robot, acceleration=robot_acceleration)
             self.user = MeasuredUser(arm)
-        self.clips = clips if clips is not None else ClipLibrary()
+        self.clips = clips if clips is not None else shared_clips()
         graph = phrase_graph if phrase_graph is not None else self.exercise.graph
-        self.graph = PhraseGraph.load(graph_path(graph), clips=self.clips)
+        self.graph = shared_graph(graph_path(graph), self.clips)  # one per process: read-only
         self.max_children = max(1, self.graph.max_children)
         if max_children is not None:  # one observation layout for envs of different graphs
             if isinstance(max_children, bool) or not isinstance(max_children, numbers.Integral):

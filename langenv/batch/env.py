@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import functools
 import math
 import os
 from collections.abc import Sequence
@@ -21,7 +20,8 @@ from langenv.errors import ActionError, ConfigError
 from langenv.kernels.views import address
 from langenv.observation import T_SCALE
 from langenv.pacing import COMMAND_MIN
-from langenv.speech.graph import PhraseGraph, graph_path
+from langenv.speech.graph import graph_path
+from langenv.speech.shared import shared_graph
 
 __all__ = ["PARALLEL_MODES", "LangCtrlVectorEnv", "make_vector_env"]
 
@@ -517,10 +517,9 @@ def _max_children(kwargs: dict[str, Any]) -> int:
     return _graph_children(str(graph_path(graph)))
 
 
-@functools.lru_cache(maxsize=64)
 def _graph_children(path: str) -> int:
-    """A graph file's largest out-degree (files read once per process: sessions share them)."""
-    return max(1, PhraseGraph.load(path).max_children)
+    """A graph file's largest out-degree (the graph the sessions share: :func:`shared_graph`)."""
+    return max(1, shared_graph(path).max_children)
 
 
 def _checked_actions(actions: Any, shape: tuple[int, ...]) -> np.ndarray:

@@ -6,6 +6,8 @@
 * :func:`author` (``author.py``): phrase graphs written from plain-text scripts;
   :func:`coverage` (``coverage.py``): the motion durations a graph can end together with;
 * :class:`ClipLibrary` (``audio.py``): phrase audio from recorded files or eSpeak NG, cached;
+  :func:`shared_graph`, :func:`shared_clips` (``shared.py``): one graph and one library for
+  every session of a process;
 * :class:`SpeechTimeline` (``timeline.py``): playback position at audio pace ``a``;
 * :func:`render_speech`, :func:`render_history` (``render.py``): audio of a session's speech
   through the variable-rate phase vocoder (``vocoder.py``);
@@ -17,6 +19,7 @@ from langenv.speech.author import author, parse_script
 from langenv.speech.coverage import coverage
 from langenv.speech.graph import SHIPPED_GRAPHS, Phrase, PhraseGraph, default_graph_path
 from langenv.speech.render import plan_speech, render_history, render_speech
+from langenv.speech.shared import shared_clips, shared_graph
 from langenv.speech.timeline import SpeechTimeline, Utterance
 
 __all__ = [
@@ -33,4 +36,6 @@ __all__ = [
     "plan_speech",
     "render_history",
     "render_speech",
+    "shared_clips",
+    "shared_graph",
 ]
