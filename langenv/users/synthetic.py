@@ -374,6 +374,8 @@ class SyntheticUser:
 
     def __setstate__(self, state: dict[str, object]) -> None:
         self.__dict__.update(state)
+        self.grid.setflags(write=False)  # unpickled arrays are writeable copies
+        self.f_applied.setflags(write=False)
         self._table = float_view(self.f_applied)
 
     def _draw_episodes(self, rng: np.random.Generator) -> tuple[Episode, ...]:
