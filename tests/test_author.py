@@ -195,7 +195,7 @@ def test_author_runs_as_a_module(tmp_path: Path) -> None:
         [
             sys.executable,
             "-m",
-            "langenv.speech",
+            "langctrl.jobs.speech",
             "author",
             str(script),
             "--out",
