@@ -23,11 +23,11 @@ from typing import Any, Literal
 
 import numpy as np
 
-from langenv import observation as ob
+from langenv.control.pacing import PaceLaw, PaceLimits, action_from_command, command_from_action
 from langenv.errors import ConfigError
 from langenv.exercise.spec import GRAPH_ROLES
-from langenv.observation import Obs
-from langenv.pacing import PaceLaw, PaceLimits, action_from_command, command_from_action
+from langenv.task import observation as ob
+from langenv.task.observation import Obs
 from policies.aligner import AlignerGains, audio_command, optimal_paces
 
 __all__ = [
