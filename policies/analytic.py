@@ -413,7 +413,7 @@ def _lc(name: str, **kw: Any) -> Callable[[int | None], LanguageController]:
 
 
 # ``lc-fill``'s settings, tuned on the validation worlds of ``configs/ppo_general.yaml``
-# (shoulder_extension x the 48 validation users, perturbed; docs/history.md, issue 38).
+# (shoulder_extension x the 48 validation users, perturbed; HISTORY.md, issue 38).
 #: The content rule's margin (s).
 FILL_MARGIN = 0.25
 #: How much it trusts the person's pace so far.

@@ -1,5 +1,5 @@
 """:class:`~policies.learned.ResidualLC` for a batch of sessions, compiled: the same features and
-the same actions, bit for bit (``tests/test_residual_kernels.py``), at a fraction of a
+the same actions, bit for bit (``tests/test_train_batched.py``), at a fraction of a
 microsecond per session instead of tens.
 
 The Python class keeps its state in attributes (the base LC's motion-rate estimate, the

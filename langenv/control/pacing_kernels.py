@@ -4,7 +4,7 @@
 :func:`~langenv.control.pacing.action_from_command`) and
 the paper's aligner as a :class:`~langenv.control.pacing.PaceLaw` decides it every tick from the
 observation. The same operations in the same order (``tests/test_pace_law.py``,
-``tests/test_law_kernels.py``)."""
+``tests/test_compiled_steps.py``)."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """The safety layer compiled (:mod:`langenv.robot.safety`): the command limits
 (:func:`~langenv.robot.safety.limit_velocity`) and the monitor's checks
 (:meth:`SafetyMonitor.check <langenv.robot.safety.SafetyMonitor.check>`), the same operations in the
-same order (``tests/test_law_kernels.py``, ``tests/test_compiled_tick.py``)."""
+same order (``tests/test_compiled_tick.py``)."""
 
 from __future__ import annotations
 
