@@ -312,7 +312,7 @@ class _SubprocVecEnv(SubprocVecEnv):
     float64), so that the two give the same run."""
 
     def __init__(self, env_fns: list[Any], start_method: str | None = None) -> None:
-        from langenv.warm import warm_up
+        from langenv.batch.warm import warm_up
 
         warm_up()  # compiled here once, before the workers start (they would compile together)
         super().__init__([_IgnoreSigint(fn) for fn in env_fns], start_method)
