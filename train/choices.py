@@ -29,7 +29,7 @@ Reward, once, when the episode ends (weights are keyword arguments; each term in
 
 The final step's ``info`` also holds the metrics themselves (``content_share``,
 ``voice_natural``, ``legs_in_step``, ``sm_max_abs``, ``em_mean_abs``, ``am``), which the
-periodic evaluation of :mod:`train.ppo` records.
+periodic evaluation of :mod:`train.ppo` records (:mod:`train.callbacks`).
 """
 
 from __future__ import annotations

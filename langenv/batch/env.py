@@ -18,6 +18,7 @@ from langenv.batch import kernels as bk
 from langenv.control.pacing import COMMAND_MIN
 from langenv.env import CHOICE_OCTAVES, LangCtrlEnv
 from langenv.errors import ActionError, ConfigError
+from langenv.kernels.cores import usable_cores
 from langenv.kernels.views import address
 from langenv.speech.graph import graph_path
 from langenv.speech.shared import shared_graph
@@ -162,7 +163,7 @@ class LangCtrlVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         self.autoreset_mode = mode
         self.max_episode_steps = None if max_episode_steps is None else int(max_episode_steps)
         self.parallel = parallel
-        cores = _cpu_cores()
+        cores = usable_cores()
         self.threads = max(1, min(int(threads) if threads else cores, cores))
         self._pool = (
             ThreadPoolExecutor(self.threads - 1)
@@ -475,13 +476,6 @@ def make_vector_env(num_envs: int = 1, **kwargs: Any) -> LangCtrlVectorEnv:
 
 
 # ---------------------------------------------------------------------------------- helpers
-def _cpu_cores() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
-
-
 def _session_kwargs(
     n: int, env_kwargs: dict[str, Any], session_kwargs: Sequence[dict[str, Any]] | None
 ) -> list[dict[str, Any]]:
