@@ -23,12 +23,18 @@ from typing import Any, Literal
 
 import numpy as np
 
-from langenv.control.pacing import PaceLaw, PaceLimits, action_from_command, command_from_action
+from langenv.control.pacing import (
+    AlignerGains,
+    PaceLaw,
+    PaceLimits,
+    action_from_command,
+    aligner_commands,
+    command_from_action,
+)
 from langenv.errors import ConfigError
 from langenv.exercise.spec import GRAPH_ROLES
 from langenv.task import observation as ob
 from langenv.task.observation import Obs
-from policies.aligner import AlignerGains, audio_command, optimal_paces
 
 __all__ = [
     "ANALYTIC",
@@ -315,11 +321,10 @@ class LanguageController:
         t_x = max(0.0, ob.seconds(values, Obs.T_X))
         t_a = max(0.0, ob.seconds(values, Obs.T_A))
         c = ob.fraction(values, Obs.COOPERATION)
-        p_star, a_star = optimal_paces(t_x, t_a)
-        a_cmd = audio_command(a_star, c, self.gains)
         motion_done = ob.flag(values, Obs.MOTION_DONE)
-        if self.k_em > 0.0 and not motion_done:
-            p_star -= min(self.em_clip, max(-self.em_clip, self.k_em * (t_a - t_x)))
+        p_star, a_cmd = aligner_commands(
+            t_x, t_a, c, self.gains, self.k_em, self.em_clip, not motion_done
+        )
         phase = self.phase(values)
         if phase == "terminal":
             p_star = 1.0

@@ -166,8 +166,8 @@ def test_fast_etc_validation(guide: Guide, adm: VariableAdmittance) -> None:
 
 
 def _ramp_end_one_halving_at_a_time(prm: np.ndarray, u0: float, w0: float) -> tuple[float, float]:
-    """``langenv.control.etc_kernels.ramp_end`` as first written: one bisection halving per step."""
-    from langenv.control import etc_kernels as ek
+    """``langenv.control.motion_etc_kernels.ramp_end`` as first written: one bisection halving per step."""
+    from langenv.control import motion_etc_kernels as ek
 
     ui, tau, acc = (
         float(prm[ek.ETC_PARAMS.at.u_inf]),
@@ -216,7 +216,7 @@ def test_ramp_end_two_halvings_a_round_is_the_plain_bisection(
 ) -> None:
     """The compiled ramp end (two halvings per round, evaluated side by side) returns the plain
     bisection's bracket end to the bit, the near-equal ``u0 = w0`` branch included."""
-    from langenv.control import etc_kernels as ek
+    from langenv.control import motion_etc_kernels as ek
 
     prm = ek.ETC_PARAMS.zeros()
     prm[ek.ETC_PARAMS.at.u_inf], prm[ek.ETC_PARAMS.at.tau], prm[ek.ETC_PARAMS.at.acc] = (
@@ -230,7 +230,7 @@ def test_ramp_end_two_halvings_a_round_is_the_plain_bisection(
 
 def test_ramp_end_stops_after_sixty_halvings_like_the_plain_bisection() -> None:
     """A bracket that never gets under 1 us (a huge one) ends after 60 halvings either way."""
-    from langenv.control import etc_kernels as ek
+    from langenv.control import motion_etc_kernels as ek
 
     prm = ek.ETC_PARAMS.zeros()
     prm[ek.ETC_PARAMS.at.u_inf], prm[ek.ETC_PARAMS.at.tau], prm[ek.ETC_PARAMS.at.acc] = (

@@ -31,12 +31,12 @@ from typing import Any
 import numpy as np
 
 from langenv.control import etc_cache
-from langenv.control import etc_kernels as etc_kernel
+from langenv.control import motion_etc_kernels as etc_kernel
 from langenv.control.admittance import VariableAdmittance
 from langenv.control.command import follow
-from langenv.control.etc_kernels import ETC_LEG, ETC_PARAMS
-from langenv.control.etc_kernels import simulate as simulate_law
 from langenv.control.guide import Guide, GuideState
+from langenv.control.motion_etc_kernels import ETC_LEG, ETC_PARAMS
+from langenv.control.motion_etc_kernels import simulate as simulate_law
 from langenv.errors import ConfigError
 
 __all__ = ["DT", "FastETC", "reference_etc"]
@@ -138,7 +138,7 @@ class _Law:
         lateral: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
         t_max: float = 60.0,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`simulate_numpy`, compiled (:func:`langenv.control.etc_kernels.simulate`): the
+        """:meth:`simulate_numpy`, compiled (:func:`langenv.control.motion_etc_kernels.simulate`): the
         same results."""
         q, u, w, y, ul, wl = _leg_states(q, u, w, lateral)
         out = np.empty((4, q.size))
@@ -306,7 +306,7 @@ class FastETC:
             _TABLES[key] = tables
         self.prm: np.ndarray = tables[0]
         """The law, the table grids and the legs, packed for
-        :func:`langenv.control.etc_kernels.estimate_parts` (read-only)."""
+        :func:`langenv.control.motion_etc_kernels.estimate_parts` (read-only)."""
         self.tab: np.ndarray = tables[1]
         """The tables, flat (read-only)."""
 
@@ -316,7 +316,7 @@ class FastETC:
         origin: tuple[float, ...],
         steps: tuple[float, ...],
     ) -> np.ndarray:
-        """``prm`` of :mod:`langenv.control.etc_kernels`: :data:`ETC_PARAMS`, then a row of
+        """``prm`` of :mod:`langenv.control.motion_etc_kernels`: :data:`ETC_PARAMS`, then a row of
         :data:`ETC_LEG` per leg."""
         law = self._law
         size = behind_shape[0] * behind_shape[1] * behind_shape[2]
