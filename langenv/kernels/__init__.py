@@ -51,6 +51,7 @@ COMPILED = (
     "users/noise_kernels.py",
     "users/table_kernels.py",
     "speech/legs_kernels.py",
+    "speech/choice_kernels.py",
     "speech/graph_kernels.py",
     "robot/safety_kernels.py",
     "control/pacing_kernels.py",

@@ -29,8 +29,8 @@ from langenv.control.command import COMMAND_SETTINGS, COMMAND_STATE
 from langenv.control.command_kernels import cap_speed, follow
 from langenv.control.cooperation import COOPERATION_SETTINGS, COOPERATION_STATE
 from langenv.control.cooperation_kernels import update as cooperation_update
-from langenv.control.motion_etc_kernels import estimate_parts
 from langenv.control.guide import GUIDE_SETTINGS, GUIDE_STATE, LEG
+from langenv.control.motion_etc_kernels import estimate_parts
 from langenv.control.trajectory_kernels import locate, point
 from langenv.kernels import inline, kernel, mjc
 from langenv.kernels.blas import mul_mat_vec
