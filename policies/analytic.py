@@ -23,12 +23,19 @@ from typing import Any, Literal
 
 import numpy as np
 
-from langenv.control.pacing import PaceLaw, PaceLimits, action_from_command, command_from_action
+from langenv.control.pacing import (
+    AlignerGains,
+    PaceLaw,
+    PaceLimits,
+    action_from_command,
+    aligner_commands,
+    command_from_action,
+)
 from langenv.errors import ConfigError
 from langenv.exercise.spec import GRAPH_ROLES
+from langenv.speech.choice import choice_action
 from langenv.task import observation as ob
 from langenv.task.observation import Obs
-from policies.aligner import AlignerGains, audio_command, optimal_paces
 
 __all__ = [
     "ANALYTIC",
@@ -42,8 +49,6 @@ __all__ = [
 RATE_TAU = 0.04
 #: Lowest motion rate the terminal phase plans with (a stalled hand must not ask for a = 0).
 RATE_FLOOR = 0.3
-#: Octaves of the env's target-duration action per unit (``langenv.env``: target ``t_x 2^{2u}``).
-_CHOICE_OCTAVES = 2.0
 #: A rise of the observed ``t_x`` by more than this in one observation (s) is a new horizon: the
 #: speech of a script marked with legs (:mod:`langenv.speech.legs`) is aligned with the motion's
 #: time to the end of the current leg, which starts again at each leg.
@@ -90,8 +95,7 @@ def fill_choice(observation: ob.ObsValues, margin: float, horizon: float | None 
     paper = min(range(len(kids)), key=lambda i: (abs(t_x - kids[i][1]), i))
     if kids[best][1] == kids[paper][1]:
         return 0.0  # the paper's rule says it (or a child of the same middle length)
-    u = math.log2(max(kids[best][1], 1e-3) / t_x) / _CHOICE_OCTAVES
-    return min(1.0, max(-1.0, u))
+    return choice_action(max(kids[best][1], 1e-3) / t_x)
 
 
 def _valid_children(observation: ob.ObsValues) -> int:
@@ -315,11 +319,10 @@ class LanguageController:
         t_x = max(0.0, ob.seconds(values, Obs.T_X))
         t_a = max(0.0, ob.seconds(values, Obs.T_A))
         c = ob.fraction(values, Obs.COOPERATION)
-        p_star, a_star = optimal_paces(t_x, t_a)
-        a_cmd = audio_command(a_star, c, self.gains)
         motion_done = ob.flag(values, Obs.MOTION_DONE)
-        if self.k_em > 0.0 and not motion_done:
-            p_star -= min(self.em_clip, max(-self.em_clip, self.k_em * (t_a - t_x)))
+        p_star, a_cmd = aligner_commands(
+            t_x, t_a, c, self.gains, self.k_em, self.em_clip, not motion_done
+        )
         phase = self.phase(values)
         if phase == "terminal":
             p_star = 1.0
@@ -340,8 +343,7 @@ class LanguageController:
             return fill_choice(values, self.fill_margin, self._fill_horizon(t_x, now))
         if self.pause_scale != 1.0 and ob.flag(values, Obs.IN_PAUSE):
             if _valid_children(values) >= 2:
-                u = math.log2(self.pause_scale) / _CHOICE_OCTAVES
-                return min(1.0, max(-1.0, u))
+                return choice_action(self.pause_scale)
         return 0.0
 
     def track(self, t_x: float, now: float) -> None:

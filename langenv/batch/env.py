@@ -16,10 +16,11 @@ from gymnasium.vector.utils import batch_space
 from langenv import env_kernels as ek
 from langenv.batch import kernels as bk
 from langenv.control.pacing import COMMAND_MIN
-from langenv.env import CHOICE_OCTAVES, LangCtrlEnv
+from langenv.env import LangCtrlEnv
 from langenv.errors import ActionError, ConfigError
 from langenv.kernels.cores import usable_cores
 from langenv.kernels.views import address
+from langenv.speech.choice import duration_factor
 from langenv.speech.graph import graph_path
 from langenv.speech.shared import shared_graph
 from langenv.task.observation import T_SCALE
@@ -324,7 +325,7 @@ class LangCtrlVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         if target:
             col = act[:, 2].tolist()
             for i in np.flatnonzero(compiled).tolist():
-                pause[i] = 2.0 ** (CHOICE_OCTAVES * col[i])  # as LangCtrlEnv.take_choice
+                pause[i] = duration_factor(col[i])  # as LangCtrlEnv.take_choice
         bk.begin(self._sessions, ctl, act, pause, self._ticks, COMMAND_MIN)
         while True:
             self._run_round()

@@ -1,8 +1,8 @@
 """Speech: phrase graphs, phrase audio, the variable-rate phase vocoder and the speech timeline.
 
 * :class:`PhraseGraph` (``graph.py``): the YAML phrase DAG of phrases, fillers and pauses,
-  validated, with ``t_min``/``t_max``, the paper's choice rule, the pause rule and the speech ETC
-  ``t_a``; :data:`SHIPPED_GRAPHS` names the shipped graphs;
+  validated, with ``t_min``/``t_max``, the pause rule and the speech ETC ``t_a``;
+  :data:`SHIPPED_GRAPHS` names the shipped graphs; the paper's choice rule (``choice.py``);
 * :func:`author` (``author.py``): phrase graphs written from plain-text scripts;
   :func:`coverage` (``coverage.py``): the motion durations a graph can end together with;
 * :class:`ClipLibrary` (``audio.py``): phrase audio from recorded files or eSpeak NG, cached;

@@ -45,6 +45,7 @@ import numpy as np
 
 from langenv.errors import AudioError, ConfigError, PhraseGraphError
 from langenv.speech.audio import ClipLibrary
+from langenv.speech.choice import nearest
 from langenv.speech.intents import intent_problem
 from langenv.speech.legs import add_gates, leg_problems, segment_of, unrolled_legs
 from langenv.speech.repeat import (
@@ -682,7 +683,13 @@ class PhraseGraph:
         kids = self.children(u)
         if not kids:
             raise PhraseGraphError(f"{self._label}: phrase {u!r} is terminal: nothing to choose")
-        return _nearest(kids, self._mid, t_x)
+        return nearest(kids, self._mid, t_x)
+
+    def nearest(self, kids: Sequence[str], x: float) -> str:
+        """The choice rule among ``kids`` (phrases of this graph, non-empty): the first whose
+        middle length ``(t_min + t_max)/2`` is nearest ``x`` (s) (:meth:`choose` with ``x``
+        for ``t_x``; :func:`langenv.speech.choice.nearest`)."""
+        return nearest(kids, self._mid, x)
 
     def eta(
         self,
@@ -723,7 +730,7 @@ class PhraseGraph:
                 break
             if j != cur:  # entering a segment: the motion's time to its end, less the speech so far
                 cur, left = j, hz[j] - total
-            v = _nearest(kids, mid, left)
+            v = nearest(kids, mid, left)
             length = slot[v] if lo[v] == hi[v] else self._fill(v, left)
             total += length
             left -= length
@@ -775,7 +782,7 @@ class PhraseGraph:
         rest = 0.0
         kids = children[v]
         while kids:
-            w = _nearest(kids, mid, y)
+            w = nearest(kids, mid, y)
             rest += slot[w]
             y -= slot[w]
             kids = children[w]
@@ -910,18 +917,6 @@ class PhraseGraph:
             best = pick(table[v] for v in kids)
             path.append(next(v for v in kids if table[v] == best))
         return tuple(path)
-
-
-def _nearest(kids: tuple[str, ...], mid: Mapping[str, float], x: float) -> str:
-    """The paper's choice: the first of ``kids`` (non-empty) whose ``mid`` is nearest ``x``
-    (mirrored, comparison for comparison, by :func:`langenv.speech.graph_kernels.nearest`)."""
-    best = kids[0]
-    best_err = abs(x - mid[best])
-    for v in kids[1:]:
-        err = abs(x - mid[v])
-        if err < best_err:
-            best, best_err = v, err
-    return best
 
 
 def _is_number(x: object) -> bool:
