@@ -14,11 +14,7 @@ path deviation seen (over all steps, and over steps not ended by a stop), and vi
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
-import sys
-import time
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -208,22 +204,3 @@ def fuzz(episodes: int, seconds: float = 60.0, first_seed: int = 0) -> FuzzResul
         fuzz_episode(first_seed + k, result, seconds=seconds)
     return result
 
-
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m bench.safety", description=__doc__)
-    parser.add_argument("--episodes", type=int, default=88)
-    parser.add_argument("--seconds", type=float, default=60.0, help="episode length (s)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the first episode")
-    args = parser.parse_args(argv)
-    if args.episodes < 1 or not args.seconds > 0:
-        parser.error("--episodes must be >= 1 and --seconds > 0")
-    t0 = time.perf_counter()
-    result = fuzz(args.episodes, args.seconds, args.seed)
-    out = result.as_dict()
-    out["wall_s"] = round(time.perf_counter() - t0, 1)
-    print(json.dumps(out))
-    return 1 if result.violations else 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

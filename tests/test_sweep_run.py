@@ -213,7 +213,7 @@ def test_resume_refuses_another_sweep_and_a_taken_dir(tmp_path: Path) -> None:
         )
     finally:
         store.close()
-    assert proc.returncode == 1 and "another eval.sweep is running" in proc.stderr, proc.stderr
+    assert proc.returncode == 1 and "another langctrl sweep is running" in proc.stderr, proc.stderr
 
 
 def test_expansion_matches_the_rows(reference: list[dict[str, Any]], tmp_path: Path) -> None:
