@@ -33,7 +33,7 @@ __all__ = [
 ]
 
 #: The options only this module adds (``tests/test_architecture.py`` checks it).
-COMMON_OPTIONS = ("--workers", "--seed", "--users", "--listening", "--exercise", "--out")
+COMMON_OPTIONS = ("--workers", "--seed", "--users", "--listening", "--out", "--overwrite")
 
 
 def _parent() -> argparse.ArgumentParser:
@@ -88,15 +88,18 @@ def workers() -> argparse.ArgumentParser:
 
 
 def seed(
-    default: int = 0, of: str = "the first simulated user (user i: SEED + i)"
+    default: int | None = 0,
+    of: str = "the first simulated user (user i: SEED + i)",
+    otherwise: str = "%(default)s",
 ) -> argparse.ArgumentParser:
-    """``--seed``: the seed ``of`` what the job seeds, ``default`` unless given."""
+    """``--seed``: the seed ``of`` what the job seeds, ``default`` unless given (``otherwise``
+    says what that is where it is not a number: None, for the job to find)."""
     p = _parent()
     p.add_argument(
         "--seed",
         type=non_negative_int,
         default=default,
-        help=f"seed of {of}, >= 0 (default: %(default)s)",
+        help=f"seed of {of}, >= 0 (default: {otherwise})",
     )
     return p
 

@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from eval.compare import main, policy_names
+from eval.compare import policy_names
+from langctrl.jobs.compare import main
 
 ROOT = Path(__file__).resolve().parents[1]
 SESSIONS = ROOT.parent / "shared" / "sessions"
@@ -82,7 +83,7 @@ def test_bad_phrase_graph_and_bad_session(
 
 def test_cli_entry_point_help() -> None:
     res = subprocess.run(
-        [sys.executable, "-m", "eval.compare", "--help"],
+        [sys.executable, "-m", "langctrl", "compare", "--help"],
         capture_output=True,
         text=True,
         check=False,

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from eval.exercises import main
+from langctrl.jobs.exercises import main
 
 
 @pytest.mark.slow

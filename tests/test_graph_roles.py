@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 import langenv
-from eval.compare import main
 from eval.episode import EpisodeLog
 from eval.report import mixed_graph_policies
 from eval.verdict import verdict_table
+from langctrl.jobs.compare import main
 from langenv.errors import ConfigError, GraphChoicesError
 from langenv.exercise import resolve_exercise
 from langenv.exercise.script import (

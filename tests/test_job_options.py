@@ -2,10 +2,10 @@
 
 ``tests/data/job_options.json`` was written from the parsers as they stood before the move (the
 jobs' parsers inside ``eval``, ``train``, ``bench`` and ``langenv``): for each job, each of its
-parsers (subcommands included, keyed by their words after the job's name) and, in order, the
-option strings of each argument (a positional as ``<dest>``), compared in any order. A job may not lose, gain or rename
-an option by the move, nor change which words it takes. Write the file again (after a deliberate
-change of an option) with::
+parsers (subcommands included, keyed by their words after the job's name) and the option
+strings of each argument (a positional as ``<dest>``), compared in any order (the shared options
+come first now). A job may not lose, gain or rename an option by the move, nor change which
+words it takes. Write the file again (after a deliberate change of an option) with::
 
     PYTHONPATH=. python -m tests.test_job_options --write
 """
@@ -13,19 +13,18 @@ change of an option) with::
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
 import sys
 from pathlib import Path
-
-import pytest
 
 from langctrl.cli import COMMANDS, load
 
 FROZEN = Path(__file__).resolve().parent / "data" / "job_options.json"
 
 
-def _parsers(parser: argparse.ArgumentParser, words: str = "") -> dict[str, argparse.ArgumentParser]:
+def _parsers(
+    parser: argparse.ArgumentParser, words: str = ""
+) -> dict[str, argparse.ArgumentParser]:
     found = {words: parser}
     for action in parser._actions:
         if isinstance(action, argparse._SubParsersAction):
@@ -51,7 +50,7 @@ def test_every_job_takes_the_options_it_took() -> None:
     frozen = json.loads(FROZEN.read_text(encoding="utf-8"))
     now = job_options()
     assert sorted(set(frozen) - set(now)) == [], "jobs gone"
-    for name, table in frozen.items():  # in any order: the shared options come first now
+    for name, table in frozen.items():
         assert {k: sorted(v) for k, v in now[name].items()} == {
             k: sorted(v) for k, v in table.items()
         }, name

@@ -10,10 +10,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from eval.compare import main as compare_main
-from eval.fidelity import main as fidelity_main
 from eval.listening import LAGS, Trace, fit_follow, lead_statistic, trace_from_session
 from eval.users import parse_users
+from langctrl.jobs.compare import main as compare_main
+from langctrl.jobs.fidelity import main as fidelity_main
 from langenv.users import ListeningParams, ListeningUser
 
 SESSIONS = Path(__file__).parents[2] / "shared" / "sessions"
