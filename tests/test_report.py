@@ -11,13 +11,13 @@ import pytest
 
 from eval.metrics import METRIC_COLUMNS, NUMERIC_METRICS
 from eval.report import (
-    main,
     read_sessions_csv,
     render_summary_md,
     study_findings,
     write_sessions_csv,
     write_summary_md,
 )
+from langctrl.jobs.report import main
 from langenv.errors import ConfigError, SessionDataError
 
 POLICIES = ("ac", "lc-noap", "lc")
