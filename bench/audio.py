@@ -3,7 +3,7 @@
 ``measure_audio_rtf`` renders speech-like audio at 22.05 kHz through
 :class:`langenv.speech.vocoder.VariableRateVocoder` the way the session renderer does (content
 pushed once, 512-sample pulls, the pace changing every pull) and returns the seconds of audio
-rendered per second of wall time. ``python -m bench.audio`` prints it.
+rendered per second of wall time. ``langctrl bench-audio`` prints it.
 """
 
 from __future__ import annotations

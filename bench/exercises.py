@@ -1,4 +1,4 @@
-"""``python -m bench.exercises [--json]``: what an exercise costs to load, check and follow.
+"""``langctrl bench-exercises [--json]``: what an exercise costs to load, check and follow.
 
 | key | meaning |
 |---|---|

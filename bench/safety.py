@@ -1,4 +1,4 @@
-"""``python -m bench.safety``: fuzz the safety layer with adversarial users and print the figures.
+"""``langctrl bench-safety``: fuzz the safety layer with adversarial users and print the figures.
 
 Each episode draws a policy (LC, AC or random actions) and an adversarial user (seeded from the
 episode's seed): a person pushing up to 200 N in random, sideways, along-path or along-velocity
@@ -9,7 +9,7 @@ speed stays within the speed limit (+5 %) and its distance from the path within 
 limit (+1 cm). Prints one JSON object: episodes, steps, stops by limit, the highest hand speed and
 path deviation seen (over all steps, and over steps not ended by a stop), and violations.
 
-    python -m bench.safety --episodes 88 --seconds 60
+    langctrl bench-safety --episodes 88 --seconds 60
 """
 
 from __future__ import annotations

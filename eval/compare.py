@@ -2,8 +2,8 @@
 
 Run, for instance::
 
-    python -m eval.compare --policies ac,lc-noap,lc --users synthetic:12 --seed 0 --out out/compare
-    python -m eval.compare --policies lc,ppo:models/ppo_aligner.zip \
+    langctrl compare --policies ac,lc-noap,lc --users synthetic:12 --seed 0 --out out/compare
+    langctrl compare --policies lc,ppo:models/ppo_aligner.zip \
         --sessions ../shared/sessions --pattern '*_lc.csv' --out out/replay
 
 Writes (only when every episode ran; nothing partial is left on error). The outputs are made in
@@ -73,7 +73,7 @@ __all__ = [
 
 @dataclass(frozen=True)
 class CompareArgs:
-    """Arguments of ``python -m eval.compare``.
+    """Arguments of ``langctrl compare``.
 
     Attributes:
         policies: Comma-separated policies: ``ac``, ``lc-noap``, ``lc``, ``lc-em``, ``lc-end``,
@@ -259,7 +259,7 @@ def _spoken_graphs(names: list[str], labels: dict[str, str], args: CompareArgs) 
             if widened is not None:
                 line += (
                     f"; the model reads {widened} choices and the graph has "
-                    f"{spoken[spec].max_children}: widened as python -m train.widen does (the "
+                    f"{spoken[spec].max_children}: widened as langctrl widen does (the "
                     "extra choices' inputs unseen)"
                 )
             print(line, file=sys.stderr)

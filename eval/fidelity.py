@@ -474,7 +474,7 @@ def render_markdown(
         "# Fidelity: the simulation against the study's recordings",
         "",
         f"{n_pass} of {len(checks)} checks pass. Recorded sessions are replayed under the "
-        "controller that recorded them (`python -m eval.fidelity`; definitions in its docstring).",
+        "controller that recorded them (`langctrl fidelity`; definitions in its docstring).",
         "",
         "## Checks",
         "",

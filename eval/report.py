@@ -6,7 +6,7 @@ every metric, percentile-bootstrap 95 % intervals for the differences against th
 each with its measured value and PASS/FAIL. Every file is written atomically (to a temporary file
 in the same directory, then renamed), so an error never leaves a partial file behind.
 
-Regenerate a summary from a saved table with ``python -m eval.report DIR/sessions.csv``.
+Regenerate a summary from a saved table with ``langctrl report DIR/sessions.csv``.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Session videos: the arm guiding the hand, what it says, and the robot's voice as the sound track.
 
-``python -m eval.video LOG.npz --out X.mp4`` renders one from an episode log written by
-``python -m eval.compare`` (``sessions/<policy>_<user>.npz``); ``eval.compare --video`` writes one
+``langctrl video LOG.npz --out X.mp4`` renders one from an episode log written by
+``langctrl compare`` (``sessions/<policy>_<user>.npz``); ``langctrl compare --video`` writes one
 per episode. Each frame shows:
 
 * the off-screen render of the arm (MuJoCo) with the exercise path and the person's force on the

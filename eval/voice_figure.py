@@ -2,8 +2,8 @@
 
 Run::
 
-    python -m eval.compare --policies lc --users synthetic:12 --seed 0 --out out/main
-    python -m eval.voice_figure out/main/sessions/lc_s3.npz --out natural_voice.png
+    langctrl compare --policies lc --users synthetic:12 --seed 0 --out out/main
+    langctrl voice-figure out/main/sessions/lc_s3.npz --out natural_voice.png
 
 The top panel shows the session's speech pace ``a`` and the person's cooperation ``c``; below,
 the speech rendered with the paper's stretched voice and with the natural voice

@@ -1,4 +1,4 @@
-"""`python -m bench --json`: a smoke run of the cheap sections and the nominal figures."""
+"""`langctrl bench --json`: a smoke run of the cheap sections and the nominal figures."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""``python -m eval.compare``: a tiny end-to-end run, and bad arguments that must write nothing."""
+"""``langctrl compare``: a tiny end-to-end run, and bad arguments that must write nothing."""
 
 from __future__ import annotations
 
@@ -171,7 +171,7 @@ def test_video_flag_writes_a_video_per_episode_with_the_wav_as_sound(
 def test_existing_out_is_refused_and_its_files_kept(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """The issue's repro: eval.compare --out DIR on a directory with a user's file in it."""
+    """The issue's repro: langctrl compare --out DIR on a directory with a user's file in it."""
     out = tmp_path / "v"
     out.mkdir()
     (out / "a.txt").write_text("keep")

@@ -1,4 +1,4 @@
-"""Smoke run of ``python -m eval.exercises`` on two exercises and one user."""
+"""Smoke run of ``langctrl exercises`` on two exercises and one user."""
 
 from __future__ import annotations
 

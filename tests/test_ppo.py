@@ -1,4 +1,4 @@
-"""Smoke test of the training script (python -m train.ppo) and its config handling."""
+"""Smoke test of the training script (langctrl train) and its config handling."""
 
 from __future__ import annotations
 

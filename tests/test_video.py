@@ -98,7 +98,7 @@ def test_session_video_has_both_streams_in_sync(tmp_path: Path, offscreen_gl: No
     out = tmp_path / "lc_s3.mp4"
     assert main([str(npz), "--out", str(out), "--fps", str(FPS)]) == 0
 
-    wav, sr = session_audio(log)  # what eval.compare writes as the session's WAV
+    wav, sr = session_audio(log)  # what langctrl compare writes as the session's WAV
     got = decode(out)
     assert got["video"] == "h264" and got["audio"] == "aac" and got["pix_fmt"] == "yuv420p"
     assert got["fps"] == FPS and got["size"] == FRAME_SIZE

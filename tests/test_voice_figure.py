@@ -1,4 +1,4 @@
-"""Smoke run of ``python -m eval.voice_figure`` on one LC session."""
+"""Smoke run of ``langctrl voice-figure`` on one LC session."""
 
 from __future__ import annotations
 

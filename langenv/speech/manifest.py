@@ -8,8 +8,8 @@ number of samples of its clip and a SHA-256 of them, with the engine version and
 they were made with; :func:`compare` names every phrase whose clip differs, so such a change
 fails loudly (``tests/test_tts_manifest.py``) instead of shifting results quietly.
 
-    python -m langenv.speech.manifest            # compare fresh clips with the manifest
-    python -m langenv.speech.manifest --write    # pin the current clips (after a deliberate change)
+    langctrl tts-manifest            # compare fresh clips with the manifest
+    langctrl tts-manifest --write    # pin the current clips (after a deliberate change)
 
 Both synthesise into an empty temporary cache, so the comparison is with what a new machine
 makes, never with clips an old cache holds.
