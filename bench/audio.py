@@ -124,4 +124,3 @@ def measure_audio_rtf(
         produced, wall = render(y)
         best = max(best, produced / SR / wall)
     return best
-

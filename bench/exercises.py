@@ -98,4 +98,3 @@ def measure_checks() -> dict[str, float]:
             else:
                 os.environ["LANGCTRL_ETC_CACHE"] = old
     return out
-

@@ -331,4 +331,3 @@ SECTIONS: dict[str, Callable[[], dict[str, float]]] = {
     "live": measure_live,
     "sweep": measure_sweep,
 }
-

@@ -203,4 +203,3 @@ def fuzz(episodes: int, seconds: float = 60.0, first_seed: int = 0) -> FuzzResul
     for k in range(episodes):
         fuzz_episode(first_seed + k, result, seconds=seconds)
     return result
-

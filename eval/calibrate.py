@@ -407,4 +407,3 @@ def write_params(params: SyntheticUserParams, path: Path, provenance: str) -> No
     tmp = path.with_suffix(path.suffix + ".tmp")
     tmp.write_text(header + text)
     tmp.replace(path)
-

@@ -179,4 +179,3 @@ def verdict(rows: list[dict[str, Any]]) -> list[str]:
         if by.get((ex, "LC"), math.inf) >= by.get((ex, "AC"), -math.inf):
             bad.append(f"{ex}: LC's median |AM| is not below AC's")
     return bad
-

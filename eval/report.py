@@ -540,4 +540,3 @@ def write_summary_md(
         figure=figure,
     )
     return atomic_write(path, text)
-

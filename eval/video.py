@@ -518,4 +518,3 @@ def _mux_audio(box: Any, stream: Any, track: np.ndarray, sr: int) -> None:
             box.mux(packet)
     for packet in stream.encode():
         box.mux(packet)
-

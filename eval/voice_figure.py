@@ -53,4 +53,3 @@ def voice_figure(log: EpisodeLog, out: Path) -> Path:
     fig.savefig(out, dpi=110)
     plt.close(fig)
     return out
-

@@ -79,7 +79,6 @@ class ExportArgs:
     terminal: float | None = None
 
 
-
 def export(args: ExportArgs) -> Path:
     """Export the checkpoint; returns the model zip.
 
@@ -388,4 +387,3 @@ def best_steps(run: Path, name: str) -> EvalScore:
     best = min(eligible, key=lambda e: (e.score, e.steps))
     print(f"chosen: {best.steps} steps (score {best.score:.3f} s)", file=sys.stderr)
     return best
-

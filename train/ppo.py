@@ -93,7 +93,6 @@ from train.resume import (
 __all__ = ["train"]
 
 
-
 def train(args: TrainArgs, given: set[str] | None = None) -> Path:
     """Train (or resume) a run; returns the final model zip.
 
@@ -248,5 +247,3 @@ def _learn(run: Run, model: Any, eval_env: Any, config: dict[str, Any], steps: i
     save_triple(model, None, final, config)
     print(f"wrote {final}.zip ({model.num_timesteps} steps, {wall:.0f} s)", file=sys.stderr)
     return final.with_suffix(".zip")
-
-

@@ -128,4 +128,3 @@ def _widen_normalizer(src: Path, space: Any, actions: Any, at: int, n: int) -> A
     norm.observation_space = space
     norm.set_venv(DummyVecEnv([Spaces]))
     return norm
-

@@ -96,4 +96,3 @@ def load(path: Path = MANIFEST_PATH) -> dict[str, Any]:
     """The pinned manifest."""
     data: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
     return data
-
