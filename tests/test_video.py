@@ -174,7 +174,7 @@ def test_log_round_trip_keeps_scene_and_graph(tmp_path: Path) -> None:
 
 def test_default_frame_rate_is_25() -> None:
     from eval.video import DEFAULT_FPS
-    from langctrl.jobs.video import parse_args
+    from langctrl.jobs.video import build_parser
 
     assert DEFAULT_FPS == 25
-    assert parse_args(["x.npz", "--out", "x.mp4"]).fps == 25
+    assert build_parser().parse_args(["x.npz", "--out", "x.mp4"]).fps == 25
