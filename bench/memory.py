@@ -17,7 +17,6 @@ import platform
 import resource
 import subprocess
 import sys
-from typing import Any
 
 __all__ = ["heap_growth", "machine", "measure_memory", "one_batch", "peak_rss_mib"]
 

@@ -37,13 +37,21 @@ __all__ = ["USERS", "cpu_scaling", "measure_sweep"]
 USERS = 32
 
 
-def _run(spec: Path, out: Path, *args: str) -> dict[str, float]:
-    from eval.sweep.__main__ import main
+def _run(spec: Path, out: Path, backend: str, workers: int) -> dict[str, float]:
+    """One sweep of ``spec`` into ``out`` (``langctrl sweep SPEC --out OUT --no-summary
+    --backend B --workers W``'s arguments); its timing row."""
+    from argparse import Namespace
 
+    from eval.sweep.driver import run_sweep
+
+    ns = Namespace(
+        spec=spec, out=out, workers=workers, backend=backend, address="local", resume=False,
+        retry_failed=False, only=[], batch_size=None, no_summary=True,
+    )  # fmt: skip
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
-        code = main([str(spec), "--out", str(out), "--no-summary", *args])
+        code = run_sweep(ns)
     if code != 0:
-        raise RuntimeError(f"eval.sweep exited with {code}")
+        raise RuntimeError(f"langctrl sweep exited with {code}")
     return json.loads((out / "runs.jsonl").read_text().splitlines()[-1])
 
 
@@ -83,8 +91,8 @@ def measure_sweep(users: int = USERS) -> dict[str, float]:
     with tempfile.TemporaryDirectory() as tmp:
         spec = Path(tmp) / "bench.yaml"
         spec.write_text(f"grid: {{policy: [ac, lc-noap, lc]}}\nusers: {{synthetic: {users}}}\n")
-        one = _run(spec, Path(tmp) / "p1", "--backend", "processes", "--workers", "1")
-        two = _run(spec, Path(tmp) / "p2", "--backend", "processes", "--workers", "2")
+        one = _run(spec, Path(tmp) / "p1", "processes", 1)
+        two = _run(spec, Path(tmp) / "p2", "processes", 2)
         figures["sweep_sps_1"] = one["sessions_per_s"]
         figures["sweep_sps_2"] = two["sessions_per_s"]
         figures["sweep_scaling"] = two["sessions_per_s"] / one["sessions_per_s"]
@@ -99,7 +107,7 @@ def measure_sweep(users: int = USERS) -> dict[str, float]:
             runs = [two]
             for k, backend in enumerate(("ray", "processes", "ray")):
                 out = Path(tmp) / f"ab{k}"
-                runs.append(_run(spec, out, "--backend", backend, "--workers", "2"))
+                runs.append(_run(spec, out, backend, 2))
             procs, rays = runs[0::2], runs[1::2]
 
             def mean(rs: list[dict[str, float]], key: str) -> float:

@@ -23,7 +23,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--sessions", default="8,128", help="sizes, comma-separated (default: %(default)s)"
     )
-    p.add_argument("--one", type=int, metavar="N", help=argparse.SUPPRESS)
+    p.add_argument(
+        "--one",
+        type=int,
+        metavar="N",
+        help="N sessions in this process, its figures as JSON (what --sessions runs in fresh "
+        "processes; default: off)",
+    )
     p.add_argument(
         "--heap", type=int, metavar="N", help="heap growth by line for N sessions (default: off)"
     )
