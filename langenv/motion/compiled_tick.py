@@ -4,7 +4,8 @@ the parts' declarations, and the calls.
 :class:`CompiledTick` packs the guided arm's work array (:data:`~langenv.motion.tick_kernels.TICK`:
 each part's settings by the names it declares, :meth:`GuidedArm.tick_settings
 <langenv.motion.tick.GuidedArm.tick_settings>`; then the legs and the joints' bounds) and the arm
-controller's (:meth:`Arm.compiled_arrays <langenv.robot.arm.Arm.compiled_arrays>`), runs a tick
+controller's (:meth:`Arm.compiled_arrays <langenv.robot.arm.Arm.compiled_arrays>`), keeps the
+row of the tick's arrays' addresses (:data:`~langenv.motion.tick_kernels.TICK_ARRAYS`), runs a tick
 as one compiled call (:func:`langenv.motion.tick_kernels.tick`: the control law, MuJoCo's
 ``mj_step2``/``mj_step1``/``mj_jacSite`` through :mod:`langenv.kernels.mjc`, the observation),
 and lets the guided arm take back the state its Python objects expose after each tick
