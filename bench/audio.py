@@ -3,12 +3,11 @@
 ``measure_audio_rtf`` renders speech-like audio at 22.05 kHz through
 :class:`langenv.speech.vocoder.VariableRateVocoder` the way the session renderer does (content
 pushed once, 512-sample pulls, the pace changing every pull) and returns the seconds of audio
-rendered per second of wall time. ``python -m bench.audio`` prints it.
+rendered per second of wall time. ``langctrl bench-audio`` prints it.
 """
 
 from __future__ import annotations
 
-import argparse
 import time
 from typing import Literal
 
@@ -125,17 +124,3 @@ def measure_audio_rtf(
         produced, wall = render(y)
         best = max(best, produced / SR / wall)
     return best
-
-
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seconds", type=float, default=20.0)
-    parser.add_argument("--block", type=int, default=512)
-    parser.add_argument("--source", choices=["synthetic", "tts"], default="synthetic")
-    args = parser.parse_args()
-    rtf = measure_audio_rtf(args.seconds, block=args.block, source=args.source)
-    print(f"audio_rtf {rtf:.1f} (block {args.block}, {args.source}, {args.seconds:g} s)")
-
-
-if __name__ == "__main__":
-    main()

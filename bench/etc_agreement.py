@@ -2,7 +2,7 @@
 
 :func:`etc_agreement` samples states from virtual runs (the nominal one, and runs with a random
 smooth pace and a random resisting user) and compares the fast estimate with
-:func:`~langenv.control.motion_etc.reference_etc` at each; ``python -m bench`` reports it as
+:func:`~langenv.control.motion_etc.reference_etc` at each; ``langctrl bench`` reports it as
 ``etc_rel_err`` and ``etc_us``.
 """
 

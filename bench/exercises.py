@@ -1,4 +1,4 @@
-"""``python -m bench.exercises [--json]``: what an exercise costs to load, check and follow.
+"""``langctrl bench-exercises [--json]``: what an exercise costs to load, check and follow.
 
 | key | meaning |
 |---|---|
@@ -10,8 +10,6 @@
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
 import os
 import tempfile
@@ -100,21 +98,3 @@ def measure_checks() -> dict[str, float]:
             else:
                 os.environ["LANGCTRL_ETC_CACHE"] = old
     return out
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Print the figures (a table, or JSON with ``--json``)."""
-    p = argparse.ArgumentParser(prog="python -m bench.exercises", description=__doc__)
-    p.add_argument("--json", action="store_true")
-    ns = p.parse_args(argv)
-    figures = {**measure_tick(), **measure_checks()}
-    if ns.json:
-        print(json.dumps(figures, indent=2))
-    else:
-        for key, value in figures.items():
-            print(f"{key:36s} {value:10.4f}")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

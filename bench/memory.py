@@ -1,6 +1,6 @@
-"""What a session of the batched env costs in memory: ``python -m bench.memory [--sessions 8,128]``.
+"""What a session of the batched env costs in memory: ``langctrl bench-memory [--sessions 8,128]``.
 
-Each size runs in a fresh process (``python -m bench.memory --one N``): ``gym.make_vec(
+Each size runs in a fresh process (``langctrl bench-memory --one N``): ``gym.make_vec(
 "LangCtrl-v0", num_envs=N)``, a reset and 50 steps with a fixed action, then its peak resident
 memory (``resource.getrusage``'s ``ru_maxrss``). A session's cost is the slope between the
 smallest and the largest size, ``(RSS(N_max) - RSS(N_min)) / (N_max - N_min)``: what the
@@ -11,7 +11,6 @@ process holds whatever the size (imports, compiled code, the shared caches) canc
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import platform
@@ -20,7 +19,7 @@ import subprocess
 import sys
 from typing import Any
 
-__all__ = ["measure_memory", "peak_rss_mib"]
+__all__ = ["heap_growth", "machine", "measure_memory", "one_batch", "peak_rss_mib"]
 
 _STEPS = 50
 
@@ -46,13 +45,13 @@ def _run_batch(n: int, steps: int = _STEPS) -> None:
     envs.close()
 
 
-def _one(n: int) -> dict[str, float]:
+def one_batch(n: int) -> dict[str, float]:
     """In this process: ``n`` sessions built, reset and stepped; the peak RSS."""
     _run_batch(n)
     return {"sessions": float(n), "peak_rss_mib": peak_rss_mib()}
 
 
-def _heap(n: int, top: int = 25) -> None:
+def heap_growth(n: int, top: int = 25) -> None:
     """Print the ``top`` places of the heap's growth from 1 session to ``n`` (tracemalloc)."""
     import tracemalloc
 
@@ -76,12 +75,11 @@ def _heap(n: int, top: int = 25) -> None:
     first.close()
 
 
-def _machine() -> str:
+def machine() -> str:
     """The machine the figures come from (a benchmark says where it ran)."""
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        cores = os.cpu_count() or 1
+    from langenv.kernels.cores import usable_cores
+
+    cores = usable_cores()
     return (
         f"{platform.machine()} {platform.processor() or platform.system()}, {cores} cores, "
         f"Python {platform.python_version()}, load {os.getloadavg()[0]:.2f}"
@@ -99,7 +97,7 @@ def measure_memory(sessions: tuple[int, ...] = (8, 128)) -> dict[str, float]:
         raise ValueError(f"two sizes at least, got {sessions}")
     out: dict[str, float] = {}
     for n in sizes:
-        cmd = [sys.executable, "-m", "bench.memory", "--one", str(n)]
+        cmd = [sys.executable, "-m", "langctrl", "bench-memory", "--one", str(n)]
         done = subprocess.run(cmd, capture_output=True, text=True, check=True)
         out[f"batch_rss_{n}_mib"] = json.loads(done.stdout.strip().splitlines()[-1])["peak_rss_mib"]
     lo, hi = sizes[0], sizes[-1]
@@ -107,27 +105,3 @@ def measure_memory(sessions: tuple[int, ...] = (8, 128)) -> dict[str, float]:
         hi - lo
     )
     return out
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Entry point; returns the exit status."""
-    parser = argparse.ArgumentParser(prog="python -m bench.memory", description=__doc__)
-    parser.add_argument("--sessions", default="8,128", help="sizes, comma-separated")
-    parser.add_argument("--one", type=int, metavar="N", help=argparse.SUPPRESS)
-    parser.add_argument("--heap", type=int, metavar="N", help="heap growth by line for N sessions")
-    args = parser.parse_args(argv)
-    if args.one is not None:
-        print(json.dumps(_one(args.one)))
-        return 0
-    if args.heap is not None:
-        _heap(args.heap)
-        return 0
-    sizes = tuple(int(s) for s in args.sessions.split(",") if s.strip())
-    figures: dict[str, Any] = measure_memory(sizes)
-    print(json.dumps({k: round(v, 2) for k, v in figures.items()}))
-    print(f"machine: {_machine()}", file=sys.stderr)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

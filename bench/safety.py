@@ -1,4 +1,4 @@
-"""``python -m bench.safety``: fuzz the safety layer with adversarial users and print the figures.
+"""``langctrl bench-safety``: fuzz the safety layer with adversarial users and print the figures.
 
 Each episode draws a policy (LC, AC or random actions) and an adversarial user (seeded from the
 episode's seed): a person pushing up to 200 N in random, sideways, along-path or along-velocity
@@ -9,16 +9,12 @@ speed stays within the speed limit (+5 %) and its distance from the path within 
 limit (+1 cm). Prints one JSON object: episodes, steps, stops by limit, the highest hand speed and
 path deviation seen (over all steps, and over steps not ended by a stop), and violations.
 
-    python -m bench.safety --episodes 88 --seconds 60
+    langctrl bench-safety --episodes 88 --seconds 60
 """
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
-import sys
-import time
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -207,23 +203,3 @@ def fuzz(episodes: int, seconds: float = 60.0, first_seed: int = 0) -> FuzzResul
     for k in range(episodes):
         fuzz_episode(first_seed + k, result, seconds=seconds)
     return result
-
-
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m bench.safety", description=__doc__)
-    parser.add_argument("--episodes", type=int, default=88)
-    parser.add_argument("--seconds", type=float, default=60.0, help="episode length (s)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the first episode")
-    args = parser.parse_args(argv)
-    if args.episodes < 1 or not args.seconds > 0:
-        parser.error("--episodes must be >= 1 and --seconds > 0")
-    t0 = time.perf_counter()
-    result = fuzz(args.episodes, args.seconds, args.seed)
-    out = result.as_dict()
-    out["wall_s"] = round(time.perf_counter() - t0, 1)
-    print(json.dumps(out))
-    return 1 if result.violations else 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,8 +1,8 @@
 """Sweep throughput: sessions per second with 1 and 2 local workers, and Ray's cost per session
-against the process backend (``python -m bench --only sweep``).
+against the process backend (``langctrl bench --only sweep``).
 
 One small sweep (AC, LC-noAP and LC on :data:`USERS` synthetic users) runs through
-``python -m eval.sweep``'s own code: the process backend with 1 worker and with 2, then Ray
+``langctrl sweep``'s own code: the process backend with 1 worker and with 2, then Ray
 (``--address local``) with 2, the process backend with 2 again and Ray again (the Ray figures
 are means of its two runs against the means of the two process runs around them). Each figure
 is the wall time of running the sessions as the driver records it in ``runs.jsonl`` (batches

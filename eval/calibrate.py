@@ -2,8 +2,8 @@
 
 Run::
 
-    python -m eval.calibrate --sessions ../shared/sessions            # fit and show
-    python -m eval.calibrate --sessions ../shared/sessions --write    # ... and store them
+    langctrl calibrate --sessions ../shared/sessions            # fit and show
+    langctrl calibrate --sessions ../shared/sessions --write    # ... and store them
 
 The procedure (its result is ``langenv/assets/users/synthetic.yaml``, which
 :meth:`~langenv.users.SyntheticUserParams.calibrated` loads):
@@ -33,16 +33,14 @@ The procedure (its result is ``langenv/assets/users/synthetic.yaml``, which
 
 The same users run under every controller, while the study's users resisted longer under AC than
 under LC (recorded medians 15.3 / 14.2 / 12.5 s), so the fit balances the controllers rather than
-matching each (``python -m eval.fidelity --users synthetic:N`` checks the result).
+matching each (``langctrl fidelity --users synthetic:N`` checks the result).
 """
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import itertools
 import math
-import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -53,17 +51,14 @@ import numpy as np
 from langenv.errors import ConfigError
 from langenv.users import LogNormal, Session, SyntheticUserParams, invert_cooperation
 from langenv.users.base import DEFAULT_ALPHA, DEFAULT_F_MAX
-from langenv.users.synthetic import CALIBRATED_YAML
 
 __all__ = [
     "STRUCTURE",
     "ClosedLoopScore",
     "EpisodeStats",
-    "build_parser",
     "closed_loop_fit",
     "extract_episodes",
     "fit_params",
-    "main",
     "round_params",
     "score",
     "structured",
@@ -412,122 +407,3 @@ def write_params(params: SyntheticUserParams, path: Path, provenance: str) -> No
     tmp = path.with_suffix(path.suffix + ".tmp")
     tmp.write_text(header + text)
     tmp.replace(path)
-
-
-def _floats(text: str) -> list[float]:
-    try:
-        values = [float(x) for x in text.split(",") if x.strip()]
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected comma-separated numbers, got {text!r}"
-        ) from None
-    if not values or any(not (math.isfinite(v) and v > 0.0) for v in values):
-        raise argparse.ArgumentTypeError(f"expected positive numbers, got {text!r}")
-    return values
-
-
-def build_parser() -> argparse.ArgumentParser:
-    """The command line of ``langctrl calibrate`` (``python -m eval.calibrate``)."""
-    parser = argparse.ArgumentParser(
-        prog="langctrl calibrate",
-        description=__doc__.split("\n\n")[0] + " Also run as python -m eval.calibrate.",
-    )
-    parser.add_argument(
-        "--sessions",
-        type=Path,
-        required=True,
-        metavar="DIR",
-        help="directory of the recorded session CSVs (required)",
-    )
-    parser.add_argument(
-        "--users",
-        type=int,
-        default=48,
-        metavar="N",
-        help="synthetic users per candidate (default: %(default)s)",
-    )
-    parser.add_argument(
-        "--seed",
-        type=int,
-        default=1000,
-        help="first calibration seed, >= 1000 (default: %(default)s)",
-    )
-    parser.add_argument(
-        "--workers",
-        type=int,
-        default=2,
-        metavar="N",
-        help="parallel episode processes (default: %(default)s)",
-    )
-    parser.add_argument(
-        "--duration",
-        type=_floats,
-        default=[4.5, 4.75, 5.0],
-        metavar="LIST",
-        help="candidate medians of a resistance episode's duration, s, comma-separated "
-        "(default: 4.5,4.75,5.0)",
-    )
-    parser.add_argument(
-        "--magnitude",
-        type=_floats,
-        default=[8.5, 9.0],
-        metavar="LIST",
-        help="candidate medians of a resistance episode's force, N, comma-separated "
-        "(default: 8.5,9.0)",
-    )
-    parser.add_argument(
-        "--write",
-        action="store_true",
-        help="store the result in langenv/assets/users/synthetic.yaml",
-    )
-    return parser
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Command line: the direct fit, the closed-loop fit, and (``--write``) the stored file."""
-    from langenv.errors import SessionDataError
-    from langenv.users import load_sessions
-
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    if args.users < 1 or args.seed < 1000:
-        parser.error("--users must be >= 1 and --seed >= 1000 (calibration seeds)")
-    try:
-        sessions = load_sessions(args.sessions, "*.csv")
-        direct, episodes = fit_params(sessions)
-    except (SessionDataError, ConfigError) as exc:
-        print(f"langctrl calibrate: error: {exc}", file=sys.stderr)
-        return 2
-    print(f"{len(sessions)} sessions, {len(episodes)} resistance episodes")
-    print(f"direct fit: {round_params(direct)}")
-    print(f"closed loop ({args.users} users, seeds {args.seed}-{args.seed + args.users - 1}):")
-    best, tried = closed_loop_fit(
-        sessions,
-        direct,
-        durations=args.duration,
-        magnitudes=args.magnitude,
-        n_users=args.users,
-        seed=args.seed,
-        workers=args.workers,
-    )
-    dur, mag, sc = min(tried, key=lambda row: row[2].loss)
-    print(f"best: duration {dur:g} s, magnitude {mag:g} N: {sc.line()}")
-    print(f"parameters: {best}")
-    if args.write:
-        grid = f"--duration {','.join(map(str, args.duration))} " + (
-            f"--magnitude {','.join(map(str, args.magnitude))}"
-        )
-        provenance = (
-            "Synthetic users calibrated against the study's recorded sessions (24 sessions).\n"
-            f"Written by: python -m eval.calibrate --sessions DIR --users {args.users} "
-            f"--seed {args.seed} {grid} --write\n"
-            f"Closed loop of the chosen medians (duration {dur:g} s, magnitude {mag:g} N): "
-            f"{sc.line()}"
-        )
-        write_params(best, CALIBRATED_YAML, provenance)
-        print(f"wrote {CALIBRATED_YAML}")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -2,8 +2,8 @@
 
 Run, for instance::
 
-    python -m eval.compare --policies ac,lc-noap,lc --users synthetic:12 --seed 0 --out out/compare
-    python -m eval.compare --policies lc,ppo:models/ppo_aligner.zip \
+    langctrl compare --policies ac,lc-noap,lc --users synthetic:12 --seed 0 --out out/compare
+    langctrl compare --policies lc,ppo:models/ppo_aligner.zip \
         --sessions ../shared/sessions --pattern '*_lc.csv' --out out/replay
 
 Writes (only when every episode ran; nothing partial is left on error). The outputs are made in
@@ -39,13 +39,11 @@ while LC chooses among many is the paper's comparison, not a mixed one.
 
 from __future__ import annotations
 
-import argparse
 import functools
 import json
 import multiprocessing
 import shutil
 import sys
-import time
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field
@@ -63,18 +61,19 @@ __all__ = [
     "TEXT_COLUMNS",
     "CompareArgs",
     "Job",
-    "build_parser",
-    "main",
-    "parse_args",
+    "UsageError",
+    "policy_names",
     "policy_role",
+    "run_compare",
     "run_episode",
     "run_jobs",
+    "split_graphs",
 ]
 
 
 @dataclass(frozen=True)
 class CompareArgs:
-    """Arguments of ``python -m eval.compare``.
+    """Arguments of ``langctrl compare``.
 
     Attributes:
         policies: Comma-separated policies: ``ac``, ``lc-noap``, ``lc``, ``lc-em``, ``lc-end``,
@@ -161,160 +160,7 @@ class UsageError(Exception):
     """Bad command-line arguments (reported without a traceback, exit code 2)."""
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The command line of ``langctrl compare`` (``python -m eval.compare``)."""
-    from langenv.live.registry import registered_policies
-
-    p = argparse.ArgumentParser(
-        prog="langctrl compare",
-        description="Compare aligners (AC, LC-noAP, LC, learned) on simulated or recorded users: "
-        "the study's evaluation. Also run as python -m eval.compare.",
-    )
-    p.add_argument(
-        "--policies",
-        default=CompareArgs.policies,
-        metavar="LIST",
-        help=f"comma-separated policies: {', '.join(registered_policies())} (ppo:PATH: a learned "
-        "model) (default: %(default)s)",
-    )
-    p.add_argument(
-        "--users",
-        default=None,
-        metavar="synthetic:N",
-        help="synthetic:N: N seeded synthetic users, user i with seed SEED + i; listening:N: the "
-        "same people listening to what the robot says (default: synthetic:12 unless --sessions "
-        "is given)",
-    )
-    p.add_argument(
-        "--listening",
-        default=None,
-        metavar="KEY=VALUE,...",
-        help="the listening people's parameters (langenv.users.ListeningParams, e.g. "
-        "latency=1.2,comply=0.4), with --users listening:N (default: its defaults)",
-    )
-    p.add_argument(
-        "--sessions",
-        type=Path,
-        default=None,
-        metavar="DIR",
-        help="directory of recorded session CSVs (columns t in s, cooperation) to replay, one "
-        "episode each, instead of --users (default: none)",
-    )
-    p.add_argument(
-        "--pattern",
-        default="*.csv",
-        metavar="GLOB",
-        help="glob of the session CSVs in --sessions (default: %(default)s)",
-    )
-    p.add_argument(
-        "--seed",
-        type=int,
-        default=0,
-        help="seed of the first synthetic user and of the bootstrap, >= 0 (default: %(default)s)",
-    )
-    p.add_argument(
-        "--out", type=Path, required=True, metavar="DIR", help="output directory (required)"
-    )
-    p.add_argument(
-        "--overwrite",
-        action="store_true",
-        help="replace the outputs of an earlier run in a non-empty --out (other files stay)",
-    )
-    p.add_argument(
-        "--workers",
-        type=int,
-        default=usable_cores(),
-        metavar="N",
-        help="parallel episode processes, >= 1 (default: one per usable CPU core)",
-    )
-    p.add_argument("--no-audio", action="store_true", help="skip WAV rendering")
-    p.add_argument("--no-figures", action="store_true", help="skip per-session figures")
-    p.add_argument(
-        "--video",
-        action="store_true",
-        help="also write each session's video (MP4: the arm, traces, captions, the speech)",
-    )
-    p.add_argument(
-        "--decision-hz",
-        type=int,
-        default=None,
-        metavar="HZ",
-        help="every policy's decision rate, Hz, a divisor of 500 (default: each policy's own)",
-    )
-    p.add_argument(
-        "--graph",
-        "--phrase-graph",
-        dest="phrase_graph",
-        action="append",
-        default=None,
-        metavar="[POLICY=]GRAPH",
-        help="phrase graph for the policies that choose phrases (lc and its variants, ppo): a "
-        "YAML file or a shipped graph ('study' is the study's graph); POLICY=GRAPH for one of "
-        "them only (repeatable) (default: the exercise's script; AC and LC-noAP always say its "
-        "one wording)",
-    )
-    p.add_argument(
-        "--allow-mixed-graphs",
-        action="store_true",
-        help="compare phrase-choosing policies that speak different graphs (marked in the "
-        "tables; default: refused)",
-    )
-    p.add_argument(
-        "--exercise",
-        default=None,
-        metavar="NAME|FILE",
-        help="exercise: a shipped name (langctrl exercise list) or a YAML path "
-        "(default: the study's external_rotation)",
-    )
-    p.add_argument(
-        "--stat",
-        choices=("median", "mean"),
-        default="median",
-        help="statistic of the differences against LC in summary.md (default: %(default)s)",
-    )
-    return p
-
-
-def parse_args(argv: Sequence[str] | None = None) -> CompareArgs:
-    """Parse the command line into :class:`CompareArgs`."""
-    p = build_parser()
-    ns = p.parse_args(argv)
-    if ns.users is not None and ns.sessions is not None:
-        p.error("give either --users or --sessions, not both")
-    users = ns.users if ns.sessions is None else None
-    if users is None and ns.sessions is None:
-        users = "synthetic:12"
-    if ns.workers < 1:
-        p.error(f"--workers must be >= 1, got {ns.workers}")
-    if ns.seed < 0:
-        p.error(f"--seed must be >= 0, got {ns.seed}")
-    try:
-        graph, policy_graphs = _split_graphs(ns.phrase_graph or [], ns.policies)
-    except UsageError as exc:
-        p.error(str(exc))
-    return CompareArgs(
-        policies=ns.policies,
-        users=users,
-        sessions=ns.sessions,
-        pattern=ns.pattern,
-        seed=ns.seed,
-        out=ns.out,
-        workers=ns.workers,
-        audio=not ns.no_audio,
-        figures=not ns.no_figures,
-        decision_hz=ns.decision_hz,
-        phrase_graph=graph,
-        stat=ns.stat,
-        video=ns.video,
-        overwrite=ns.overwrite,
-        exercise=ns.exercise,
-        policy_graphs=policy_graphs,
-        listening=ns.listening,
-        allow_mixed_graphs=ns.allow_mixed_graphs,
-    )
-
-
-def _split_graphs(
+def split_graphs(
     values: Sequence[str], policies: str
 ) -> tuple[str | None, tuple[tuple[str, str], ...]]:
     """``--graph`` values as (the graph for every phrase-choosing policy, ``(spec, graph)`` for
@@ -413,7 +259,7 @@ def _spoken_graphs(names: list[str], labels: dict[str, str], args: CompareArgs) 
             if widened is not None:
                 line += (
                     f"; the model reads {widened} choices and the graph has "
-                    f"{spoken[spec].max_children}: widened as python -m train.widen does (the "
+                    f"{spoken[spec].max_children}: widened as langctrl widen does (the "
                     "extra choices' inputs unseen)"
                 )
             print(line, file=sys.stderr)
@@ -681,27 +527,31 @@ def _graph_ref(graph: str | Path) -> str:
     return str(graph) if str(graph) in SHIPPED_GRAPHS else str(Path(graph).resolve())
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point; returns the process exit code."""
-    args = parse_args(argv)
-    t0 = time.perf_counter()
-    try:
-        out = args.out.resolve()
-        _check_out(out, args.overwrite)
-        names = _check_policies(args.policies)
-        _check_options(args)
-        labels = policy_names(names)
-        _spoken_graphs(names, labels, args)
-        if args.video:
-            _check_video()
-        users = _users(args)
-        if args.listening is not None and args.sessions is not None:
-            raise UsageError("--listening sets listening people: give --users listening:N")
-        person = _user_spec(args).model() if args.sessions is None else None
-        tmp = _make_tmp(out)
-    except UsageError as exc:
-        print(f"langctrl compare: error: {exc}", file=sys.stderr)
-        return 2
+def run_compare(args: CompareArgs) -> tuple[Path, list[str], int]:
+    """Check ``args``, run every episode and write the outputs into ``args.out``.
+
+    Returns:
+        The output directory (resolved), the policies' names in the tables and the number of
+        episodes.
+
+    Raises:
+        UsageError: bad arguments, found before any episode ran (nothing written).
+        OutTaken: ``out`` was taken while the episodes ran; the message says where the
+            outputs are.
+    """
+    out = args.out.resolve()
+    _check_out(out, args.overwrite)
+    names = _check_policies(args.policies)
+    _check_options(args)
+    labels = policy_names(names)
+    _spoken_graphs(names, labels, args)
+    if args.video:
+        _check_video()
+    users = _users(args)
+    if args.listening is not None and args.sessions is not None:
+        raise UsageError("--listening sets listening people: give --users listening:N")
+    person = _user_spec(args).model() if args.sessions is None else None
+    tmp = _make_tmp(out)
     try:
         (tmp / "sessions").mkdir()
         own = dict(args.policy_graphs)
@@ -730,35 +580,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         (tmp / "config.json").write_text(json.dumps(cfg, indent=2) + "\n")
         move_into_place(tmp, out, args.overwrite)
     except OutTaken as exc:
-        print(f"langctrl compare: error: {exc}; the outputs are in {tmp}", file=sys.stderr)
-        return 1
+        raise OutTaken(f"{exc}; the outputs are in {tmp}") from None
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     shutil.rmtree(tmp, ignore_errors=True)  # emptied by a move entry by entry
-    _print_verdict(out, list(labels.values()), args)
-    print(f"wrote {out} ({len(rows)} episodes in {time.perf_counter() - t0:.1f} s)")
-    return 0
-
-
-def _print_verdict(out: Path, labels: list[str], args: CompareArgs) -> None:
-    """The verdict on the terminal, read back from the ``sessions.csv`` just written."""
-    from eval.report import read_sessions_csv
-    from eval.verdict import print_verdict
-
-    rows = read_sessions_csv(out / "sessions.csv")
-    kinds = ["npz"]
-    kinds += ["png"] if args.figures else []
-    kinds += ["wav"] if args.audio else []
-    kinds += ["mp4"] if args.video else []
-    files = [
-        ("sessions.csv", "one row per episode"),
-        ("summary.md", "medians [IQR], intervals of the differences, the findings"),
-        ("summary.png", "distributions per policy (violins)"),
-        ("sessions/", "per episode <policy>_<user>: " + ", ".join(kinds)),
-    ]
-    present = {str(r["policy"]) for r in rows}
-    print_verdict(rows, [n for n in labels if n in present], out, files)
+    return out, list(labels.values()), len(rows)
 
 
 def run_jobs(jobs: list[Job], workers: int) -> list[dict[str, Any]]:
@@ -923,7 +750,3 @@ def _make_tmp(out: Path) -> Path:
         return make_tmp_dir(out)
     except OSError as exc:
         raise UsageError(f"--out {out}: cannot write there ({exc.strerror or exc})") from None
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -2,9 +2,9 @@
 
 Run::
 
-    langctrl exercises --out out/exercises        # python -m eval.exercises, 48 users each
+    langctrl exercises --out out/exercises        # 48 users each
 
-runs ``python -m eval.compare --exercise NAME --policies ac,lc-noap,lc`` for each shipped exercise
+runs ``langctrl compare --exercise NAME --policies ac,lc-noap,lc`` for each shipped exercise
 (into ``OUT/NAME``, figures and WAVs as usual), then reads the runs back and prints, per exercise
 and controller, the medians of motion time, ``|AM|``, mean ``|EM|``, the share of speech time with
 ``|a - 1| <= 0.1`` and with the voice heard within 0.1 of its natural rate, the protective stops,
@@ -19,16 +19,22 @@ in a protective stop or left the path by more than the safety's ``max_deviation`
 
 from __future__ import annotations
 
-import argparse
 import math
-import sys
-from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-__all__ = ["build_parser", "exercise_rows", "main", "path_deviation"]
+__all__ = [
+    "HEADLINE_AM",
+    "POLICIES",
+    "exercise_rows",
+    "headline_row",
+    "headline_table",
+    "path_deviation",
+    "table",
+    "verdict",
+]
 
 POLICIES = ("ac", "lc-noap", "lc")
 HEADLINE_AM = 1.0
@@ -158,7 +164,9 @@ def table(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
-def _verdict(rows: list[dict[str, Any]]) -> list[str]:
+def verdict(rows: list[dict[str, Any]]) -> list[str]:
+    """What fails in ``rows`` (:func:`exercise_rows`): stops, truncations, NaN, leaving the path,
+    LC's median ``|AM|`` not below AC's; one line each."""
     from langenv.robot.safety import SafetyLimits
 
     limit = SafetyLimits().max_deviation
@@ -171,98 +179,3 @@ def _verdict(rows: list[dict[str, Any]]) -> list[str]:
         if by.get((ex, "LC"), math.inf) >= by.get((ex, "AC"), -math.inf):
             bad.append(f"{ex}: LC's median |AM| is not below AC's")
     return bad
-
-
-def build_parser() -> argparse.ArgumentParser:
-    """The command line of ``langctrl exercises`` (``python -m eval.exercises``)."""
-    from langenv.exercise import SHIPPED_EXERCISES
-
-    p = argparse.ArgumentParser(
-        prog="langctrl exercises",
-        description="Every shipped exercise under AC, LC-noAP and LC, one eval.compare run each, "
-        "and the table of their medians. Also run as python -m eval.exercises.",
-    )
-    p.add_argument(
-        "--users",
-        default="synthetic:48",
-        metavar="synthetic:N",
-        help="users per exercise and controller: synthetic:N, or listening:N (the same people "
-        "listening to the robot) (default: %(default)s)",
-    )
-    p.add_argument(
-        "--listening",
-        default=None,
-        metavar="KEY=VALUE,...",
-        help="the listening people's parameters, with --users listening:N (default: none)",
-    )
-    p.add_argument(
-        "--seed",
-        type=int,
-        default=0,
-        help="seed of the first synthetic user (default: %(default)s)",
-    )
-    p.add_argument(
-        "--workers",
-        type=int,
-        default=2,
-        metavar="N",
-        help="parallel episode processes (default: %(default)s)",
-    )
-    p.add_argument(
-        "--out",
-        type=Path,
-        required=True,
-        metavar="DIR",
-        help="output directory: one eval.compare run per exercise in DIR/NAME (required)",
-    )
-    p.add_argument("--table-only", action="store_true", help="read existing runs in --out")
-    p.add_argument(
-        "--exercises",
-        default=",".join(SHIPPED_EXERCISES),
-        metavar="LIST",
-        help="comma-separated shipped exercises (default: all)",
-    )
-    return p
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point; returns the exit status."""
-    from langenv.exercise import SHIPPED_EXERCISES
-
-    p = build_parser()
-    ns = p.parse_args(argv)
-    names = [n.strip() for n in ns.exercises.split(",") if n.strip()]
-    unknown = sorted(set(names) - set(SHIPPED_EXERCISES))
-    if unknown or not names:
-        p.error(f"--exercises: unknown {unknown or 'none given'}; known: {list(SHIPPED_EXERCISES)}")
-    rows: list[dict[str, Any]] = []
-    heads: list[dict[str, Any]] = []
-    for name in names:
-        run_dir = ns.out / name
-        if not ns.table_only:
-            from eval.compare import main as compare
-
-            args = ["--exercise", name, "--policies", ",".join(POLICIES), "--users", ns.users]
-            args += ["--seed", str(ns.seed), "--workers", str(ns.workers), "--out", str(run_dir)]
-            args += ["--listening", ns.listening] if ns.listening is not None else []
-            if compare([*args, "--overwrite"]) != 0:
-                return 1
-        rows += exercise_rows(run_dir, name)
-        heads.append(headline_row(run_dir, name))
-    print(table(rows))
-    print()
-    print("The headline per exercise: LC's speech and motion end within 1 s in every session")
-    print(headline_table(heads))
-    bad = _verdict(rows) + [
-        f"{h['exercise']} LC: {h['sessions'] - h['within']} of {h['sessions']} sessions end more "
-        f"than {HEADLINE_AM:g} s apart (max {h['max_am']:.2f} s)"
-        for h in heads
-        if h["within"] < h["sessions"]
-    ]
-    for line in bad:
-        print(f"FAIL {line}", file=sys.stderr)
-    return 1 if bad else 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

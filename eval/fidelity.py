@@ -2,8 +2,8 @@
 
 Run::
 
-    python -m eval.fidelity --sessions ../shared/sessions --out out/fidelity
-    python -m eval.fidelity --sessions ../shared/sessions --users synthetic:48 --seed 0
+    langctrl fidelity --sessions ../shared/sessions --out out/fidelity
+    langctrl fidelity --sessions ../shared/sessions --users synthetic:48 --seed 0
 
 Every recorded session ``*_ac.csv``, ``*_lcnoap.csv``, ``*_lc.csv`` is replayed in ``LangCtrl-v0``
 under the controller named by its suffix (the user is the force that reproduces the recorded
@@ -35,11 +35,8 @@ figures, for scripts); prints the summary table.
 
 from __future__ import annotations
 
-import argparse
 import json
-import sys
 import tempfile
-import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -54,11 +51,9 @@ __all__ = [
     "FidelityTargets",
     "Measures",
     "Trace",
-    "build_parser",
-    "main",
     "measure",
-    "parse_args",
     "run_checks",
+    "run_fidelity",
     "trace_from_log",
     "trace_from_session",
 ]
@@ -479,7 +474,7 @@ def render_markdown(
         "# Fidelity: the simulation against the study's recordings",
         "",
         f"{n_pass} of {len(checks)} checks pass. Recorded sessions are replayed under the "
-        "controller that recorded them (`python -m eval.fidelity`; definitions in its docstring).",
+        "controller that recorded them (`langctrl fidelity`; definitions in its docstring).",
         "",
         "## Checks",
         "",
@@ -699,127 +694,45 @@ def _plot_am(
     ax.legend()
 
 
-# ------------------------------------------------------------------------------------ CLI
-def build_parser() -> argparse.ArgumentParser:
-    """The command line of ``langctrl fidelity`` (``python -m eval.fidelity``)."""
-    p = argparse.ArgumentParser(
-        prog="langctrl fidelity",
-        description="Replay recorded sessions and measure the simulation against them. Also run "
-        "as python -m eval.fidelity.",
-    )
-    p.add_argument(
-        "--sessions",
-        type=Path,
-        required=True,
-        metavar="DIR",
-        help="directory of the recorded session CSVs: *_ac.csv, *_lcnoap.csv, *_lc.csv (required)",
-    )
-    p.add_argument(
-        "--out",
-        type=Path,
-        default=Path("out/fidelity"),
-        metavar="DIR",
-        help="output directory: fidelity.md, fidelity.png, fidelity.json (default: %(default)s)",
-    )
-    p.add_argument(
-        "--users",
-        default=None,
-        metavar="synthetic:N",
-        help="also run N synthetic users under each controller and compare their motion times "
-        "and cooperation with the recordings'; listening:N: the same people listening to the "
-        "robot (default: none)",
-    )
-    p.add_argument(
-        "--listening",
-        default=None,
-        metavar="KEY=VALUE,...",
-        help="the listening people's parameters (langenv.users.ListeningParams), with --users "
-        "listening:N (default: its defaults)",
-    )
-    p.add_argument(
-        "--seed",
-        type=int,
-        default=0,
-        help="first synthetic user's seed (default: %(default)s)",
-    )
-    p.add_argument(
-        "--workers",
-        type=int,
-        default=2,
-        metavar="N",
-        help="parallel episode processes (default: %(default)s)",
-    )
-    return p
+def run_fidelity(sessions_dir: Path, out: Path, spec: Any, seed: int, workers: int) -> list[Check]:
+    """Replay the recorded sessions in ``sessions_dir`` (and, with ``spec``, an
+    :class:`eval.users.UserSpec`, run its simulated users from ``seed``) and write
+    ``fidelity.md``, ``fidelity.png`` and ``fidelity.json`` into ``out``; the checks.
 
-
-def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
-    """The command line of ``python -m eval.fidelity``."""
-    p = build_parser()
-    return p.parse_args(argv)
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point; returns the exit code (0 when it ran, whatever the verdicts)."""
+    Raises:
+        SessionDataError: no session CSV named ``*_ac.csv``, ``*_lcnoap.csv`` or ``*_lc.csv``,
+            or a bad one (nothing written).
+    """
     from langenv.errors import SessionDataError
     from langenv.users import load_sessions
 
-    args = parse_args(argv)
-    t0 = time.perf_counter()
-    n_syn, spec = 0, None
-    if args.users is not None or args.listening is not None:
-        from eval.users import parse_users
-
-        try:
-            if args.users is None:
-                raise ValueError("--listening sets listening people: give --users listening:N")
-            spec = parse_users(args.users, args.listening)
-        except ValueError as exc:
-            print(f"langctrl fidelity: error: {exc}", file=sys.stderr)
-            return 2
-        n_syn = spec.count
-    try:
-        sessions = [
-            s for s in load_sessions(args.sessions, "*.csv") if controller_of(s.name) is not None
-        ]
-        if not sessions:
-            raise SessionDataError(
-                f"{args.sessions}: no session CSVs named *_ac.csv, *_lcnoap.csv or *_lc.csv"
-            )
-        rec_traces = [trace_from_session(s, str(controller_of(s.name))) for s in sessions]
-    except (SessionDataError, ValueError, OSError) as exc:
-        print(f"langctrl fidelity: error: {exc}", file=sys.stderr)
-        return 2
-    sim_traces = replay_traces(sessions, args.workers)
+    sessions = [
+        s for s in load_sessions(sessions_dir, "*.csv") if controller_of(s.name) is not None
+    ]
+    if not sessions:
+        raise SessionDataError(
+            f"{sessions_dir}: no session CSVs named *_ac.csv, *_lcnoap.csv or *_lc.csv"
+        )
+    rec_traces = [trace_from_session(s, str(controller_of(s.name))) for s in sessions]
+    sim_traces = replay_traces(sessions, workers)
     rec, sim = measure(rec_traces), measure(sim_traces)
     targets = FidelityTargets()
     checks = run_checks(rec, sim, targets)
     syn_traces = None
     syn_figs = None
-    if n_syn:
-        assert spec is not None
-        syn_traces = synthetic_traces(n_syn, args.seed, args.workers, user_model=spec.model())
+    if spec is not None:
+        syn_traces = synthetic_traces(spec.count, seed, workers, user_model=spec.model())
         syn_checks, syn_figs = synthetic_checks(rec, rec_traces, syn_traces, targets, spec.kind)
         checks += syn_checks
-    args.out.mkdir(parents=True, exist_ok=True)
+    out.mkdir(parents=True, exist_ok=True)
     md = render_markdown(checks, rec, sim, rec_traces, sim_traces, syn_figs)
-    (args.out / "fidelity.md").write_text(md + "\n")
-    fidelity_figure(rec, sim, rec_traces, sim_traces, syn_traces, args.out / "fidelity.png")
+    (out / "fidelity.md").write_text(md + "\n")
+    fidelity_figure(rec, sim, rec_traces, sim_traces, syn_traces, out / "fidelity.png")
     report = {
         "checks": [asdict(c) for c in checks],
         "recorded": asdict(rec),
         "simulated": asdict(sim),
         "synthetic": syn_figs,
     }
-    (args.out / "fidelity.json").write_text(json.dumps(report, indent=1) + "\n")
-    width = max(len(c.name) for c in checks)
-    for c in checks:
-        print(
-            f"{c.name:<{width}}  {c.measured:<28} {c.target:<14} {'PASS' if c.passed else 'FAIL'}"
-        )
-    n_pass = sum(c.passed for c in checks)
-    print(f"{n_pass}/{len(checks)} PASS; wrote {args.out} in {time.perf_counter() - t0:.1f} s")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+    (out / "fidelity.json").write_text(json.dumps(report, indent=1) + "\n")
+    return checks

@@ -2,12 +2,12 @@
 
 Run::
 
-    python -m eval.generalise --model runs/speech/best.zip --out out/generalise
-    python -m eval.generalise --model M1.zip --model M2.zip --role test --users 48 \
+    langctrl generalise --model runs/speech/best.zip --out out/generalise
+    langctrl generalise --model M1.zip --model M2.zip --role test --users 48 \
         --population both --out out/test_look_1
 
 The split (exercises and user seeds of each role, the users' perturbations) is the one recorded with
-the (first) model (``worlds`` in ``MODEL_config.yaml``, written by ``python -m train.ppo`` from a
+the (first) model (``worlds`` in ``MODEL_config.yaml``, written by ``langctrl train`` from a
 config with a ``worlds`` section), or ``--split CONFIG`` (a config with one). Every policy of
 ``--policies`` (default ``ac,lc-noap,lc,lc-em-end,lc-fill,lc-fill-end``) and each learned one
 (``ppo:MODEL``; several ``--model``: ``ppo-STEM``) runs on every exercise of the role times its
@@ -49,7 +49,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -66,13 +65,12 @@ __all__ = [
     "Comparison",
     "bars",
     "bars_markdown",
-    "build_parser",
+    "check_generalise",
     "compare_rows",
-    "main",
     "markdown",
     "overview_markdown",
-    "parse_args",
     "plot_speech",
+    "run_generalise",
 ]
 
 #: The metrics compared: column -> (statistic, label). Higher is better for the shares of
@@ -536,141 +534,40 @@ def _jobs(ns: argparse.Namespace, split: Any, specs: list[str], names: dict[str,
     return jobs
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The command line of ``langctrl generalise`` (``python -m eval.generalise``)."""
-    p = argparse.ArgumentParser(
-        prog="langctrl generalise",
-        description=__doc__.split("\n")[0] + " Also run as python -m eval.generalise.",
-    )
-    p.add_argument(
-        "--model",
-        type=Path,
-        action="append",
-        required=True,
-        metavar="ZIP",
-        help="a learned model (.zip; required; repeat it for several)",
-    )
-    p.add_argument(
-        "--policies",
-        default="ac,lc-noap,lc,lc-em-end,lc-fill,lc-fill-end",
-        metavar="LIST",
-        help="comma-separated analytic policies to compare it with (default: %(default)s)",
-    )
-    p.add_argument(
-        "--base",
-        default=BASE,
-        metavar="NAME",
-        help="the analytic policy of --policies the bars hold the learned ones against "
-        "(default: %(default)s)",
-    )
-    p.add_argument(
-        "--split",
-        default=None,
-        metavar="CONFIG",
-        help="a training config with a 'worlds' section (default: the split recorded with the "
-        "first model)",
-    )
-    p.add_argument(
-        "--role",
-        choices=("validation", "test"),
-        default="validation",
-        help="which held-out exercises and users; test only for the models you ship, at most "
-        "twice (default: %(default)s)",
-    )
-    p.add_argument(
-        "--users",
-        type=int,
-        default=24,
-        metavar="N",
-        help="users per exercise: the role's first N user seeds (default: %(default)s)",
-    )
-    p.add_argument(
-        "--population",
-        choices=tuple(POPULATIONS),
-        default=None,
-        help="the split's perturbed people, the plain synthetic population, or both "
-        "(default: perturbed)",
-    )
-    p.add_argument(
-        "--no-perturb",
-        action="store_true",
-        help="the plain synthetic population instead of the split's perturbed users "
-        "(--population plain)",
-    )
-    p.add_argument(
-        "--workers",
-        type=int,
-        default=2,
-        metavar="N",
-        help="parallel episode processes (default: %(default)s)",
-    )
-    p.add_argument(
-        "--n-boot",
-        type=int,
-        default=2000,
-        metavar="N",
-        help="bootstrap resamples per interval (default: %(default)s)",
-    )
-    p.add_argument(
-        "--seed", type=int, default=0, help="seed of the bootstrap (default: %(default)s)"
-    )
-    p.add_argument(
-        "--out",
-        type=Path,
-        required=True,
-        metavar="DIR",
-        help="output directory, refused when it holds files (required)",
-    )
-    p.add_argument(
-        "--overwrite", action="store_true", help="write into a non-empty --out all the same"
-    )
-    return p
+def check_generalise(ns: argparse.Namespace) -> Any:
+    """Check the job's arguments (``langctrl generalise``'s namespace) before any episode runs:
+    every policy loads, the split gives enough users; the split.
 
+    Raises:
+        ConfigError, ModelError, FileNotFoundError, KeyError: saying what is wrong.
+    """
+    from langenv.errors import ConfigError
+    from policies import load_policy
 
-def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
-    """The command line (see the module docstring)."""
-    p = build_parser()
-    ns = p.parse_args(argv)
-    if ns.no_perturb and ns.population not in (None, "plain"):
-        p.error("--no-perturb is --population plain")
-    ns.population = ns.population or ("plain" if ns.no_perturb else "perturbed")
-    return ns
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point; returns the exit status (2: bad arguments or split); 0 whether or not the
-    bars hold (``generalise.md`` says)."""
-    from eval.compare import policy_names, run_jobs
-    from eval.report import atomic_write, write_sessions_csv
-    from langenv.errors import ConfigError, ModelError
-
-    ns = parse_args(argv)
     analytic = [s.strip() for s in ns.policies.split(",") if s.strip()]
     learned_specs = [f"ppo:{m}" for m in ns.model]
-    try:
-        if ns.users < 1:
-            raise ConfigError(f"--users must be >= 1, got {ns.users}")
-        if ns.base not in analytic:
-            raise ConfigError(f"--base {ns.base} is not one of --policies ({ns.policies})")
-        if len(set(learned_specs)) != len(learned_specs):
-            raise ConfigError("a --model is given twice")
-        if ns.out.is_dir() and any(ns.out.iterdir()) and not ns.overwrite:
-            raise ConfigError(f"--out {ns.out} holds files; give --overwrite or another --out")
-        from policies import load_policy
+    if ns.base not in analytic:
+        raise ConfigError(f"--base {ns.base} is not one of --policies ({ns.policies})")
+    if len(set(learned_specs)) != len(learned_specs):
+        raise ConfigError("a --model is given twice")
+    if ns.out.is_dir() and any(ns.out.iterdir()) and not ns.overwrite:
+        raise ConfigError(f"--out {ns.out} holds files; give --overwrite or another --out")
+    for spec in [*analytic, *learned_specs]:
+        load_policy(spec)  # every policy loads before any episode runs
+    split = _split(ns)
+    split.pairs(ns.role, ns.users * len(split.exercises(ns.role)))  # enough users
+    return split
 
-        for spec in [*analytic, *learned_specs]:
-            load_policy(spec)  # every policy loads before any episode runs
-        split = _split(ns)
-        split.pairs(ns.role, ns.users * len(split.exercises(ns.role)))  # enough users
-    except (ConfigError, ModelError, FileNotFoundError, KeyError) as exc:
-        print(f"langctrl generalise: error: {exc}", file=sys.stderr)
-        return 2
-    if ns.role == "test":
-        print(
-            "langctrl generalise: this is a look at the TEST exercises and users: record it and "
-            "its figures in HISTORY.md (at most two looks per study)",
-            file=sys.stderr,
-        )
+
+def run_generalise(ns: argparse.Namespace, split: Any) -> tuple[str, int]:
+    """Run every policy on ``split``'s held-out exercises and people (:func:`check_generalise`
+    first) and write the outputs into ``ns.out``; ``generalise.md``'s text and the number of
+    episodes."""
+    from eval.compare import policy_names, run_jobs
+    from eval.report import atomic_write, write_sessions_csv
+
+    analytic = [s.strip() for s in ns.policies.split(",") if s.strip()]
+    learned_specs = [f"ppo:{m}" for m in ns.model]
     specs = [*analytic, *learned_specs]
     names = policy_names(specs)
     pairs = _jobs(ns, split, specs, names)
@@ -736,10 +633,4 @@ def main(argv: Sequence[str] | None = None) -> int:
         },
     }
     atomic_write(ns.out / "config.json", json.dumps(config, indent=2) + "\n")
-    print(text)
-    print(f"wrote {ns.out} ({len(rows)} episodes)")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+    return text, len(rows)

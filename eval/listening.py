@@ -3,7 +3,6 @@
 Run::
 
     langctrl listening --sessions ../shared/sessions --out out/listening
-    python -m eval.listening --sessions ../shared/sessions --out out/listening   # the same
 
 Under AC the study's speech ran at its own pace (``a = 1``), whatever the person did, so in the
 AC sessions the speech ran ahead of the motion or behind it as the person happened to move: the
@@ -40,10 +39,7 @@ Writes ``OUT/listening.json`` (every figure), ``OUT/listening.md`` (the tables) 
 
 from __future__ import annotations
 
-import argparse
 import json
-import sys
-import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -56,10 +52,11 @@ __all__ = [
     "LAGS",
     "Trace",
     "fit_follow",
+    "fit_listening",
     "lead_statistic",
-    "main",
     "simulate_ac",
     "trace_from_session",
+    "write_listening",
 ]
 
 LAGS: tuple[float, ...] = (0.5, 1.0, 1.5, 2.0, 3.0)
@@ -318,89 +315,38 @@ def _markdown(res: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The command line of ``python -m eval.listening``."""
-    p = argparse.ArgumentParser(
-        prog="langctrl listening",
-        description="Does the person's pace follow the speech running ahead or behind? The "
-        "study's AC sessions against simulated ones: the listening person's follow, fitted. Also "
-        "run as python -m eval.listening.",
-    )
-    p.add_argument(
-        "--sessions",
-        type=Path,
-        required=True,
-        metavar="DIR",
-        help="directory of the recorded sessions; its *_ac.csv are read (required)",
-    )
-    p.add_argument(
-        "--out",
-        type=Path,
-        default=Path("out/listening"),
-        metavar="DIR",
-        help="output directory: listening.json, listening.md, listening.png (default: %(default)s)",
-    )
-    p.add_argument(
-        "--users",
-        type=int,
-        default=48,
-        metavar="N",
-        help="simulated people per run (default: %(default)s)",
-    )
-    p.add_argument(
-        "--seed",
-        type=int,
-        default=3000,
-        help="first simulated person's seed, and the bootstrap's (default: %(default)s)",
-    )
-    p.add_argument(
-        "--boot",
-        type=int,
-        default=2000,
-        metavar="N",
-        help="bootstrap resamples of the recorded people (default: %(default)s)",
-    )
-    p.add_argument(
-        "--workers",
-        type=int,
-        default=2,
-        metavar="N",
-        help="parallel episode processes (default: %(default)s)",
-    )
-    return p
+def fit_listening(
+    sessions_dir: Path, users: int, seed: int, boot: int, workers: int
+) -> dict[str, Any]:
+    """Fit ``follow`` to the AC sessions in ``sessions_dir`` with ``users`` simulated people
+    (seeds ``seed`` on, the bootstrap's ``seed`` too) and ``boot`` bootstrap resamples: the
+    result that ``listening.json`` holds.
 
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point; returns the exit status."""
-    from langenv.errors import SessionDataError
+    Raises:
+        SessionDataError: a bad session file.
+    """
     from langenv.users import load_sessions
 
-    ns = build_parser().parse_args(argv)
-    t0 = time.perf_counter()
-    try:
-        sessions = load_sessions(ns.sessions, "*_ac.csv")
-        rec_traces = [trace_from_session(s) for s in sessions]
-    except (SessionDataError, ValueError, OSError) as exc:
-        print(f"langctrl listening: error: {exc}", file=sys.stderr)
-        return 2
+    sessions = load_sessions(sessions_dir, "*_ac.csv")
+    rec_traces = [trace_from_session(s) for s in sessions]
     rec_stats = statistics(rec_traces)
     recorded = pooled(rec_stats)
-    boots = bootstrap(rec_stats, ns.boot, ns.seed)
+    boots = bootstrap(rec_stats, boot, seed)
     weights = 1.0 / np.maximum(np.nanvar(boots, axis=0), 1e-4)
-    seeds = list(range(ns.seed, ns.seed + ns.users))
-    null = simulate_ac(None, seeds, ns.workers)
-    runs = [simulate_ac(f, seeds, ns.workers) for f in FOLLOW_GRID]
+    seeds = list(range(seed, seed + users))
+    null = simulate_ac(None, seeds, workers)
+    runs = [simulate_ac(f, seeds, workers) for f in FOLLOW_GRID]
     sims = np.array([pooled(statistics(r)) for r in runs])
     follow, fine, loss = fit_follow(recorded, weights, FOLLOW_GRID, sims)
     fits = [fit_follow(b, weights, FOLLOW_GRID, sims)[0] for b in boots]
     lo, hi = np.quantile(fits, [0.025, 0.975]).tolist()
-    at_fit = simulate_ac(follow, seeds, ns.workers)
+    at_fit = simulate_ac(follow, seeds, workers)
 
     def by_r(x: np.ndarray) -> dict[str, list[float]]:
         return {r: np.asarray(x)[j].tolist() for j, r in enumerate(RESPONSES)}
 
     ci = np.quantile(boots, [0.025, 0.975], axis=0)  # (2, responses, lags)
-    res: dict[str, Any] = {
+    return {
         "recorded": by_r(recorded),
         "recorded_ci": {
             r: np.stack([ci[0, j], ci[1, j]], 1).tolist() for j, r in enumerate(RESPONSES)
@@ -418,17 +364,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         "ac_length_null": float(np.median([t.length for t in null])),
         "ac_length_fit": float(np.median([t.length for t in at_fit])),
         "ac_length_recorded": float(np.median([t.length for t in rec_traces])),
-        "people": ns.users,
-        "seed": ns.seed,
+        "people": users,
+        "seed": seed,
     }
-    ns.out.mkdir(parents=True, exist_ok=True)
-    (ns.out / "listening.json").write_text(json.dumps(res, indent=1) + "\n")
-    (ns.out / "listening.md").write_text(_markdown(res))
-    _figure(ns.out / "listening.png", res)
-    print(_markdown(res))
-    print(f"wrote {ns.out} in {time.perf_counter() - t0:.1f} s")
-    return 0
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+def write_listening(out: Path, res: dict[str, Any]) -> str:
+    """Write ``listening.json``, ``listening.md`` and ``listening.png`` of ``res``
+    (:func:`fit_listening`) into ``out``; the Markdown."""
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "listening.json").write_text(json.dumps(res, indent=1) + "\n")
+    text = _markdown(res)
+    (out / "listening.md").write_text(text)
+    _figure(out / "listening.png", res)
+    return text

@@ -6,12 +6,11 @@ every metric, percentile-bootstrap 95 % intervals for the differences against th
 each with its measured value and PASS/FAIL. Every file is written atomically (to a temporary file
 in the same directory, then renamed), so an error never leaves a partial file behind.
 
-Regenerate a summary from a saved table with ``python -m eval.report DIR/sessions.csv``.
+Regenerate a summary from a saved table with ``langctrl report DIR/sessions.csv``.
 """
 
 from __future__ import annotations
 
-import argparse
 import csv
 import io
 import math
@@ -31,7 +30,6 @@ __all__ = [
     "MIXED_MARK",
     "Finding",
     "atomic_write",
-    "build_parser",
     "display_name",
     "graphs_spoken",
     "mixed_graph_policies",
@@ -542,72 +540,3 @@ def write_summary_md(
         figure=figure,
     )
     return atomic_write(path, text)
-
-
-def build_parser() -> argparse.ArgumentParser:
-    """The command line of ``langctrl report`` (``python -m eval.report``)."""
-    parser = argparse.ArgumentParser(
-        prog="langctrl report",
-        description="Write summary.md (and summary.png) from a sessions.csv. Also run as "
-        "python -m eval.report.",
-    )
-    parser.add_argument(
-        "sessions",
-        type=Path,
-        metavar="SESSIONS.csv",
-        help="sessions.csv written by langctrl compare",
-    )
-    parser.add_argument(
-        "--out",
-        type=Path,
-        default=None,
-        metavar="MD",
-        help="the summary to write (default: summary.md beside SESSIONS.csv)",
-    )
-    parser.add_argument(
-        "--reference",
-        default="lc",
-        metavar="POLICY",
-        help="the policy the others are compared with (default: %(default)s)",
-    )
-    parser.add_argument(
-        "--policies",
-        default=None,
-        metavar="LIST",
-        help="comma-separated policies to show, in order (default: all, in order of first "
-        "appearance)",
-    )
-    parser.add_argument(
-        "--seed", type=int, default=0, help="seed of the bootstrap (default: %(default)s)"
-    )
-    parser.add_argument(
-        "--n-boot",
-        type=int,
-        default=10_000,
-        metavar="N",
-        help="bootstrap resamples per interval (default: %(default)s)",
-    )
-    return parser
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """``langctrl report SESSIONS_CSV [--out MD] [--reference lc] [--seed 0]``."""
-    args = build_parser().parse_args(argv)
-    rows = read_sessions_csv(args.sessions)
-    out = args.out or args.sessions.with_name("summary.md")
-    fig = out.with_name("summary.png")
-    write_summary_md(
-        rows,
-        out,
-        args.reference,
-        rng=np.random.default_rng(args.seed),
-        policies=args.policies.split(",") if args.policies else None,
-        n_boot=args.n_boot,
-        figure=fig.name if fig.exists() else None,
-    )
-    print(out)
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

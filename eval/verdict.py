@@ -1,6 +1,6 @@
 """The comparison's verdict on the terminal: a table per policy, the study's findings, the files.
 
-``python -m eval.compare`` ends with it. On a terminal it is drawn with rich (a table, coloured
+``langctrl compare`` ends with it. On a terminal it is drawn with rich (a table, coloured
 PASS/FAIL); when the output is a file or a pipe it is plain text (aligned columns, no colour, no
 box characters), so logs stay readable.
 

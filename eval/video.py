@@ -1,7 +1,7 @@
 """Session videos: the arm guiding the hand, what it says, and the robot's voice as the sound track.
 
-``python -m eval.video LOG.npz --out X.mp4`` renders one from an episode log written by
-``python -m eval.compare`` (``sessions/<policy>_<user>.npz``); ``eval.compare --video`` writes one
+``langctrl video LOG.npz --out X.mp4`` renders one from an episode log written by
+``langctrl compare`` (``sessions/<policy>_<user>.npz``); ``langctrl compare --video`` writes one
 per episode. Each frame shows:
 
 * the off-screen render of the arm (MuJoCo) with the exercise path and the person's force on the
@@ -21,11 +21,8 @@ wheel) and written atomically.
 
 from __future__ import annotations
 
-import argparse
 import math
 import os
-import sys
-from collections.abc import Sequence
 from dataclasses import dataclass
 from fractions import Fraction
 from functools import lru_cache
@@ -36,7 +33,7 @@ import numpy as np
 
 from eval.episode import EpisodeLog
 from eval.report import display_name
-from langenv.errors import ConfigError, LangEnvError
+from langenv.errors import ConfigError
 from langenv.files import temp_file
 
 __all__ = [
@@ -45,9 +42,6 @@ __all__ = [
     "SceneReplay",
     "SessionFrames",
     "TracePanel",
-    "build_parser",
-    "main",
-    "parse_args",
     "session_audio",
     "write_video",
 ]
@@ -524,67 +518,3 @@ def _mux_audio(box: Any, stream: Any, track: np.ndarray, sr: int) -> None:
             box.mux(packet)
     for packet in stream.encode():
         box.mux(packet)
-
-
-def build_parser() -> argparse.ArgumentParser:
-    """The command line of ``langctrl video`` (``python -m eval.video``)."""
-    p = argparse.ArgumentParser(
-        prog="langctrl video",
-        description="Render a session video (MP4, H.264 + AAC) from an episode log. Also run as "
-        "python -m eval.video.",
-    )
-    p.add_argument(
-        "log", type=Path, metavar="LOG.npz", help="episode log (.npz) written by langctrl compare"
-    )
-    p.add_argument("--out", type=Path, required=True, help="the .mp4 to write (required)")
-    p.add_argument(
-        "--fps",
-        type=int,
-        default=DEFAULT_FPS,
-        help="frame rate, frames/s (default: %(default)s)",
-    )
-    p.add_argument(
-        "--phrase-graph",
-        default=None,
-        metavar="GRAPH",
-        help="the phrase graph spoken, a shipped key or a YAML (default: the one the log names)",
-    )
-    p.add_argument(
-        "--model-path",
-        type=Path,
-        default=None,
-        metavar="MJCF",
-        help="the arm's MJCF (default: the shipped UR5)",
-    )
-    return p
-
-
-def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
-    """Parse ``langctrl video`` arguments."""
-    return build_parser().parse_args(argv)
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point; returns the process exit code."""
-    args = parse_args(argv)
-    if args.out.suffix.lower() != ".mp4":
-        print(f"langctrl video: error: --out must end in .mp4, got {args.out}", file=sys.stderr)
-        return 2
-    if not args.out.parent.is_dir():
-        print(f"langctrl video: error: --out: no directory {args.out.parent}", file=sys.stderr)
-        return 2
-    try:
-        log = EpisodeLog.load_npz(args.log)
-        audio, sr = session_audio(log, args.phrase_graph)
-        path = write_video(
-            log, args.out, audio, sr, fps=args.fps, model_path=args.model_path, progress=None
-        )
-    except LangEnvError as exc:
-        print(f"langctrl video: error: {exc}", file=sys.stderr)
-        return 2
-    print(f"wrote {path} ({len(log.utterances)} phrases, {log.t[-1] - log.t[0]:.1f} s)")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

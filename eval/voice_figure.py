@@ -2,8 +2,8 @@
 
 Run::
 
-    python -m eval.compare --policies lc --users synthetic:12 --seed 0 --out out/main
-    python -m eval.voice_figure out/main/sessions/lc_s3.npz --out natural_voice.png
+    langctrl compare --policies lc --users synthetic:12 --seed 0 --out out/main
+    langctrl voice-figure out/main/sessions/lc_s3.npz --out natural_voice.png
 
 The top panel shows the session's speech pace ``a`` and the person's cooperation ``c``; below,
 the speech rendered with the paper's stretched voice and with the natural voice
@@ -12,9 +12,7 @@ the speech rendered with the paper's stretched voice and with the natural voice
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
-from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +20,7 @@ import numpy as np
 from eval.episode import EpisodeLog
 from eval.video import session_audio
 
-__all__ = ["main", "voice_figure"]
+__all__ = ["voice_figure"]
 
 
 def voice_figure(log: EpisodeLog, out: Path) -> Path:
@@ -55,19 +53,3 @@ def voice_figure(log: EpisodeLog, out: Path) -> Path:
     fig.savefig(out, dpi=110)
     plt.close(fig)
     return out
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point; returns the exit status."""
-    p = argparse.ArgumentParser(prog="python -m eval.voice_figure", description=__doc__)
-    p.add_argument("log", type=Path, help="an episode log (.npz) written by eval.compare")
-    p.add_argument("--out", type=Path, required=True, help="the PNG to write")
-    ns = p.parse_args(argv)
-    if not ns.out.parent.is_dir():
-        p.error(f"--out {ns.out}: directory {ns.out.parent} does not exist")
-    print(f"wrote {voice_figure(EpisodeLog.load_npz(ns.log), ns.out)}")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

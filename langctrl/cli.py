@@ -1,12 +1,12 @@
 """The ``langctrl`` command: one entry point whose subcommands are LangCtrl's jobs.
 
-``langctrl JOB ARGS...`` imports the job's module and calls its ``main(ARGS)``; the module's
-``build_parser()`` is the job's one parser, also behind ``python -m MODULE``, and names its program
-``langctrl JOB``, so both ways print the same help, take the same options and exit with the
-same status::
+``langctrl JOB ARGS...`` (or ``python -m langctrl JOB ARGS...``) imports the job's module, one
+of :mod:`langctrl.jobs`, and calls its ``main(ARGS)``; the module's ``build_parser()`` is the
+job's one parser, built on the shared options of :mod:`langctrl.options`, and names its program
+``langctrl JOB``::
 
     langctrl compare --policies ac,lc-noap,lc --users synthetic:12 --seed 0 --out out/compare
-    python -m eval.compare --policies ac,lc-noap,lc --users synthetic:12 --seed 0 --out out/compare
+    python -m langctrl compare --policies ac,lc-noap,lc --users synthetic:12 --out out/compare
 
 The table :data:`COMMANDS` is the one place the jobs are listed; ``langctrl --help`` reads it
 without importing any job.
@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import importlib.util
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -31,8 +30,8 @@ class Command:
     """One job of ``langctrl``.
 
     Attributes:
-        module: What ``python -m`` runs (a module, or a package with a ``__main__``); it defines
-            ``build_parser()`` and ``main(argv) -> int``.
+        module: The job's module (``langctrl.jobs.NAME``); it defines ``build_parser()`` and
+            ``main(argv) -> int``.
         summary: One line for ``langctrl --help``.
         group: ``"job"`` (a job of the toolkit) or ``"tool"`` (a helper of one).
     """
@@ -45,26 +44,60 @@ class Command:
 #: The subcommands, in the order ``langctrl --help`` lists them.
 COMMANDS: MappingProxyType[str, Command] = MappingProxyType(
     {
-        "compare": Command("eval.compare", "compare policies on simulated or recorded users"),
-        "exercises": Command("eval.exercises", "every shipped exercise under AC, LC-noAP and LC"),
-        "generalise": Command("eval.generalise", "a learned model on held-out exercises and users"),
-        "fidelity": Command("eval.fidelity", "the simulation against the recorded sessions"),
-        "train": Command("train.ppo", "train the learned aligner (SB3 PPO)"),
-        "sweep": Command("eval.sweep", "run a sweep of sessions from a YAML file, resumably"),
+        "compare": Command(
+            "langctrl.jobs.compare", "compare policies on simulated or recorded users"
+        ),
+        "exercises": Command(
+            "langctrl.jobs.exercises", "every shipped exercise under AC, LC-noAP and LC"
+        ),
+        "generalise": Command(
+            "langctrl.jobs.generalise", "a learned model on held-out exercises and users"
+        ),
+        "fidelity": Command(
+            "langctrl.jobs.fidelity", "the simulation against the recorded sessions"
+        ),
+        "train": Command("langctrl.jobs.train", "train the learned aligner (SB3 PPO)"),
+        "sweep": Command(
+            "langctrl.jobs.sweep", "run a sweep of sessions from a YAML file, resumably"
+        ),
         "play": Command(
             "langctrl.jobs.play", "live mode: drag the handle, the robot talks you through"
         ),
         "exercise": Command("langctrl.jobs.exercise", "list, check and draw exercises"),
         "speech": Command("langctrl.jobs.speech", "check, write and render phrase graphs"),
         "robot": Command("langctrl.jobs.robot", "run on a UR (or URSim) through ur-rtde"),
-        "bench": Command("bench", "speed and accuracy figures"),
-        "export": Command("train.export", "a training checkpoint as a model (ppo:PATH)", "tool"),
-        "ensemble": Command("train.ensemble", "several models acting as one", "tool"),
-        "widen": Command("train.widen", "a model for graphs with more choices", "tool"),
-        "video": Command("eval.video", "a session video (MP4) from an episode log", "tool"),
-        "report": Command("eval.report", "summary.md from a sessions.csv", "tool"),
-        "calibrate": Command("eval.calibrate", "fit the synthetic users to recordings", "tool"),
-        "listening": Command("eval.listening", "fit the listening person's follow to AC", "tool"),
+        "bench": Command("langctrl.jobs.bench", "speed and accuracy figures"),
+        "export": Command(
+            "langctrl.jobs.export", "a training checkpoint as a model (ppo:PATH)", "tool"
+        ),
+        "ensemble": Command("langctrl.jobs.ensemble", "several models acting as one", "tool"),
+        "widen": Command("langctrl.jobs.widen", "a model for graphs with more choices", "tool"),
+        "video": Command(
+            "langctrl.jobs.video", "a session video (MP4) from an episode log", "tool"
+        ),
+        "report": Command("langctrl.jobs.report", "summary.md from a sessions.csv", "tool"),
+        "calibrate": Command(
+            "langctrl.jobs.calibrate", "fit the synthetic users to recordings", "tool"
+        ),
+        "listening": Command(
+            "langctrl.jobs.listening", "fit the listening person's follow to AC", "tool"
+        ),
+        "voice-figure": Command(
+            "langctrl.jobs.voice_figure", "the voice figure of a session's log", "tool"
+        ),
+        "tts-manifest": Command(
+            "langctrl.jobs.tts_manifest", "the shipped phrases' clips against their pins", "tool"
+        ),
+        "bench-audio": Command("langctrl.jobs.bench_audio", "the vocoder's throughput", "tool"),
+        "bench-memory": Command(
+            "langctrl.jobs.bench_memory", "memory per session of the batched env", "tool"
+        ),
+        "bench-exercises": Command(
+            "langctrl.jobs.bench_exercises", "what an exercise costs to load and follow", "tool"
+        ),
+        "bench-safety": Command(
+            "langctrl.jobs.bench_safety", "fuzz the safety layer with adversarial users", "tool"
+        ),
     }
 )
 
@@ -75,9 +108,9 @@ def _listing() -> str:
         lines.append(f"{title}:")
         for name, cmd in COMMANDS.items():
             if cmd.group == group:
-                lines.append(f"  {name:11s} {'python -m ' + cmd.module:32s} {cmd.summary}")
+                lines.append(f"  {name:16s} {cmd.summary}")
     lines.append("")
-    lines.append("langctrl JOB --help: the job's options, the same as python -m MODULE --help.")
+    lines.append("langctrl JOB --help: the job's options (python -m langctrl JOB: the same).")
     return "\n".join(lines)
 
 
@@ -110,12 +143,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def load(name: str) -> ModuleType:
-    """The module of job ``name``: what ``python -m`` runs for it (a package's ``__main__``)."""
-    module = COMMANDS[name].module
-    spec = importlib.util.find_spec(module)
-    if spec is not None and spec.submodule_search_locations is not None:
-        module += ".__main__"
-    return importlib.import_module(module)
+    """The module of job ``name`` (``langctrl.jobs.NAME``)."""
+    return importlib.import_module(COMMANDS[name].module)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

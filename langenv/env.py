@@ -54,7 +54,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     stay near 1. The analytic controllers of the paper are policies of this env (``policies/``):
     at ``decision_hz=500`` the LC policy is exactly the paper's controller.
 
-    ## The plant (measured against the study's recordings: ``python -m eval.fidelity``)
+    ## The plant (measured against the study's recordings: ``langctrl fidelity``)
 
     * Exercise (``exercise``, a file of :mod:`langenv.exercise`; by default the study's
       ``external_rotation``, the same path as :func:`~langenv.control.trajectory.default_exercise`):

@@ -3,8 +3,8 @@
 ``load_policy(spec)`` builds one from its command-line name: an analytic policy of
 :data:`policies.analytic.ANALYTIC` (``"ac"``, ``"lc-noap"``, ``"lc"``, ``"lc-em"``, ``"lc-end"``,
 ``"lc-em-end"``, ``"lc-fill"``) or ``"ppo:PATH"`` (a trained model saved by
-``python -m train.ppo``, or an ensemble manifest ``ppo:PATH.yaml`` written by
-``python -m train.ensemble``).
+``langctrl train``, or an ensemble manifest ``ppo:PATH.yaml`` written by
+``langctrl ensemble``).
 """
 
 from __future__ import annotations

@@ -470,7 +470,7 @@ ANALYTIC: Mapping[str, tuple[str, Callable[[int | None], Analytic]]] = MappingPr
     }
 )
 """The analytic policies by name: ``(what it is, factory(decision_hz))``; the one place their
-names live (``python -m eval.compare --policies``, :func:`make_analytic`, the
+names live (``langctrl compare --policies``, :func:`make_analytic`, the
 ``langctrl.policies`` entry points)."""
 
 

@@ -10,7 +10,7 @@ the same units) keeps what they agree on. An ensemble is a YAML *manifest* besid
         sha256: 3f1c...                        # of the zip, checked at load
       - ...
 
-``ppo:PATH.yaml`` loads one (:func:`policies.load_policy`); ``python -m train.ensemble`` writes one.
+``ppo:PATH.yaml`` loads one (:func:`policies.load_policy`); ``langctrl ensemble`` writes one.
 Every member must share the residual design, the decision rate, the phrase graph it was trained
 on and the env arguments, since one env serves them all; like any learned policy, the ensemble
 speaks the exercise's phrase graph (:meth:`PPOEnsemble.use_graph`).
@@ -176,7 +176,7 @@ def write_manifest(out: Path, models: list[Path]) -> Path:
         entries.append({"file": rel.as_posix(), "sha256": file_sha256(model)})
     text = (
         "# LangCtrl PPO ensemble: the policy applies the mean of its members' corrections\n"
-        "# (policies/ensemble.py). Written by python -m train.ensemble.\n"
+        "# (policies/ensemble.py). Written by langctrl ensemble.\n"
         + yaml.safe_dump({"kind": MANIFEST_KIND, "members": entries}, sort_keys=False)
     )
     fd, tmp = temp_file(out.parent, prefix=f".{out.name}.", suffix=out.suffix)

@@ -14,7 +14,7 @@ from the same observation:
 
 At ``r = 0`` the learned policy *is* LC, so PPO only has to improve on it. The same mapping
 (:class:`ResidualLC`) is used by the training wrapper (``train.wrappers.ResidualLCWrapper``) and by
-:class:`PPOPolicy`, which loads a model saved by ``python -m train.ppo`` together with its
+:class:`PPOPolicy`, which loads a model saved by ``langctrl train`` together with its
 observation normalisation and the env arguments it was trained with.
 
 The network also sees a few features the raw observation lacks (:data:`FEATURES`): LC's own
@@ -107,7 +107,7 @@ def child_inputs(old_children: int, new_children: int) -> tuple[int, int]:
 
     Widening puts zero weights on them and neutral normalisation (mean 0, variance 1), so the
     widened model acts as the original whatever they hold (:meth:`PPOPolicy.use_graph` in
-    memory, ``python -m train.widen`` on disk).
+    memory, ``langctrl widen`` on disk).
     """
     return ob.FIRST_CHILD + ob.CHILD_FIELDS * old_children, ob.CHILD_FIELDS * (
         new_children - old_children
@@ -570,7 +570,7 @@ class PPOPolicy:
         """Load ``STEM.zip``, its ``STEM_vecnormalize.pkl`` and its ``STEM_config.yaml``.
 
         Args:
-            path: The model zip written by ``python -m train.ppo`` (``.zip`` optional).
+            path: The model zip written by ``langctrl train`` (``.zip`` optional).
 
         Raises:
             FileNotFoundError: naming the file, if one of the three is missing.
@@ -635,7 +635,7 @@ class PPOPolicy:
           model's child blocks (``env_kwargs["max_children"]``), the extra ones empty, as in
           training across exercises;
         * a graph with more, for a ``"target"`` model (one phrase action whatever the number of
-          children): the model is widened in memory exactly as ``python -m train.widen`` widens
+          children): the model is widened in memory exactly as ``langctrl widen`` widens
           it on disk (zero weights and neutral normalisation on the new child blocks: it acts as
           trained, blind to the extra children's inputs; the env's choice rule still chooses
           among all of them); :attr:`widened_from` records it;
@@ -656,7 +656,7 @@ class PPOPolicy:
                     spec.max_children,
                     spoken.max_children,
                     "its 'scores' action has one output per choice, which widening cannot add: "
-                    "retrain it on this graph (python -m train.ppo) or speak another (--graph)",
+                    "retrain it on this graph (langctrl train) or speak another (--graph)",
                 )
             self._widen(spoken.max_children)
         self.env_kwargs["max_children"] = self.residual.spec.max_children
@@ -667,7 +667,7 @@ class PPOPolicy:
         ):
             warnings.warn(
                 f"{self.path}: the phrase graph {spoken.label} changed since this model was "
-                "trained on it; retrain it (python -m train.ppo) for best results",
+                "trained on it; retrain it (langctrl train) for best results",
                 stacklevel=2,
             )
 
@@ -748,7 +748,7 @@ def _check_layout(
     """
     now = observation_layout(max_children)
     recorded = config.get("observation_layout")
-    hint = "retrain it with this code (python -m train.ppo)"
+    hint = "retrain it with this code (langctrl train)"
     if isinstance(recorded, dict) and recorded.get("signature") != now["signature"]:
         raise ObservationLayoutError(cfg_path, _layout_text(now), _layout_text(recorded), hint)
     if n_obs != now["size"]:

@@ -233,6 +233,50 @@ def test_the_kernels_stale_cache_check_watches_every_compiled_module() -> None:
         assert (root / name).is_file(), name
 
 
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _sources(*skip: str) -> list[Path]:
+    """The project's Python files outside ``tests/``, ``tools/`` and ``skip`` (paths)."""
+    found = []
+    for package in PACKAGES:
+        for path in sorted((REPO / package).rglob("*.py")):
+            if path.relative_to(REPO).as_posix() not in skip:
+                found.append(path)
+    return found
+
+
+def test_only_langctrl_builds_a_command_line() -> None:
+    """Every command-line job lives in ``langctrl.jobs``: no module of ``langenv``, ``policies``,
+    ``train``, ``eval`` or ``bench`` makes an argparse parser (``tools/`` and ``tests/`` may)."""
+    found = [
+        f"{path.relative_to(REPO)}:{i}"
+        for path in _sources()
+        if path.parts[len(REPO.parts)] != "langctrl"
+        for i, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1)
+        if "ArgumentParser(" in line
+    ]
+    assert found == []
+
+
+def test_the_shared_options_are_added_in_one_place() -> None:
+    """The options the jobs share (:data:`langctrl.options.COMMON_OPTIONS`) are added only by
+    ``langctrl/options.py``; a job takes them as parents."""
+    import re
+
+    from langctrl.options import COMMON_OPTIONS
+
+    added = re.compile(
+        r"add_argument\(\s*[\"'](" + "|".join(re.escape(o) for o in COMMON_OPTIONS) + r")[\"']"
+    )
+    found = [
+        f"{path.relative_to(REPO)}: {m.group(1)}"
+        for path in _sources("langctrl/options.py")
+        for m in added.finditer(path.read_text(encoding="utf-8"))
+    ]
+    assert found == []
+
+
 def test_cycle_finder_finds_a_cycle() -> None:
     graph = grimp.ImportGraph()
     for a, b in (("p.a", "p.b"), ("p.b", "p.c"), ("p.c", "p.a"), ("p.c", "p.d")):

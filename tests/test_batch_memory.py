@@ -1,7 +1,7 @@
 """A batch shares what never changes (issue 45): the sessions of a ``LangCtrlVectorEnv`` hold one
 phrase graph, one clip library, one MuJoCo model, one ETC table and one calibrated person between
 them, read-only; each keeps its own state (``MjData``, its person's drawn force); a graph holds
-its clips' lengths, and stepping never loads audio. ``python -m bench.memory`` measures what a
+its clips' lengths, and stepping never loads audio. ``langctrl bench-memory`` measures what a
 session costs."""
 
 from __future__ import annotations

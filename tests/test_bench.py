@@ -1,4 +1,4 @@
-"""`python -m bench --json`: a smoke run of the cheap sections and the nominal figures."""
+"""`langctrl bench --json`: a smoke run of the cheap sections and the nominal figures."""
 
 from __future__ import annotations
 
@@ -7,7 +7,8 @@ import math
 
 import pytest
 
-from bench.__main__ import main, measure_nominal
+from bench.figures import measure_nominal
+from langctrl.jobs.bench import main
 
 
 def test_json_output_has_the_figures(capsys: pytest.CaptureFixture[str]) -> None:
@@ -33,7 +34,7 @@ def test_nominal_exercise_matches_the_study() -> None:
 
 
 def test_robot_section_prints_the_loop_figures(capsys: pytest.CaptureFixture[str]) -> None:
-    from bench.__main__ import measure_robot
+    from bench.figures import measure_robot
 
     figures = measure_robot(sessions=1)
     assert set(figures) >= {
@@ -46,7 +47,7 @@ def test_robot_section_prints_the_loop_figures(capsys: pytest.CaptureFixture[str
 
 def test_live_section_prints_its_figures() -> None:
     """The real-time loop's pace and the time to refuse a silent robot: figures, not judged."""
-    from bench.__main__ import measure_live
+    from bench.figures import measure_live
 
     figures = measure_live(seconds=0.5)
     assert set(figures) == {"live_wall_over_sim", "live_late_ticks", "ur_no_answer_s"}

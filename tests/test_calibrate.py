@@ -16,11 +16,11 @@ from eval.calibrate import (
     ClosedLoopScore,
     extract_episodes,
     fit_params,
-    main,
     round_params,
     structured,
     write_params,
 )
+from langctrl.jobs.calibrate import main
 from langenv.errors import ConfigError
 from langenv.users import Session, SyntheticUserParams, load_sessions
 

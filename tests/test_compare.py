@@ -1,4 +1,4 @@
-"""``python -m eval.compare``: a tiny end-to-end run, and bad arguments that must write nothing."""
+"""``langctrl compare``: a tiny end-to-end run, and bad arguments that must write nothing."""
 
 from __future__ import annotations
 
@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from eval.compare import main, policy_names
+from eval.compare import policy_names
+from langctrl.jobs.compare import main
 
 ROOT = Path(__file__).resolve().parents[1]
 SESSIONS = ROOT.parent / "shared" / "sessions"
@@ -57,9 +58,17 @@ def test_bad_arguments_exit_nonzero_and_write_nothing(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], message: str
 ) -> None:
     out = tmp_path / "out"
-    assert main([*args, "--out", str(out)]) == 2
+    assert _status([*args, "--out", str(out)]) == 2  # --users: the parser's own check, exit 2
     assert message in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+def _status(argv: list[str]) -> int:
+    """``langctrl compare``'s exit status: main's, or the parser's (a usage error exits)."""
+    try:
+        return main(argv)
+    except SystemExit as exc:
+        return int(exc.code or 0)
 
 
 def test_bad_phrase_graph_and_bad_session(
@@ -82,7 +91,7 @@ def test_bad_phrase_graph_and_bad_session(
 
 def test_cli_entry_point_help() -> None:
     res = subprocess.run(
-        [sys.executable, "-m", "eval.compare", "--help"],
+        [sys.executable, "-m", "langctrl", "compare", "--help"],
         capture_output=True,
         text=True,
         check=False,
@@ -162,7 +171,7 @@ def test_video_flag_writes_a_video_per_episode_with_the_wav_as_sound(
 def test_existing_out_is_refused_and_its_files_kept(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """The issue's repro: eval.compare --out DIR on a directory with a user's file in it."""
+    """The issue's repro: langctrl compare --out DIR on a directory with a user's file in it."""
     out = tmp_path / "v"
     out.mkdir()
     (out / "a.txt").write_text("keep")
@@ -190,7 +199,7 @@ def test_negative_seed_is_a_usage_error(tmp_path: Path, capsys: pytest.CaptureFi
     with pytest.raises(SystemExit) as info:
         main(["--seed", "-5", "--out", str(tmp_path / "out")])
     assert info.value.code == 2
-    assert "--seed must be >= 0, got -5" in capsys.readouterr().err
+    assert "argument --seed: must be >= 0, got -5" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
 
 

@@ -13,11 +13,11 @@ import yaml
 
 import langenv
 from eval.compare import policy_names
+from langctrl.jobs.ensemble import main as ensemble_main
 from langenv.exercise import speak
 from policies import load_policy
 from policies.ensemble import PPOEnsemble, write_manifest
 from policies.learned import PPOPolicy, model_files
-from train.ensemble import main as ensemble_main
 
 
 @pytest.fixture

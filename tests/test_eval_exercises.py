@@ -1,4 +1,4 @@
-"""Smoke run of ``python -m eval.exercises`` on two exercises and one user."""
+"""Smoke run of ``langctrl exercises`` on two exercises and one user."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from eval.exercises import main
+from langctrl.jobs.exercises import main
 
 
 @pytest.mark.slow

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 import yaml
 
-from eval.compare import main as compare
 from eval.episode import EpisodeLog
+from langctrl.jobs.compare import main as compare
 from langctrl.jobs.play import main as play
 from langenv.exercise import resolve_exercise
 
@@ -80,7 +80,7 @@ def test_train_ppo_takes_a_list_of_exercises(tmp_path: Path) -> None:
     )
     env = dict(os.environ, PYTHONPATH=str(REPO))
     out = tmp_path / "run"
-    cmd = [sys.executable, "-m", "train.ppo", "--config", str(config), "--no-progress-bar"]
+    cmd = [sys.executable, "-m", "langctrl", "train", "--config", str(config), "--no-progress-bar"]
     cmd += ["--out", str(out), "--n-envs", "2", "--total-timesteps", "256"]
     cmd += ["--n-eval-episodes", "0", "--vec-env", "dummy"]
     res = subprocess.run(cmd, cwd=REPO, env=env, capture_output=True, text=True, timeout=600)

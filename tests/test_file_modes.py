@@ -56,7 +56,7 @@ def test_temporary_files_and_folders_get_the_users_mode(tmp_path: Path, mask: in
 
 def test_a_compare_job_writes_files_others_can_read(tmp_path: Path, mask: int) -> None:
     """sessions.csv, summary.md, summary.png, the folder and each session's files."""
-    from eval.compare import main
+    from langctrl.jobs.compare import main
 
     out = tmp_path / "out"
     assert main(["--policies", "ac", "--users", "synthetic:1", "--out", str(out)]) == 0

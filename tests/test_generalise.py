@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 import yaml
 
-from eval.generalise import COMPARED, bars, bars_markdown, compare_rows, main
+from eval.generalise import COMPARED, bars, bars_markdown, compare_rows
+from langctrl.jobs.generalise import main
 from langenv.errors import ConfigError
 from langenv.worlds import WorldSplit
 from policies.learned import PPOPolicy, model_files, observation_layout

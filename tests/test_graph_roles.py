@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 import langenv
-from eval.compare import main
 from eval.episode import EpisodeLog
 from eval.report import mixed_graph_policies
 from eval.verdict import verdict_table
+from langctrl.jobs.compare import main
 from langenv.errors import ConfigError, GraphChoicesError
 from langenv.exercise import resolve_exercise
 from langenv.exercise.script import (
@@ -100,7 +100,7 @@ def _actions(policy: PPOPolicy, graph: str, seed: int = 3, steps: int = 200) -> 
 
 def test_a_model_is_widened_as_train_widen_widens_it(tmp_path: Path) -> None:
     """On the study's exercise the shipped model (6 choices) speaks the default graph (9): it is
-    widened in memory, acting exactly as the model python -m train.widen writes."""
+    widened in memory, acting exactly as the model langctrl widen writes."""
     from train.widen import widen
 
     policy = PPOPolicy.load(SHIPPED)
@@ -136,7 +136,7 @@ def test_a_model_that_cannot_act_on_the_graph_is_refused_by_name() -> None:
     exc = err.value
     assert (exc.graph, exc.model_choices, exc.graph_choices) == (H2M_LC, 6, 9)
     text = str(exc)
-    assert "ppo_aligner.zip" in text and H2M_LC in text and "python -m train.ppo" in text
+    assert "ppo_aligner.zip" in text and H2M_LC in text and "langctrl train" in text
     assert isinstance(exc, ValueError)  # the package's errors are ValueErrors where they can be
 
 

@@ -266,8 +266,8 @@ def test_the_session_video_names_the_current_leg() -> None:
 def test_compare_writes_the_leg_metrics_and_the_verdict_shows_them(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from eval.compare import main
     from eval.report import read_sessions_csv
+    from langctrl.jobs.compare import main
 
     out = tmp_path / "c"
     args = ["--policies", "ac,lc", "--users", "synthetic:1", "--workers", "1", "--seed", "5"]

@@ -1,4 +1,4 @@
-"""Smoke test of the training script (python -m train.ppo) and its config handling."""
+"""Smoke test of the training script (langctrl train) and its config handling."""
 
 from __future__ import annotations
 
@@ -16,13 +16,13 @@ import pytest
 import yaml
 
 import langenv
+from langctrl.jobs.train import parse_args
 from langenv.errors import ConfigError
 from langenv.exercise import speak
 from policies.analytic import LanguageController
 from policies.learned import PPOPolicy, file_sha256, model_files
 from train.config import TrainArgs, _policy_kwargs, _schedule, load_config
 from train.factories import use_subprocesses
-from train.ppo import parse_args
 from train.resume import checkpoint_files
 
 REPO = Path(__file__).resolve().parents[1]
@@ -54,7 +54,15 @@ def _finetune_config(tmp: Path) -> Path:
 
 def _train(*extra: str) -> subprocess.CompletedProcess[str]:
     env = dict(os.environ, PYTHONPATH=str(REPO))
-    cmd = [sys.executable, "-m", "train.ppo", "--config", str(TWO_ENVS), "--no-progress-bar"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "langctrl",
+        "train",
+        "--config",
+        str(TWO_ENVS),
+        "--no-progress-bar",
+    ]
     return subprocess.run(
         [*cmd, *extra], cwd=REPO, env=env, capture_output=True, text=True, timeout=300
     )
@@ -121,8 +129,8 @@ def test_periodic_evaluation_records_the_metrics_and_best_exports_it(
     smoke_run: SmokeRun, tmp_path: Path
 ) -> None:
     """evaluations.npz holds each user's |AM|, |EM| and |a-1|; --best exports that checkpoint."""
+    from langctrl.jobs.export import main as export_main
     from train.callbacks import EVAL_METRICS
-    from train.export import main as export_main
 
     with np.load(smoke_run.out / "eval" / "evaluations.npz") as data:
         assert list(data["timesteps"]) == [2048]
@@ -151,7 +159,8 @@ def test_one_report_per_evaluation_on_the_projects_channel(smoke_run: SmokeRun) 
 def test_export_best_s_help_says_both_of_its_rules(monkeypatch: pytest.MonkeyPatch) -> None:
     """--best takes the most content for a phrase chooser and the lowest |AM| + |EM| otherwise:
     the help says what the code does."""
-    from train.export import CONTENT_RULE, build_parser
+    from langctrl.jobs.export import build_parser
+    from train.export import CONTENT_RULE
 
     monkeypatch.setenv("COLUMNS", "1000")  # no wrapping inside a hyphenated word
     text = " ".join(build_parser().format_help().split())
@@ -217,7 +226,7 @@ def test_trained_model_drives_the_env(smoke_run: SmokeRun) -> None:
 @pytest.mark.xdist_group("ppo_smoke_run")
 def test_export_copies_the_checkpoint(smoke_run: SmokeRun, tmp_path: Path) -> None:
     """A checkpoint exported as a model: the checkpoint's weights and normalisation, loadable."""
-    from train.export import main as export_main
+    from langctrl.jobs.export import main as export_main
 
     assert export_main([str(smoke_run.out), "--steps", "2048", "--out", str(tmp_path / "x")]) == 0
     x_zip, x_norm, x_cfg = model_files(tmp_path / "x.zip")
@@ -238,7 +247,7 @@ def test_export_copies_the_checkpoint(smoke_run: SmokeRun, tmp_path: Path) -> No
 @pytest.mark.xdist_group("ppo_smoke_run")
 def test_choice_only_export_keeps_the_base_paces(smoke_run: SmokeRun, tmp_path: Path) -> None:
     """--choice-only: the same network, only its phrase-choice correction kept."""
-    from train.export import main as export_main
+    from langctrl.jobs.export import main as export_main
 
     stem = tmp_path / "c"
     argv = [str(smoke_run.out), "--steps", "2048", "--choice-only", "--out", str(stem)]
@@ -266,7 +275,7 @@ def test_terminal_export_gives_the_base_a_terminal_phase(
     smoke_run: SmokeRun, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """--terminal S: the exported model's base has a terminal phase of S s, recorded."""
-    from train.export import main as export_main
+    from langctrl.jobs.export import main as export_main
 
     stem = tmp_path / "t"
     argv = [str(smoke_run.out), "--steps", "2048", "--terminal", "1", "--out", str(stem)]
@@ -301,7 +310,7 @@ def test_finetune_stage_starts_from_the_checkpoint(smoke_run: SmokeRun, tmp_path
 
 
 def test_export_names_the_missing_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from train.export import main as export_main
+    from langctrl.jobs.export import main as export_main
 
     (tmp_path / "checkpoints").mkdir()
     assert export_main([str(tmp_path), "--steps", "5", "--out", str(tmp_path / "x")]) == 2
@@ -619,7 +628,15 @@ def test_ctrl_c_exits_130_with_one_line(tmp_path: Path) -> None:
 
     out = tmp_path / "run"
     env = dict(os.environ, PYTHONPATH=str(REPO))
-    cmd = [sys.executable, "-m", "train.ppo", "--config", str(TWO_ENVS), "--no-progress-bar"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "langctrl",
+        "train",
+        "--config",
+        str(TWO_ENVS),
+        "--no-progress-bar",
+    ]
     cmd += ["--n-envs", "2", "--vec-env", "subproc", "--n-eval-episodes", "0"]
     # A short run first, so that the workers load the env's compiled kernels from numba's cache
     # instead of compiling them (minutes of CPU under load on a fresh clone) when Ctrl-C comes
@@ -755,7 +772,7 @@ def test_resume_of_a_run_recorded_before_the_metrics_keeps_saving(tmp_path: Path
 def test_fresh_run_refuses_a_non_empty_out(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from train.ppo import main as train_main
+    from langctrl.jobs.train import main as train_main
 
     (tmp_path / "notes.txt").write_text("keep")
     assert train_main(["--config", str(CONFIG), "--out", str(tmp_path)]) == 2
@@ -835,7 +852,7 @@ def test_best_of_a_phrase_choosers_run_is_chosen_by_content(tmp_path: Path) -> N
 
 
 def test_best_names_what_is_missing(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from train.export import main as export_main
+    from langctrl.jobs.export import main as export_main
 
     (tmp_path / "run_config.yaml").write_text("train: {name: m}\n")
     assert export_main([str(tmp_path), "--best", "--out", str(tmp_path / "x")]) == 2
@@ -856,8 +873,8 @@ def test_best_names_what_is_missing(tmp_path: Path, capsys: pytest.CaptureFixtur
 def test_export_and_ensemble_never_replace_files_without_overwrite(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from train.ensemble import main as ensemble_main
-    from train.export import main as export_main
+    from langctrl.jobs.ensemble import main as ensemble_main
+    from langctrl.jobs.export import main as export_main
 
     (tmp_path / "checkpoints").mkdir()
     (tmp_path / "run_config.yaml").write_text("train: {name: m}\n")

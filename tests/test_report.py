@@ -11,13 +11,13 @@ import pytest
 
 from eval.metrics import METRIC_COLUMNS, NUMERIC_METRICS
 from eval.report import (
-    main,
     read_sessions_csv,
     render_summary_md,
     study_findings,
     write_sessions_csv,
     write_summary_md,
 )
+from langctrl.jobs.report import main
 from langenv.errors import ConfigError, SessionDataError
 
 POLICIES = ("ac", "lc-noap", "lc")
@@ -29,7 +29,7 @@ def synthetic_rows(
     am_scale: dict[str, float] | None = None,
     within: dict[str, float] | None = None,
 ) -> list[dict[str, float | str]]:
-    """Rows like eval.compare writes: |AM| typical size and share of natural audio pace."""
+    """Rows like langctrl compare writes: |AM| typical size and share of natural audio pace."""
     am_scale = am_scale or {"ac": 2.0, "lc-noap": 0.8, "lc": 0.3}
     within = within or {"ac": 1.0, "lc-noap": 0.5, "lc": 0.75}
     rows: list[dict[str, float | str]] = []

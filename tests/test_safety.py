@@ -215,7 +215,7 @@ def test_info_reports_deviation_and_top_speed_every_step() -> None:
 def test_fuzz_adversarial_users() -> None:
     """Seeded adversarial users (up to 200 N), short episodes: no crash, no NaN, and every step
     within the speed limit (+5 %) and the deviation limit (+1 cm), or a protective stop saying
-    why. ``python -m bench.safety`` runs the long version."""
+    why. ``langctrl bench-safety`` runs the long version."""
     result = FuzzResult()
     for k, kind in enumerate(ADVERSARIES):
         for j, policy in enumerate(("lc", "random")):

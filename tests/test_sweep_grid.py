@@ -17,7 +17,7 @@ from eval.overrides import (
     resolve_policy_param,
 )
 from eval.sweep import expand, load_spec, session_id
-from eval.sweep.__main__ import batch_size
+from eval.sweep.driver import batch_size
 from langenv.errors import ConfigError
 from policies import load_policy
 

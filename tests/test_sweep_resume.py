@@ -17,7 +17,7 @@ from typing import Any
 
 import pytest
 
-from eval.sweep.__main__ import main
+from langctrl.jobs.sweep import main
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -64,7 +64,7 @@ def reference(spec: Path) -> list[str]:
 
 
 def _start(spec: Path, out: Path) -> subprocess.Popen[bytes]:
-    cmd = [sys.executable, "-m", "eval.sweep", str(spec), "--out", str(out)]
+    cmd = [sys.executable, "-m", "langctrl", "sweep", str(spec), "--out", str(out)]
     cmd += ["--backend", "processes", "--workers", "2", "--batch-size", "1", "--no-summary"]
     return subprocess.Popen(
         cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True
@@ -144,7 +144,7 @@ def test_worker_killed_then_resumed(spec: Path, reference: list[str], tmp_path: 
 def test_ray_driver_killed_then_resumed(spec: Path, reference: list[str], tmp_path: Path) -> None:
     """The same on local Ray: the driver (and the Ray it started) killed, resumed on Ray."""
     out = tmp_path / "sweep"
-    cmd = [sys.executable, "-m", "eval.sweep", str(spec), "--out", str(out), "--no-summary"]
+    cmd = [sys.executable, "-m", "langctrl", "sweep", str(spec), "--out", str(out), "--no-summary"]
     cmd += ["--backend", "ray", "--workers", "2", "--batch-size", "1"]
     short = tempfile.mkdtemp(prefix="rk")  # the killed Ray's files go here (a short path)
     proc = subprocess.Popen(
@@ -196,7 +196,7 @@ def test_ray_worker_killed_is_replaced_and_nothing_lost(
     """SIGKILL to one of local Ray's actors mid-sweep: Ray starts it again, its batches run
     again, and the sweep ends with exactly the uninterrupted rows (no resume needed)."""
     out = tmp_path / "sweep"
-    cmd = [sys.executable, "-m", "eval.sweep", str(spec), "--out", str(out), "--no-summary"]
+    cmd = [sys.executable, "-m", "langctrl", "sweep", str(spec), "--out", str(out), "--no-summary"]
     cmd += ["--backend", "ray", "--workers", "2", "--batch-size", "1"]
     short = tempfile.mkdtemp(prefix="rw")
     proc = subprocess.Popen(

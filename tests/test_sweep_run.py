@@ -12,9 +12,9 @@ import pytest
 
 from eval.compare import EPISODE_COLUMNS, Job, run_episode
 from eval.sweep import expand, load_spec
-from eval.sweep.__main__ import main
 from eval.sweep.backend import make_backend
 from eval.sweep.store import SweepStore, row_schema
+from langctrl.jobs.sweep import main
 
 TINY = """\
 grid:
@@ -202,7 +202,15 @@ def test_resume_refuses_another_sweep_and_a_taken_dir(tmp_path: Path) -> None:
 
     store = SweepStore(out, None)  # a driver holds the directory: a second one is refused
     try:
-        cmd = [sys.executable, "-m", "eval.sweep", str(tmp_path / "tiny.yaml"), "--out", str(out)]
+        cmd = [
+            sys.executable,
+            "-m",
+            "langctrl",
+            "sweep",
+            str(tmp_path / "tiny.yaml"),
+            "--out",
+            str(out),
+        ]
         proc = subprocess.run(
             [*cmd, "--resume", "--backend", "processes"],
             cwd=Path(__file__).resolve().parents[1],
@@ -213,7 +221,7 @@ def test_resume_refuses_another_sweep_and_a_taken_dir(tmp_path: Path) -> None:
         )
     finally:
         store.close()
-    assert proc.returncode == 1 and "another eval.sweep is running" in proc.stderr, proc.stderr
+    assert proc.returncode == 1 and "another langctrl sweep is running" in proc.stderr, proc.stderr
 
 
 def test_expansion_matches_the_rows(reference: list[dict[str, Any]], tmp_path: Path) -> None:
@@ -226,7 +234,8 @@ def test_import_needs_neither_ray_nor_pyarrow() -> None:
     import sys
 
     code = (
-        "import sys; sys.modules['ray'] = None; import eval.sweep, eval.sweep.__main__; "
+        "import sys; sys.modules['ray'] = None; import eval.sweep, eval.sweep.driver; "
+        "import langctrl.jobs.sweep; "
         "assert 'pyarrow' not in sys.modules, 'pyarrow imported'"
     )
     root = Path(__file__).resolve().parents[1]

@@ -123,7 +123,7 @@ def test_bad_file_starts_nothing(tmp_path: Path) -> None:
     spec = _write(tmp_path, "grid:\n  policy: [lc]\n  lc.k_zz: [1.0]\n" + USERS)
     out = tmp_path / "out"
     proc = subprocess.run(
-        [sys.executable, "-m", "eval.sweep", str(spec), "--out", str(out)],
+        [sys.executable, "-m", "langctrl", "sweep", str(spec), "--out", str(out)],
         cwd=ROOT,
         capture_output=True,
         text=True,

@@ -106,7 +106,9 @@ def test_compare_names_each_changed_setting_and_text() -> None:
 
 
 def test_manifest_cli_passes_on_the_shipped_clips() -> None:
-    assert manifest.main([]) == 0
+    from langctrl.jobs import tts_manifest
+
+    assert tts_manifest.main([]) == 0
 
 
 def test_the_worker_ignores_ctrl_c_and_ends_with_its_input() -> None:

@@ -131,7 +131,7 @@ def test_ctrl_c_is_the_interrupted_stop(tmp_path: Path) -> None:
 
 @pytest.mark.slow
 def test_eval_compare_reads_the_robot_session(tmp_path: Path) -> None:
-    from eval.compare import main as compare
+    from langctrl.jobs.compare import main as compare
 
     _session(tmp_path)
     out = tmp_path / "out"

@@ -1,6 +1,6 @@
 """Synthetic and replayed users in the real env (LangCtrl-v0): determinism and session length.
 
-A few 25 Hz sessions; the full comparison with the recordings is ``python -m eval.fidelity``.
+A few 25 Hz sessions; the full comparison with the recordings is ``langctrl fidelity``.
 """
 
 from __future__ import annotations

@@ -88,7 +88,8 @@ def decode(path: Path) -> dict[str, object]:
 
 
 def test_session_video_has_both_streams_in_sync(tmp_path: Path, offscreen_gl: None) -> None:
-    from eval.video import FRAME_SIZE, main, session_audio
+    from eval.video import FRAME_SIZE, session_audio
+    from langctrl.jobs.video import main
 
     log = short_session(tmp_path)
     session = float(log.t[-1] - log.t[0])
@@ -97,7 +98,7 @@ def test_session_video_has_both_streams_in_sync(tmp_path: Path, offscreen_gl: No
     out = tmp_path / "lc_s3.mp4"
     assert main([str(npz), "--out", str(out), "--fps", str(FPS)]) == 0
 
-    wav, sr = session_audio(log)  # what eval.compare writes as the session's WAV
+    wav, sr = session_audio(log)  # what langctrl compare writes as the session's WAV
     got = decode(out)
     assert got["video"] == "h264" and got["audio"] == "aac" and got["pix_fmt"] == "yuv420p"
     assert got["fps"] == FPS and got["size"] == FRAME_SIZE
@@ -147,7 +148,7 @@ def _plain_log(n: int, **extra: Any) -> EpisodeLog:
 
 
 def test_video_of_a_log_without_scene_is_a_clear_error(tmp_path: Path) -> None:
-    from eval.video import main
+    from langctrl.jobs.video import main
 
     log = _plain_log(26, phrase_graph="lc")
     npz = log.save_npz(tmp_path / "old.npz")
@@ -172,7 +173,8 @@ def test_log_round_trip_keeps_scene_and_graph(tmp_path: Path) -> None:
 
 
 def test_default_frame_rate_is_25() -> None:
-    from eval.video import DEFAULT_FPS, parse_args
+    from eval.video import DEFAULT_FPS
+    from langctrl.jobs.video import build_parser
 
     assert DEFAULT_FPS == 25
-    assert parse_args(["x.npz", "--out", "x.mp4"]).fps == 25
+    assert build_parser().parse_args(["x.npz", "--out", "x.mp4"]).fps == 25

@@ -1,4 +1,4 @@
-"""Smoke run of ``python -m eval.voice_figure`` on one LC session."""
+"""Smoke run of ``langctrl voice-figure`` on one LC session."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from eval.compare import main as compare
-from eval.voice_figure import main
+from langctrl.jobs.compare import main as compare
+from langctrl.jobs.voice_figure import main
 
 
 def test_the_voice_figure_of_an_lc_session(

@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 import yaml
 
+from langctrl.jobs.widen import main
 from langenv.errors import ConfigError
 from langenv.task import observation as ob
 from policies.learned import PPOPolicy, observation_layout
-from train.widen import main, widen
+from train.widen import widen
 
 SHIPPED = Path(__file__).resolve().parents[1] / "models" / "ppo_aligner.zip"  # 6 choices
 

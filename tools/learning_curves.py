@@ -7,7 +7,7 @@ figure of ``docs/batched.md``.
 Each run directory holds ``eval/evaluations.npz`` (written by ``train.ppo``'s periodic
 evaluation on the 48 validation users); each panel draws every run thin and the recipe's mean
 over its runs thick: the selection score (mean |AM| + mean |EM|, s; lower is better: what
-``train.export --best`` minimises) and the mean return.
+``langctrl export --best`` minimises) and the mean return.
 """
 
 from __future__ import annotations

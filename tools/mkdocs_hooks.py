@@ -37,7 +37,7 @@ def _help() -> str:
         parts = ["```text", build_parser().format_help().rstrip(), "```", ""]
         for name, cmd in COMMANDS.items():
             parts += [f"## `langctrl {name}`", ""]
-            parts += [f"`python -m {cmd.module}`: {cmd.summary}.", ""]
+            parts += [f"`python -m langctrl {name}`: {cmd.summary}.", ""]
             parts += ["```text", load(name).build_parser().format_help().rstrip(), "```", ""]
     finally:
         if before is None:

@@ -1,1 +1,1 @@
-"""Training scripts of LangCtrl: ``python -m train.ppo`` (the learned aligner) and its wrappers."""
+"""Training scripts of LangCtrl: ``langctrl train`` (the learned aligner) and its wrappers."""

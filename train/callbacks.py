@@ -2,7 +2,7 @@
 in ``callbacks.py``).
 
 * :class:`MetricsEvalCallback`: SB3's periodic evaluation on the held-out users, also recording
-  the alignment and speech metrics (:data:`EVAL_METRICS`) that ``train.export --best`` chooses a
+  the alignment and speech metrics (:data:`EVAL_METRICS`) that ``langctrl export --best`` chooses a
   checkpoint by, and (a phrase chooser's run) the base's own figures once (:data:`BASE_FILE`);
   :func:`restore_history` hands a resumed run's callback the evaluations made so far.
 * :class:`SaveBest`: the model at the highest mean evaluation return (:data:`BEST_RETURN`).
@@ -77,7 +77,7 @@ class _ZeroCorrection:
 class MetricsEvalCallback(EvalCallback):
     """EvalCallback that also logs and records the held-out users' ``|AM|``, ``|EM|`` and
     ``|a - 1|`` (:data:`EVAL_METRICS`), so that a checkpoint can be chosen by them
-    (``python -m train.export RUN --best``)."""
+    (``langctrl export RUN --best``)."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
@@ -88,7 +88,7 @@ class MetricsEvalCallback(EvalCallback):
 
     def _on_training_start(self) -> None:
         """Evaluate the base (a zero correction) once on the held-out users, where the env
-        reports the speech people hear: ``eval/base.npz``, what ``train.export --best`` holds
+        reports the speech people hear: ``eval/base.npz``, what ``langctrl export --best`` holds
         the checkpoints against (:data:`BASE_FILE`)."""
         super()._on_training_start()
         if self.log_path is None:

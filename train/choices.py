@@ -52,7 +52,7 @@ from policies.learned import ResidualLC, ResidualSpec
 __all__ = ["EPISODE_S", "ChoicePoints", "session_legs", "session_speech"]
 
 EPISODE_S = 60.0
-"""Longest episode (s of simulated time), as ``eval.compare`` runs one."""
+"""Longest episode (s of simulated time), as ``langctrl compare`` runs one."""
 _NATURAL = 0.1  # the voice counts as natural within this of its natural rate
 _EPS = 1e-9
 

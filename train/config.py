@@ -54,7 +54,7 @@ SB3_N_STEPS = 2048
 
 @dataclass(frozen=True)
 class TrainArgs:
-    """Arguments of ``python -m train.ppo`` (defaults; the YAML's ``train`` section overrides them,
+    """Arguments of ``langctrl train`` (defaults; the YAML's ``train`` section overrides them,
     the command line overrides both).
 
     Attributes:
@@ -140,7 +140,7 @@ def load_config(path: Path, env_id: str) -> tuple[dict[str, Any], dict[str, Any]
     A config may start from another one: a top-level ``inherit: OTHER.yaml`` (relative to the
     config's folder) reads ``OTHER.yaml`` first, and this file's mappings are merged into it key
     by key (a list or a value replaces the inherited one whole). rl-zoo3 does not read
-    ``inherit``; a stage that only ``train.ppo`` runs (such as a fine-tune) may use it.
+    ``inherit``; a stage that only ``langctrl train`` runs (such as a fine-tune) may use it.
 
     Raises:
         FileNotFoundError: if the file (or one it inherits from) does not exist.

@@ -2,10 +2,10 @@
 
 Run::
 
-    python -m train.ensemble --out models/ppo_langctrl.yaml \\
+    langctrl ensemble --out models/ppo_langctrl.yaml \\
         models/ppo_langctrl_s1000000.zip models/ppo_langctrl_s2000000.zip ...
 
-The members (made with ``python -m train.export``) must lie in the manifest's folder and share
+The members (made with ``langctrl export``) must lie in the manifest's folder and share
 their residual design, decision rate, phrase graph and env arguments. The manifest records each
 member's SHA-256 and is loaded once before it is written, so a broken ensemble fails here. An
 existing manifest is replaced only with ``--overwrite``.
@@ -13,18 +13,15 @@ existing manifest is replaced only with ``--overwrite``.
 
 from __future__ import annotations
 
-import argparse
-import sys
-from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["EnsembleArgs", "build_parser", "main", "parse_args"]
+__all__ = ["EnsembleArgs", "ensemble"]
 
 
 @dataclass(frozen=True)
 class EnsembleArgs:
-    """Arguments of ``python -m train.ensemble``.
+    """Arguments of ``langctrl ensemble``.
 
     Attributes:
         models: The member model zips.
@@ -37,54 +34,15 @@ class EnsembleArgs:
     overwrite: bool = False
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The command line of ``langctrl ensemble`` (``python -m train.ensemble``)."""
-    p = argparse.ArgumentParser(
-        prog="langctrl ensemble",
-        description=__doc__.split("\n")[0] + " Also run as python -m train.ensemble.",
-    )
-    p.add_argument(
-        "models",
-        type=Path,
-        nargs="+",
-        metavar="MODEL.zip",
-        help="member model zips (langctrl export), in the manifest's folder",
-    )
-    p.add_argument(
-        "--out", type=Path, required=True, help="the manifest to write (.yaml; required)"
-    )
-    p.add_argument("--overwrite", action="store_true", help="replace an existing manifest")
-    return p
+def ensemble(args: EnsembleArgs) -> Path:
+    """Write the manifest ``args`` asks for (:func:`policies.ensemble.write_manifest`); its path.
 
-
-def parse_args(argv: Sequence[str] | None = None) -> EnsembleArgs:
-    """Parse the command line into :class:`EnsembleArgs`."""
-    p = build_parser()
-    ns = p.parse_args(argv)
-    if ns.out.suffix not in (".yaml", ".yml"):
-        p.error(f"--out must end in .yaml, got {ns.out}")
-    return EnsembleArgs(models=tuple(ns.models), out=ns.out, overwrite=ns.overwrite)
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point; returns the process exit code."""
+    Raises:
+        FileExistsError: ``args.out`` exists and ``args.overwrite`` is off.
+        FileNotFoundError, ValueError: a missing member, or members that cannot act as one.
+    """
     from policies.ensemble import write_manifest
 
-    args = parse_args(argv)
     if args.out.exists() and not args.overwrite:
-        print(
-            f"langctrl ensemble: error: {args.out} exists; give --overwrite to replace it",
-            file=sys.stderr,
-        )
-        return 2
-    try:
-        path = write_manifest(args.out, list(args.models))
-    except (FileNotFoundError, ValueError) as exc:
-        print(f"langctrl ensemble: error: {exc}", file=sys.stderr)
-        return 2
-    print(path)
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+        raise FileExistsError(f"{args.out} exists; give --overwrite to replace it")
+    return write_manifest(args.out, list(args.models))

@@ -2,8 +2,8 @@
 
 Run::
 
-    python -m train.export runs/ppo --steps 100000 --out models/ppo_aligner
-    python -m train.export runs/ppo --best --out models/ppo_aligner   # chosen on validation
+    langctrl export runs/ppo --steps 100000 --out models/ppo_aligner
+    langctrl export runs/ppo --best --out models/ppo_aligner   # chosen on validation
 
 copies ``RUN/checkpoints/NAME_<steps>_steps.zip`` and its ``NAME_vecnormalize_<steps>_steps.pkl``
 to ``OUT.zip`` and ``OUT_vecnormalize.pkl``, writes the run's config (``RUN/run_config.yaml``) as
@@ -36,10 +36,8 @@ with ``--terminal 1`` (``docs/learned.md``).
 
 from __future__ import annotations
 
-import argparse
 import shutil
 import sys
-from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -50,20 +48,17 @@ __all__ = [
     "EvalScore",
     "ExportArgs",
     "best_steps",
-    "build_parser",
     "eval_scores",
     "export",
-    "main",
-    "parse_args",
 ]
 
 
 @dataclass(frozen=True)
 class ExportArgs:
-    """Arguments of ``python -m train.export``.
+    """Arguments of ``langctrl export``.
 
     Attributes:
-        run: Output directory of a ``python -m train.ppo`` run.
+        run: Output directory of a ``langctrl train`` run.
         steps: Step count of the checkpoint to export (``checkpoints/NAME_<steps>_steps.zip``);
             None: the one :func:`best_steps` picks (``--best``).
         out: Stem of the exported model (``OUT.zip``, ``OUT_vecnormalize.pkl``,
@@ -82,67 +77,6 @@ class ExportArgs:
     choice_only: bool = False
     overwrite: bool = False
     terminal: float | None = None
-
-
-def build_parser() -> argparse.ArgumentParser:
-    """The command line of ``langctrl export`` (``python -m train.export``)."""
-    p = argparse.ArgumentParser(
-        prog="langctrl export",
-        description=__doc__.split("\n")[0] + " Also run as python -m train.export.",
-    )
-    p.add_argument("run", type=Path, metavar="RUN", help="the run directory of a langctrl train")
-    which = p.add_mutually_exclusive_group(required=True)
-    which.add_argument(
-        "--steps", type=int, help="step count of the checkpoint (this or --best is required)"
-    )
-    which.add_argument(
-        "--best",
-        action="store_true",
-        help="the checkpoint the periodic evaluations on the held-out users favour: for a phrase "
-        f"chooser's run the {CONTENT_RULE}; for any other run the lowest mean |AM| + mean |EM| "
-        "(not the run's best_return/, SB3's highest return)",
-    )
-    p.add_argument(
-        "--out",
-        type=Path,
-        required=True,
-        metavar="STEM",
-        help="stem of the exported model: STEM.zip, STEM_vecnormalize.pkl, STEM_config.yaml "
-        "(required)",
-    )
-    p.add_argument(
-        "--name", default=None, help="the run's model name (default: train.name of its config)"
-    )
-    p.add_argument(
-        "--choice-only",
-        action="store_true",
-        help="keep only the phrase-choice correction (the paces stay the base controller's)",
-    )
-    p.add_argument(
-        "--terminal",
-        type=float,
-        default=None,
-        metavar="S",
-        help="give the exported model's base a terminal phase of S s (the shipped phrase "
-        "chooser: 1, lc-fill-end's base; default: the run's)",
-    )
-    p.add_argument("--overwrite", action="store_true", help="replace existing OUT.* files")
-    return p
-
-
-def parse_args(argv: Sequence[str] | None = None) -> ExportArgs:
-    """Parse the command line into :class:`ExportArgs`."""
-    p = build_parser()
-    ns = p.parse_args(argv)
-    return ExportArgs(
-        run=ns.run,
-        steps=ns.steps,
-        out=ns.out,
-        name=ns.name,
-        choice_only=ns.choice_only,
-        overwrite=ns.overwrite,
-        terminal=ns.terminal,
-    )
 
 
 def export(args: ExportArgs) -> Path:
@@ -453,19 +387,3 @@ def best_steps(run: Path, name: str) -> EvalScore:
     best = min(eligible, key=lambda e: (e.score, e.steps))
     print(f"chosen: {best.steps} steps (score {best.score:.3f} s)", file=sys.stderr)
     return best
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point; returns the process exit code."""
-    args = parse_args(argv)
-    try:
-        path = export(args)
-    except (FileNotFoundError, FileExistsError, ValueError) as exc:
-        print(f"langctrl export: error: {exc}", file=sys.stderr)
-        return 2
-    print(path)
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

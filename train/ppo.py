@@ -2,10 +2,10 @@
 
 Run::
 
-    python -m train.ppo --config configs/ppo.yaml                       # the shipped model
-    python -m train.ppo --config configs/ppo.yaml --total-timesteps 4000 --out runs/ppo_smoke
-    python -m train.ppo --config configs/ppo.yaml --out runs/ppo --resume  # after an interruption
-    python -m train.ppo --config CONFIG --init-from runs/ppo/NAME.zip  # fine-tune a model
+    langctrl train --config configs/ppo.yaml                       # the shipped model
+    langctrl train --config configs/ppo.yaml --total-timesteps 4000 --out runs/ppo_smoke
+    langctrl train --config configs/ppo.yaml --out runs/ppo --resume  # after an interruption
+    langctrl train --config CONFIG --init-from runs/ppo/NAME.zip  # fine-tune a model
 
 The YAML is keyed like rl-baselines3-zoo's (top-level key ``LangCtrl-v0`` with ``n_envs``,
 ``n_timesteps``, ``policy``, ``normalize``, ``env_wrapper``, ``env_kwargs``, ``policy_kwargs`` and
@@ -13,7 +13,7 @@ PPO's own arguments), so ``python -m rl_zoo3.train --algo ppo --gym-packages lan
 LangCtrl-v0 --conf-file configs/ppo.yaml`` trains the same model; an optional top-level ``train``
 section sets defaults of :class:`~train.config.TrainArgs` (seeds, evaluation, checkpoints),
 which the command line overrides. A config may ``inherit: OTHER.yaml`` and set only what differs
-(see :func:`~train.config.load_config`; a train.ppo extension that rl-zoo3 does not read).
+(see :func:`~train.config.load_config`; a langctrl train extension that rl-zoo3 does not read).
 
 What a run writes into ``--out``:
 
@@ -21,10 +21,10 @@ What a run writes into ``--out``:
   observation/reward normalisation and the run's full config (what ``PPOPolicy.load`` reads);
 * ``best_return/NAME.*``: the same three files at the periodic evaluation with the highest mean
   return (SB3's rule; its config records it, ``eval_mean_reward``). The model a run is meant
-  to give is chosen by ``train.export --best`` (its own rule), not this one;
+  to give is chosen by ``langctrl export --best`` (its own rule), not this one;
 * ``checkpoints/NAME_<steps>_steps.zip`` and ``NAME_vecnormalize_<steps>_steps.pkl``: snapshots
-  every ``checkpoint_freq`` steps (what ``train.export`` reads), taken at that step, i.e. with the
-  weights of the last update before it;
+  every ``checkpoint_freq`` steps (what ``langctrl export`` reads), taken at that step, i.e. with
+  the weights of the last update before it;
 * ``checkpoints/resume/NAME.zip`` and ``NAME_vecnormalize.pkl``: the *resume point*, the state
   right after the latest update (saved, atomically, at the start of every rollout and at the end);
 * ``run_config.yaml``: the run's full settings; ``eval/evaluations.npz``: periodic evaluation
@@ -46,11 +46,12 @@ spread over them. Every exercise is checked (``langctrl exercise check``) before
 training starts; they must share the phrase graph (the observation's size depends on it).
 
 Seeds: training envs are seeded ``seed + i`` (``seed >= 1_000_000`` by default, far from the
-evaluation users of ``python -m eval.compare --seed 0``, which are 0..N-1); periodic evaluation
+evaluation users of ``langctrl compare --seed 0``, which are 0..N-1); periodic evaluation
 meets the same held-out users ``eval_seed .. eval_seed + n_eval_episodes - 1`` every time
 (``900_000`` onwards by default). No replayed session is ever used for training.
 
-The parts of a run live beside this script, as rl-zoo3's beside its ``train.py``:
+The command line is ``langctrl train`` (:mod:`langctrl.jobs.train`). The parts of a run live beside
+this module, as rl-zoo3's beside its ``train.py``:
 :mod:`train.config` (the arguments and the YAML), :mod:`train.factories` (the envs),
 :mod:`train.resume` (checkpoints, the resume point, ``--init-from``), :mod:`train.provenance`
 (what a run records about itself) and :mod:`train.callbacks` (periodic evaluation, the best model,
@@ -59,11 +60,8 @@ the resume point).
 
 from __future__ import annotations
 
-import argparse
-import shutil
 import sys
 import time
-from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -72,7 +70,6 @@ from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
 from stable_baselines3.common.vec_env import VecNormalize
 
-from langenv.errors import ConfigError
 from train.callbacks import (
     BEST_RETURN,
     MetricsEvalCallback,
@@ -80,7 +77,7 @@ from train.callbacks import (
     SaveBest,
     restore_history,
 )
-from train.config import VEC_ENVS, Run, TrainArgs, ppo_kwargs, resolve
+from train.config import Run, TrainArgs, ppo_kwargs, resolve
 from train.factories import close_env, make_envs, residual_section
 from train.provenance import config_dict, recorded_args
 from train.resume import (
@@ -93,191 +90,7 @@ from train.resume import (
     save_triple,
 )
 
-__all__ = ["build_parser", "main", "parse_args", "train"]
-
-
-def build_parser() -> argparse.ArgumentParser:
-    """The command line of ``langctrl train`` (``python -m train.ppo``).
-
-    Every option but ``--config`` defaults to None, so that :func:`parse_args` can tell which were
-    given: the config's ``train`` section sets those not given, :class:`TrainArgs` the rest.
-    """
-    p = argparse.ArgumentParser(
-        prog="langctrl train",
-        description="Train the learned aligner (SB3 PPO) from a zoo-style config; the config's "
-        "'train' section sets these options, the command line overrides it. Also run as "
-        "python -m train.ppo.",
-    )
-    _add_run_options(p)
-    _add_evaluation_options(p)
-    _add_env_options(p)
-    _add_start_options(p)
-    _add_learner_options(p)
-    return p
-
-
-def _default(name: str, shown: object = None) -> str:
-    """The help's note on the default of option ``name`` (``shown``: how to show it)."""
-    value = getattr(TrainArgs, name) if shown is None else shown
-    return f"(default: the config's train.{name}, else {value})"
-
-
-def _add_run_options(p: argparse.ArgumentParser) -> None:
-    """The config, where the run goes, its budget and its seed."""
-    p.add_argument(
-        "--config",
-        type=Path,
-        default=TrainArgs.config,
-        metavar="YAML",
-        help="zoo-style YAML of hyperparameters, keyed by the env id (default: %(default)s)",
-    )
-    p.add_argument(
-        "--env-id", default=None, metavar="ID", help=f"Gymnasium env id {_default('env_id')}"
-    )
-    p.add_argument(
-        "--out",
-        type=Path,
-        default=None,
-        metavar="DIR",
-        help=f"run directory; a fresh run refuses one that holds files {_default('out')}",
-    )
-    p.add_argument(
-        "--name", default=None, help=f"file stem of the saved model, NAME.zip {_default('name')}"
-    )
-    p.add_argument(
-        "--total-timesteps",
-        type=int,
-        default=None,
-        metavar="STEPS",
-        help="training budget, env steps of all envs together, rounded up to whole rollouts "
-        f"(n_steps x n_envs) {_default('total_timesteps', 'its n_timesteps')}",
-    )
-    p.add_argument(
-        "--seed",
-        type=int,
-        default=None,
-        help="seed of the first training env (env i: SEED + i) and of PPO; >= 1000000 keeps "
-        f"training users apart from evaluation users {_default('seed')}",
-    )
-
-
-def _add_evaluation_options(p: argparse.ArgumentParser) -> None:
-    """The periodic evaluation and the checkpoints."""
-    p.add_argument(
-        "--eval-seed",
-        type=int,
-        default=None,
-        metavar="SEED",
-        help=f"seed of the first periodic-evaluation user {_default('eval_seed')}",
-    )
-    p.add_argument(
-        "--n-eval-episodes",
-        type=int,
-        default=None,
-        metavar="N",
-        help=f"users per periodic evaluation, 0: none {_default('n_eval_episodes')}",
-    )
-    p.add_argument(
-        "--eval-freq",
-        type=int,
-        default=None,
-        metavar="STEPS",
-        help=f"env steps (all envs) between periodic evaluations {_default('eval_freq')}",
-    )
-    p.add_argument(
-        "--checkpoint-freq",
-        type=int,
-        default=None,
-        metavar="STEPS",
-        help=f"env steps (all envs) between checkpoints {_default('checkpoint_freq')}",
-    )
-
-
-def _add_env_options(p: argparse.ArgumentParser) -> None:
-    """How many training envs, and the vector env that steps them."""
-    p.add_argument(
-        "--n-envs",
-        type=int,
-        default=None,
-        metavar="N",
-        help=f"parallel training envs {_default('n_envs', 'its n_envs')}",
-    )
-    p.add_argument(
-        "--vec-env",
-        choices=VEC_ENVS,
-        default=None,
-        help="batched: every env a session of one batched env (one compiled call per step over "
-        "the cores); subproc: one process per env; dummy: in this process; auto: batched where "
-        "it applies (no worlds, batched wrappers), else subprocesses only with more CPU cores "
-        f"than envs; the same run either way {_default('vec_env')}",
-    )
-
-
-def _add_start_options(p: argparse.ArgumentParser) -> None:
-    """Where the weights start: a resumed run's resume point, or a saved model's."""
-    p.add_argument(
-        "--resume",
-        action="store_true",
-        default=None,
-        help="continue the run in --out from its resume point, with its saved settings",
-    )
-    p.add_argument(
-        "--init-from",
-        type=Path,
-        default=None,
-        metavar="ZIP",
-        help="fine-tune: start from this model's weights and normalisation statistics "
-        f"{_default('init_from', 'random weights')}",
-    )
-
-
-def _add_learner_options(p: argparse.ArgumentParser) -> None:
-    """What the learner shows and writes, and where it computes."""
-    p.add_argument(
-        "--no-progress-bar",
-        dest="progress_bar",
-        action="store_false",
-        default=None,
-        help="hide SB3's progress bar (shown unless the config's train.progress_bar is false)",
-    )
-    p.add_argument(
-        "--no-tensorboard",
-        dest="tensorboard",
-        action="store_false",
-        default=None,
-        help="write no TensorBoard logs to OUT/tb (written unless the config's "
-        "train.tensorboard is false)",
-    )
-    p.add_argument(
-        "--device", default=None, help=f"torch device of the learner {_default('device')}"
-    )
-    p.add_argument(
-        "--torch-threads",
-        type=int,
-        default=None,
-        metavar="N",
-        help=f"torch threads of the learner process {_default('torch_threads')}",
-    )
-    p.add_argument(
-        "--verbose",
-        type=int,
-        default=None,
-        metavar="{0,1,2}",
-        help=f"SB3 verbosity, 0 (quiet) to 2 {_default('verbose')}",
-    )
-
-
-def parse_args(argv: Sequence[str] | None = None) -> tuple[TrainArgs, set[str]]:
-    """Parse the command line; returns the arguments and the names given explicitly."""
-    p = build_parser()
-    ns = vars(p.parse_args(argv))
-    given = {k for k, v in ns.items() if v is not None and k != "config"}
-    kwargs = {k: v for k, v in ns.items() if v is not None}
-    try:
-        return TrainArgs(**kwargs), given
-    except ConfigError as exc:
-        p.error(str(exc))
-        raise  # unreachable
+__all__ = ["train"]
 
 
 def train(args: TrainArgs, given: set[str] | None = None) -> Path:
@@ -434,22 +247,3 @@ def _learn(run: Run, model: Any, eval_env: Any, config: dict[str, Any], steps: i
     save_triple(model, None, final, config)
     print(f"wrote {final}.zip ({model.num_timesteps} steps, {wall:.0f} s)", file=sys.stderr)
     return final.with_suffix(".zip")
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point; returns the process exit code."""
-    args, given = parse_args(argv)
-    try:
-        path = train(args, given)
-    except (FileNotFoundError, ConfigError) as exc:
-        print(f"langctrl train: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        return 130
-    print(path)
-    return 0
-
-
-if __name__ == "__main__":
-    shutil.get_terminal_size()  # rich's progress bar reads it; fail early on odd terminals
-    raise SystemExit(main())

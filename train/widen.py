@@ -2,8 +2,8 @@
 
 Run::
 
-    python -m train.widen models/ppo_aligner.zip --max-children 9 --out runs/widened/ppo_aligner9
-    python -m train.ppo --config configs/ppo_general.yaml --init-from runs/widened/ppo_aligner9.zip
+    langctrl widen models/ppo_aligner.zip --max-children 9 --out runs/widened/ppo_aligner9
+    langctrl train --config configs/ppo_general.yaml --init-from runs/widened/ppo_aligner9.zip
 
 The learned policy's input holds one block of ``langenv.task.observation.CHILD_FIELDS`` inputs per
 choice of the graph's largest out-degree (``max_children``), so a model trained on a graph with 6
@@ -25,17 +25,14 @@ Evaluating a ``"target"`` model on a graph with more choices needs no file:
 
 from __future__ import annotations
 
-import argparse
 import pickle
-import sys
-from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import yaml
 
-__all__ = ["build_parser", "main", "parse_args", "widen"]
+__all__ = ["widen"]
 
 _FIRST_LAYERS = ("mlp_extractor.policy_net.0.weight", "mlp_extractor.value_net.0.weight")
 
@@ -131,48 +128,3 @@ def _widen_normalizer(src: Path, space: Any, actions: Any, at: int, n: int) -> A
     norm.observation_space = space
     norm.set_venv(DummyVecEnv([Spaces]))
     return norm
-
-
-def build_parser() -> argparse.ArgumentParser:
-    """The command line of ``langctrl widen`` (``python -m train.widen``)."""
-    p = argparse.ArgumentParser(
-        prog="langctrl widen",
-        description=__doc__.split("\n")[0] + " Also run as python -m train.widen.",
-    )
-    p.add_argument("model", type=Path, metavar="MODEL.zip", help="the model zip to widen")
-    p.add_argument(
-        "--max-children",
-        type=int,
-        required=True,
-        metavar="N",
-        help="the new number of choices: the largest out-degree of the graphs to read (required)",
-    )
-    p.add_argument(
-        "--out",
-        type=Path,
-        required=True,
-        metavar="STEM",
-        help="stem of the widened model (required)",
-    )
-    return p
-
-
-def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
-    """The command line (see the module docstring)."""
-    return build_parser().parse_args(argv)
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point; returns the exit status (2: a bad input)."""
-    ns = parse_args(argv)
-    try:
-        path = widen(ns.model, ns.max_children, ns.out)
-    except (FileNotFoundError, FileExistsError, ValueError, KeyError, TypeError) as exc:
-        print(f"langctrl widen: error: {exc}", file=sys.stderr)
-        return 2
-    print(path)
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -1,5 +1,5 @@
 """Sweeps: a grid or random sample of sessions declared in a YAML file, run resumably on local
-processes or Ray, one Parquet row per session (``python -m eval.sweep SWEEP.yaml --out DIR``).
+processes or Ray, one Parquet row per session (``langctrl sweep SWEEP.yaml --out DIR``).
 
 Importing this package imports no optional dependency (neither Ray nor pyarrow).
 """

@@ -3,7 +3,7 @@
 A sweep file is YAML::
 
     grid:                                   # the Cartesian product of these lists
-      policy: [ac, lc-noap, lc]             # required: policy specs, as eval.compare --policies
+      policy: [ac, lc-noap, lc]             # required: policy specs, as langctrl compare --policies
       exercise: [external_rotation]         # default: the study's (eval.sweep.exercises)
       phrase_graph: [lc, graphs/short.yaml] # for the policies that choose phrases
       decision_hz: [500]                    # default: each policy's own rate
@@ -21,7 +21,7 @@ A sweep file is YAML::
 =====================  =====================================================================
 key                    meaning
 =====================  =====================================================================
-``grid.policy``        policy specs (``python -m eval.compare --policies`` names); a ``ppo:PATH``
+``grid.policy``        policy specs (``langctrl compare --policies`` names); a ``ppo:PATH``
                        is named ``ppo`` (or ``ppo-STEM``) in rows and parameter names
 ``grid.exercise``      exercise names (:data:`~eval.sweep.exercises.SWEEP_EXERCISES`)
 ``grid.phrase_graph``  shipped graph names or YAML paths; only the policies that choose phrases

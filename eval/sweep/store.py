@@ -79,7 +79,9 @@ class SweepStore:
             fcntl.lockf(self._lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
             self._lock.close()
-            raise SweepError(root, "", "another eval.sweep is running in this directory") from None
+            raise SweepError(
+                root, "", "another langctrl sweep is running in this directory"
+            ) from None
         self._next = max(self._parts(), default=-1) + 1
 
     def close(self) -> None:

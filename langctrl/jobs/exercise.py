@@ -17,6 +17,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from langctrl import options
 from langenv.errors import ConfigError, ExerciseError, LangEnvError
 from langenv.exercise.registry import SHIPPED_EXERCISES, exercise_path, resolve_exercise
 from langenv.exercise.spec import Exercise
@@ -39,9 +40,12 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument(
         "exercises", nargs="+", metavar="NAME|FILE", help="shipped exercise names or YAML files"
     )
-    r = sub.add_parser("render", help="draw an exercise's path over the arm (PNG)")
+    r = sub.add_parser(
+        "render",
+        parents=[options.out_file("PNG file")],
+        help="draw an exercise's path over the arm (PNG)",
+    )
     r.add_argument("exercise", metavar="NAME|FILE", help="a shipped exercise name or a YAML file")
-    r.add_argument("--out", type=Path, required=True, help="PNG file to write (required)")
     r.add_argument(
         "--width", type=int, default=960, help="image width, pixels (default: %(default)s)"
     )

@@ -35,6 +35,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from langctrl import options
 from langenv.errors import LangEnvError
 
 __all__ = ["build_parser", "main", "parse_args"]
@@ -48,6 +49,11 @@ def build_parser() -> argparse.ArgumentParser:
         prog="langctrl play",
         description="Run LangCtrl live: you drag the handle, the robot talks you through it. Also "
         "run as python -m langctrl.jobs.play.",
+        parents=[
+            options.exercise("anything moves"),
+            options.seed(of="the first session"),
+            options.overwrite("an existing --audio-out, --trace-out or --log-out file"),
+        ],
     )
     p.add_argument(
         "--policy",
@@ -67,20 +73,10 @@ def build_parser() -> argparse.ArgumentParser:
         "say its one wording)",
     )
     p.add_argument(
-        "--exercise",
-        default=None,
-        metavar="NAME|FILE",
-        help="exercise: a shipped name (langctrl exercise list) or a YAML path, checked "
-        "before anything moves (default: the study's external_rotation)",
-    )
-    p.add_argument(
         "--user",
         default=None,
         help="the person: drag (you, in the viewer), synthetic or replay:CSV (default: drag in "
         "the viewer, synthetic headless)",
-    )
-    p.add_argument(
-        "--seed", type=int, default=0, help="seed of the first session (default: %(default)s)"
     )
     p.add_argument("--headless", action="store_true", help="no window, no sound card")
     p.add_argument(
@@ -124,11 +120,6 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         metavar="CSV",
         help="with --robot: write the session CSV here (default: none)",
-    )
-    p.add_argument(
-        "--overwrite",
-        action="store_true",
-        help="replace an existing --audio-out, --trace-out or --log-out file (default: refuse)",
     )
     return p
 

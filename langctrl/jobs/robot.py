@@ -28,6 +28,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from langctrl import options
 from langenv.errors import LangEnvError
 
 __all__ = ["build_parser", "main", "parse_args"]
@@ -41,6 +42,10 @@ def build_parser() -> argparse.ArgumentParser:
         prog="langctrl robot",
         description="Run LangCtrl on a UR (or URSim) through ur-rtde: connect, check, then one "
         "guided session. Also run as python -m langctrl.jobs.robot.",
+        parents=[
+            options.exercise("anything connects or moves"),
+            options.overwrite("an existing --log-out or --audio-out file"),
+        ],
     )
     p.add_argument(
         "--host",
@@ -57,13 +62,6 @@ def build_parser() -> argparse.ArgumentParser:
         "default: langenv/robot/ur/config.py; default: those defaults with --host)",
     )
     p.add_argument("--dry-run", action="store_true", help="connect, check, plan; move nothing")
-    p.add_argument(
-        "--exercise",
-        default=None,
-        metavar="NAME|FILE",
-        help="exercise: a shipped name (langctrl exercise list) or a YAML path, "
-        "checked before anything connects or moves (default: the study's external_rotation)",
-    )
     p.add_argument(
         "--policy",
         default="lc",
@@ -89,11 +87,6 @@ def build_parser() -> argparse.ArgumentParser:
         "--device", default=None, help="sound card, by name or index (default: the system's)"
     )
     p.add_argument("--yes", action="store_true", help="confirm the move to the start (no prompt)")
-    p.add_argument(
-        "--overwrite",
-        action="store_true",
-        help="replace an existing --log-out or --audio-out file (default: refuse)",
-    )
     p.add_argument(
         "--fake", action="store_true", help="drive the built-in fake UR (a loopback host only)"
     )

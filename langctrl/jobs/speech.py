@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from langctrl import options
 from langenv.errors import LangEnvError, SessionDataError
 from langenv.files import temp_file
 from langenv.speech.audio import DEFAULT_RATE, DEFAULT_SR, DEFAULT_VOICE, ClipLibrary
@@ -86,7 +87,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     w = sub.add_parser(
         "author",
-        parents=[tts],
+        parents=[tts, options.out_file("phrase graph YAML"), options.overwrite("an existing OUT")],
         help="write a phrase graph from a plain-text script",
         description="Write the phrase graph of a plain-text script (one line per step; "
         "alternatives separated by '|', optional words in [...], pauses as (pause MIN-MAX), "
@@ -95,8 +96,6 @@ def build_parser() -> argparse.ArgumentParser:
         "|a - 1| <= 0.1 and within the pace limits. Nothing is written unless the graph is valid.",
     )
     w.add_argument("script", metavar="SCRIPT", type=Path, help="plain-text script")
-    w.add_argument("--out", required=True, type=Path, help="phrase graph YAML to write")
-    w.add_argument("--overwrite", action="store_true", help="replace an existing OUT")
     w.add_argument(
         "--exercise",
         metavar="E",
@@ -108,7 +107,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     r = sub.add_parser(
         "render",
-        parents=[tts],
+        parents=[tts, options.overwrite("an existing OUT")],
         help="render the speech of a pace trace to a sound file",
         description="Render the speech a session says along a trace: a CSV with columns t (s), "
         "audio_pace and optionally t_x (s, the motion's time to completion; with it, phrases "
@@ -129,7 +128,6 @@ def build_parser() -> argparse.ArgumentParser:
         help="how the speech pace is voiced: time-stretched (the paper) or a natural voice that "
         "waits (default: the graph's 'voice')",
     )
-    r.add_argument("--overwrite", action="store_true", help="replace an existing OUT")
     return p
 
 

@@ -9,8 +9,8 @@ it this module adds what a real session needs:
   :class:`~langenv.live.ring.AudioRing`; at most one block rendered per period, so a period's
   compute stays short), faded out over :data:`FADE_S` when the session ends or stops;
 * the session CSV (:func:`~langenv.users.session_csv.write_session`): the study's columns
-  (``eval.compare --sessions`` replays it) every ``log_every`` periods, then the TCP, the command,
-  the measured force and the phrase; written whatever ends the session;
+  (``langctrl compare --sessions`` replays it) every ``log_every`` periods, then the TCP, the
+  command, the measured force and the phrase; written whatever ends the session;
 * Python's cyclic garbage collector paused for the session (``gc.freeze`` then ``gc.disable``;
   restored after): a full collection takes milliseconds, more than a period;
 * the sink watched every ``log_every`` periods: one that died (its thread or stream) ends the

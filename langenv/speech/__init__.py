@@ -17,7 +17,8 @@
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.author import author, parse_script
 from langenv.speech.coverage import coverage
-from langenv.speech.graph import SHIPPED_GRAPHS, Phrase, PhraseGraph, default_graph_path
+from langenv.speech.graph import SHIPPED_GRAPHS, PhraseGraph, default_graph_path
+from langenv.speech.phrase import Phrase
 from langenv.speech.render import plan_speech, render_history, render_speech
 from langenv.speech.shared import shared_clips, shared_graph
 from langenv.speech.timeline import SpeechTimeline, Utterance

@@ -48,7 +48,7 @@ __all__ = [
 
 
 class SpokenPhrase(Protocol):
-    """What a clip is made from (a :class:`~langenv.speech.graph.Phrase` is one)."""
+    """What a clip is made from (a :class:`~langenv.speech.phrase.Phrase` is one)."""
 
     @property
     def id(self) -> str:

@@ -8,8 +8,8 @@ number of samples of its clip and a SHA-256 of them, with the engine version and
 they were made with; :func:`compare` names every phrase whose clip differs, so such a change
 fails loudly (``tests/test_tts_manifest.py``) instead of shifting results quietly.
 
-    python -m langenv.speech.manifest            # compare fresh clips with the manifest
-    python -m langenv.speech.manifest --write    # pin the current clips (after a deliberate change)
+    langctrl tts-manifest            # compare fresh clips with the manifest
+    langctrl tts-manifest --write    # pin the current clips (after a deliberate change)
 
 Both synthesise into an empty temporary cache, so the comparison is with what a new machine
 makes, never with clips an old cache holds.
@@ -17,16 +17,11 @@ makes, never with clips an old cache holds.
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 import json
-import sys
-import tempfile
-from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from langenv.errors import LangEnvError
 from langenv.speech.audio import ClipLibrary, ESpeakEngine
 from langenv.speech.graph import GRAPHS_DIR, PhraseGraph
 
@@ -101,37 +96,3 @@ def load(path: Path = MANIFEST_PATH) -> dict[str, Any]:
     """The pinned manifest."""
     data: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
     return data
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Compare fresh clips with the manifest (exit 1 naming each difference), or ``--write``."""
-    p = argparse.ArgumentParser(
-        prog="python -m langenv.speech.manifest",
-        description="Compare the shipped phrases' clips, synthesised into an empty cache, with "
-        "the committed manifest; --write pins them instead.",
-    )
-    p.add_argument(
-        "--write", action="store_true", help="write the manifest instead of comparing (off)"
-    )
-    args = p.parse_args(argv)
-    with tempfile.TemporaryDirectory(prefix="langctrl-tts-") as tmp:
-        try:
-            made = build(ClipLibrary(cache_dir=tmp))
-        except LangEnvError as exc:
-            print(f"error: {exc}", file=sys.stderr)
-            return 1
-    if args.write:
-        MANIFEST_PATH.write_text(
-            json.dumps(made, indent=1, ensure_ascii=False) + "\n", encoding="utf-8"
-        )
-        print(f"wrote {MANIFEST_PATH} ({len(made['clips'])} clips)")
-        return 0
-    problems = compare(made, load())
-    for line in problems:
-        print(f"{MANIFEST_PATH.name}: {line}", file=sys.stderr)
-    print(f"{len(made['clips'])} clips, {len(problems)} differ from the manifest")
-    return 1 if problems else 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -2,7 +2,7 @@
 
 - :class:`User`: the protocol the environment calls every tick (``reset(rng)``, ``force(...)``).
 - :class:`SyntheticUser`: seeded random resistance episodes, calibrated against the study's
-  sessions (``assets/users/synthetic.yaml``, written by ``python -m eval.calibrate``).
+  sessions (``assets/users/synthetic.yaml``, written by ``langctrl calibrate``).
 - :class:`ListeningUser`: a synthetic person who responds to what the robot says (each heard
   wording's intent, the speech running ahead or behind); :class:`ListeningParams`.
 - :class:`PerturbedUser`: a synthetic person plus a drawn behaviour the analytic aligners do not

@@ -237,7 +237,7 @@ def load_sessions(directory: str | Path, pattern: str = "*.csv") -> list[Session
 
 
 def write_session(path: str | Path, columns: Mapping[str, Sequence[Any]]) -> Path:
-    """Write a session CSV that :func:`load_session` (and ``eval.compare --sessions``) reads.
+    """Write a session CSV that :func:`load_session` (and ``langctrl compare --sessions``) reads.
 
     Args:
         path: The file to write (through a temporary file beside it, then renamed).

@@ -57,7 +57,7 @@ __all__ = [
 ]
 
 CALIBRATED_YAML = Path(__file__).resolve().parents[1] / "assets" / "users" / "synthetic.yaml"
-"""The calibrated parameters shipped with the package (written by ``python -m eval.calibrate``)."""
+"""The calibrated parameters shipped with the package (written by ``langctrl calibrate``)."""
 
 _LOGNORMAL_FIELDS = frozenset({"first_onset", "gap", "duration", "rise", "fall", "magnitude"})
 
@@ -222,7 +222,7 @@ class SyntheticUserParams:
     @classmethod
     def calibrated(cls, **overrides: object) -> SyntheticUserParams:
         """The parameters fitted to the study's sessions (:data:`CALIBRATED_YAML`, written by
-        ``python -m eval.calibrate``), with ``overrides`` replaced.
+        ``langctrl calibrate``), with ``overrides`` replaced.
 
         Raises:
             ConfigError: on an unknown or invalid override (names the field).

@@ -1,8 +1,8 @@
 """The split of training across worlds: exercises and user seeds per role (train, validation,
 test), how training varies scripts, and the users' perturbations.
 
-A training config's top-level ``worlds`` section (read by ``python -m train.ppo``; rl-zoo3
-ignores it) is a split; the trained model's config records it, and ``python -m eval.generalise``
+A training config's top-level ``worlds`` section (read by ``langctrl train``; rl-zoo3
+ignores it) is a split; the trained model's config records it, and ``langctrl generalise``
 reads it back from there::
 
     worlds:

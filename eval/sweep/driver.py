@@ -1,11 +1,12 @@
-"""``python -m eval.sweep SWEEP.yaml --out DIR``: run a sweep, resumably; summarise it.
+"""The sweep's driver behind ``langctrl sweep SWEEP.yaml --out DIR``: run a sweep, resumably;
+summarise it.
 
 Run, for instance::
 
-    python -m eval.sweep configs/sweeps/example.yaml --out out/sweep
-    python -m eval.sweep configs/sweeps/example.yaml --out out/sweep --resume   # after a kill
-    python -m eval.sweep configs/sweeps/example.yaml --out out/sweep --retry-failed
-    python -m eval.sweep big.yaml --out out/big --backend ray --address auto    # on a cluster
+    langctrl sweep configs/sweeps/example.yaml --out out/sweep
+    langctrl sweep configs/sweeps/example.yaml --out out/sweep --resume   # after a kill
+    langctrl sweep configs/sweeps/example.yaml --out out/sweep --retry-failed
+    langctrl sweep big.yaml --out out/big --backend ray --address auto    # on a cluster
 
 Before any session runs, the file is checked whole (:func:`eval.sweep.spec.load_spec`) and
 ``DIR/sweep.yaml`` (the resolved file) and ``DIR/sweep.json`` (it, the code version and the
@@ -23,97 +24,21 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import signal
 import sys
-import threading
 import time
-from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from eval.sweep.backend import SWEEP_BACKENDS, default_backend, make_backend
+from eval.sweep.backend import make_backend
 from eval.sweep.errors import SweepError
 from eval.sweep.grid import SweepSession, expand
 from eval.sweep.spec import COORDINATES, SweepSpec, load_spec
 
-__all__ = ["batch_size", "build_parser", "main", "parse_args"]
+__all__ = ["MAX_BATCH", "batch_size", "run_sweep"]
 
 #: Sessions per batch at most when the size is chosen: a batch takes a few seconds, so Ray's
 #: few milliseconds per task stay far under 5 % of it, and a kill loses little work.
 MAX_BATCH = 16
-
-
-def build_parser() -> argparse.ArgumentParser:
-    """The command line of ``langctrl sweep`` (``python -m eval.sweep``)."""
-    from langenv.kernels.cores import usable_cores
-
-    p = argparse.ArgumentParser(
-        prog="langctrl sweep",
-        description="Run a sweep (a grid or sample of sessions) resumably; summarise it. Also run "
-        "as python -m eval.sweep.",
-    )
-    p.add_argument("spec", type=Path, metavar="SWEEP.yaml", help="the sweep file (YAML)")
-    p.add_argument(
-        "--out", type=Path, required=True, metavar="DIR", help="the sweep's directory (required)"
-    )
-    p.add_argument(
-        "--resume", action="store_true", help="finish the sweep in --out (sessions with a row stay)"
-    )
-    p.add_argument(
-        "--retry-failed", action="store_true", help="run the failed sessions of --out again"
-    )
-    p.add_argument(
-        "--only",
-        action="append",
-        default=[],
-        metavar="SESSION_ID",
-        help="run just this session; repeat for more (default: every session)",
-    )
-    p.add_argument(
-        "--backend",
-        choices=tuple(SWEEP_BACKENDS),
-        default=None,
-        help="where sessions run (default: ray if installed, else processes)",
-    )
-    p.add_argument(
-        "--address",
-        default="local",
-        help="Ray's address: local (start Ray here), auto (the cluster this process runs in) or "
-        "ray://HOST:PORT (default: %(default)s)",
-    )
-    p.add_argument(
-        "--workers",
-        type=int,
-        default=usable_cores(),
-        metavar="N",
-        help="local worker processes, or the CPUs of a local Ray (a cluster's own CPUs decide "
-        "there), >= 1 (default: one per usable CPU core)",
-    )
-    p.add_argument(
-        "--batch-size",
-        type=int,
-        default=None,
-        metavar="N",
-        help="sessions per task (default: the sweep file's batch_size, else 8 batches per "
-        f"worker of at most {MAX_BATCH} sessions)",
-    )
-    p.add_argument("--no-summary", action="store_true", help="skip the summary and plots")
-    return p
-
-
-def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
-    """The command line."""
-    p = build_parser()
-    ns = p.parse_args(argv)
-    if ns.workers < 1:
-        p.error(f"--workers must be >= 1, got {ns.workers}")
-    if ns.batch_size is not None and ns.batch_size < 1:
-        p.error(f"--batch-size must be >= 1, got {ns.batch_size}")
-    if ns.backend is None:
-        ns.backend = default_backend()
-    if ns.backend == "processes" and ns.address != "local":
-        p.error("--address is Ray's: give --backend ray")
-    return ns
 
 
 def batch_size(n_sessions: int, workers: int, chosen: int | None = None) -> int:
@@ -170,21 +95,9 @@ def _todo(
     return [s for s in sessions if wanted(statuses.get(s.session_id))]
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point; returns the process exit code."""
-    ns = parse_args(argv)
-    if threading.current_thread() is not threading.main_thread():
-        return _main(ns)
-    # SIGTERM (a scheduler's stop, `kill`) unwinds like Ctrl-C: the workers and a local Ray are
-    # shut down, the parts written stay.
-    previous = signal.signal(signal.SIGTERM, _terminate)
-    try:
-        return _main(ns)
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-
-
-def _main(ns: argparse.Namespace) -> int:
+def run_sweep(ns: argparse.Namespace) -> int:
+    """Run the sweep ``ns`` (``langctrl sweep``'s arguments) asks for and report it; the exit
+    status."""
     from eval.sweep.store import SweepStore, row_schema
 
     t0 = time.perf_counter()
@@ -209,10 +122,6 @@ def _main(ns: argparse.Namespace) -> int:
     finally:
         store.close()
     return _report(rows, sessions, spec, ns, out, ran, time.perf_counter() - t0)
-
-
-def _terminate(signum: int, frame: Any) -> None:
-    raise SystemExit(128 + signum)
 
 
 def _run(todo: list[SweepSession], store: Any, ns: argparse.Namespace, spec: SweepSpec) -> float:
@@ -305,7 +214,3 @@ def _report(
             file=sys.stderr,
         )
     return 1 if failed or missing else 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -1,4 +1,4 @@
-"""``python -m bench [--json]``: speed and accuracy figures of LangCtrl, measured in one run.
+"""The figures of ``langctrl bench [--json]``: speed and accuracy of LangCtrl, measured in one run.
 
 Figures (all measured here, on this machine, in this process):
 
@@ -24,7 +24,7 @@ Figures (all measured here, on this machine, in this process):
 | ``robot_cpu_median_ms``, ``robot_cpu_p999_ms`` | the same periods in the thread's CPU time: what the loop's code costs |
 | ``live_wall_over_sim``, ``live_late_ticks`` | the live mode's headless real-time loop (LC at 25 Hz, speech to a WAV) over 3 s of simulated time: its wall time over the simulated time (target: 1, within 0.5 s) and the ticks that ran late |
 | ``ur_no_answer_s`` | how long the UR bridge takes to refuse a host that does not answer (a non-routable address, ``connect_timeout`` 1 s; at most that) |
-| ``compare_s`` | wall time of the main job: ``eval.compare`` with AC, LC-noAP and LC on 12 synthetic users (all outputs) |
+| ``compare_s`` | wall time of the main job: ``langctrl compare`` with AC, LC-noAP and LC on 12 synthetic users (all outputs) |
 | ``sweep_sps_1``, ``sweep_sps_2`` | sessions per second of a small sweep (``bench/sweep.py``) with 1 and 2 local worker processes |
 | ``sweep_scaling`` | ``sweep_sps_2 / sweep_sps_1`` |
 | ``cpu_scaling``, ``sweep_scaling_efficiency`` | a pure-Python loop's throughput in 2 processes over 1 (what a shared machine gives), and ``sweep_scaling / cpu_scaling`` |
@@ -38,12 +38,10 @@ Figures (all measured here, on this machine, in this process):
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
-import sys
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 import mujoco
@@ -209,17 +207,16 @@ def measure_train(total: int = 16384) -> dict[str, float]:
 
     import yaml
 
-    from train.ppo import main as train
+    from train.config import TrainArgs
+    from train.ppo import train
 
     with tempfile.TemporaryDirectory() as tmp:
         config = Path(__file__).resolve().parents[1] / "configs" / "ppo.yaml"
-        argv = ["--config", str(config), "--out", f"{tmp}/run", "--name", "bench"]
-        argv += ["--total-timesteps", str(total), "--eval-freq", "1000000000"]
-        argv += ["--checkpoint-freq", "1000000000", "--no-progress-bar", "--no-tensorboard"]
+        given = dict(out=Path(f"{tmp}/run"), name="bench", total_timesteps=total)
+        given |= dict(eval_freq=10**9, checkpoint_freq=10**9, progress_bar=False)
+        given |= dict(tensorboard=False)
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
-            rc = train(argv)
-        if rc != 0:
-            raise RuntimeError(f"train.ppo exited with {rc}")
+            train(TrainArgs(config=config, **given), set(given))  # type: ignore[arg-type]
         cfg = yaml.safe_load(Path(f"{tmp}/run/bench_config.yaml").read_text())
     return {"train_steps_per_s": float(cfg["num_timesteps"]) / float(cfg["wall_time_s"])}
 
@@ -243,27 +240,16 @@ def measure_compare() -> dict[str, float]:
     import contextlib
     import io
     import tempfile
+    from pathlib import Path
 
-    from eval.compare import main as compare
+    from eval.compare import CompareArgs, run_compare
 
+    args = CompareArgs(policies="ac,lc-noap,lc", users="synthetic:12", seed=0)
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
-            rc = compare(
-                [
-                    "--policies",
-                    "ac,lc-noap,lc",
-                    "--users",
-                    "synthetic:12",
-                    "--seed",
-                    "0",
-                    "--out",
-                    f"{tmp}/out",
-                ]
-            )
+            run_compare(replace(args, out=Path(f"{tmp}/out")))
         elapsed = time.perf_counter() - t0
-    if rc != 0:
-        raise RuntimeError(f"eval.compare exited with {rc}")
     return {"compare_s": elapsed}
 
 
@@ -354,55 +340,3 @@ SECTIONS: dict[str, Callable[[], dict[str, float]]] = {
     "live": measure_live,
     "sweep": measure_sweep,
 }
-
-
-def build_parser() -> argparse.ArgumentParser:
-    """The command line of ``langctrl bench`` (``python -m bench``)."""
-    parser = argparse.ArgumentParser(
-        prog="langctrl bench",
-        description="Speed and accuracy figures of LangCtrl, measured in one run (each figure: "
-        "bench/__main__.py's docstring). Also run as python -m bench.",
-    )
-    parser.add_argument(
-        "--json", action="store_true", help="print one JSON object instead of a table"
-    )
-    parser.add_argument(
-        "--only",
-        default=",".join(SECTIONS),
-        metavar="LIST",
-        help=f"comma-separated sections of {', '.join(SECTIONS)} (default: all)",
-    )
-    return parser
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Entry point; returns the exit status."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    wanted = [s.strip() for s in args.only.split(",") if s.strip()]
-    unknown = [s for s in wanted if s not in SECTIONS]
-    if unknown:
-        parser.error(f"unknown section(s) {unknown}; known: {list(SECTIONS)}")
-    results: dict[str, float] = {}
-    for name in wanted:
-        if not args.json:
-            print(f"measuring {name} ...", file=sys.stderr)
-        results.update(SECTIONS[name]())
-    rounded = {k: float(f"{v:.4g}") for k, v in results.items()}
-    if args.json:
-        print(json.dumps(rounded))
-    else:
-        from rich.console import Console
-        from rich.table import Table
-
-        table = Table(title="LangCtrl benchmark")
-        table.add_column("figure")
-        table.add_column("value", justify="right")
-        for k, v in rounded.items():
-            table.add_row(k, f"{v:g}")
-        Console().print(table)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

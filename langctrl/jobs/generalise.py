@@ -1,0 +1,132 @@
+"""``langctrl generalise``: does a learned policy generalise? Every policy on every held-out
+exercise and person (what it runs, the bars it checks, what it writes: :mod:`eval.generalise`).
+
+    langctrl generalise --model runs/speech/best.zip --out out/generalise
+    langctrl generalise --model M1.zip --model M2.zip --role test --users 48 \
+        --population both --out out/test_look_1
+
+Exit status 0 when it ran, whether or not the bars hold (``generalise.md`` says); 2 on bad
+arguments or a bad split.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from eval.generalise import BASE, POPULATIONS, check_generalise, run_generalise
+from langctrl import options
+
+__all__ = ["build_parser", "main", "parse_args"]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``langctrl generalise`` (``python -m langctrl.jobs.generalise``)."""
+    p = argparse.ArgumentParser(
+        prog="langctrl generalise",
+        description="Does a learned policy generalise? Every policy on every held-out exercise "
+        "and person. Also run as python -m langctrl.jobs.generalise.",
+        parents=[
+            options.people(24, per="exercise (the role's user seeds)"),
+            options.workers(),
+            options.seed(of="the bootstrap"),
+            options.out_dir(
+                "sessions.csv, generalise.md, figures, config.json; refused when it holds files"
+            ),
+            options.overwrite("files in a non-empty --out"),
+        ],
+    )
+    p.add_argument(
+        "--model",
+        type=Path,
+        action="append",
+        required=True,
+        metavar="ZIP",
+        help="a learned model (.zip; required; repeat it for several)",
+    )
+    p.add_argument(
+        "--policies",
+        default="ac,lc-noap,lc,lc-em-end,lc-fill,lc-fill-end",
+        metavar="LIST",
+        help="comma-separated analytic policies to compare it with (default: %(default)s)",
+    )
+    p.add_argument(
+        "--base",
+        default=BASE,
+        metavar="NAME",
+        help="the analytic policy of --policies the bars hold the learned ones against "
+        "(default: %(default)s)",
+    )
+    p.add_argument(
+        "--split",
+        default=None,
+        metavar="CONFIG",
+        help="a training config with a 'worlds' section (default: the split recorded with the "
+        "first model)",
+    )
+    p.add_argument(
+        "--role",
+        choices=("validation", "test"),
+        default="validation",
+        help="which held-out exercises and users; test only for the models you ship, at most "
+        "twice (default: %(default)s)",
+    )
+    p.add_argument(
+        "--population",
+        choices=tuple(POPULATIONS),
+        default=None,
+        help="the split's perturbed people, the plain synthetic population, or both "
+        "(default: perturbed)",
+    )
+    p.add_argument(
+        "--no-perturb",
+        action="store_true",
+        help="the plain synthetic population instead of the split's perturbed users "
+        "(--population plain)",
+    )
+    p.add_argument(
+        "--n-boot",
+        type=int,
+        default=2000,
+        metavar="N",
+        help="bootstrap resamples per interval (default: %(default)s)",
+    )
+    return p
+
+
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    """The command line (``--no-perturb`` is ``--population plain``)."""
+    p = build_parser()
+    ns = p.parse_args(argv)
+    if ns.no_perturb and ns.population not in (None, "plain"):
+        p.error("--no-perturb is --population plain")
+    ns.population = ns.population or ("plain" if ns.no_perturb else "perturbed")
+    return ns
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``langctrl generalise``; returns the exit status."""
+    from langenv.errors import ConfigError, ModelError
+
+    ns = parse_args(argv)
+    try:
+        split = check_generalise(ns)
+    except (ConfigError, ModelError, FileNotFoundError, KeyError) as exc:
+        print(f"langctrl generalise: error: {exc}", file=sys.stderr)
+        return 2
+    if ns.role == "test":
+        print(
+            "langctrl generalise: this is a look at the TEST exercises and users: record it and "
+            "its figures in HISTORY.md (at most two looks per study)",
+            file=sys.stderr,
+        )
+    text, n = run_generalise(ns, split)
+    print(text)
+    print(f"wrote {ns.out} ({n} episodes)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,205 @@
+"""The options the jobs share, each defined once: its name, its help, its type and check, where
+its default comes from.
+
+A job's parser takes them as parents (``argparse.ArgumentParser(parents=[workers(), ...])``):
+each function returns a small parser (``add_help=False``) holding one option, so that a job
+takes exactly the shared options it needs. The arguments of a function say only what differs
+from job to job (a seed's default, what an output file is); the help text around them, the
+type and the check are the same everywhere. ``tests/test_architecture.py`` checks that no other
+module adds these options.
+
+    p = argparse.ArgumentParser(prog="langctrl fidelity", parents=[workers(), seed()])
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+__all__ = [
+    "COMMON_OPTIONS",
+    "exercise",
+    "listening",
+    "non_negative_int",
+    "out_dir",
+    "out_file",
+    "overwrite",
+    "people",
+    "positive_int",
+    "seed",
+    "users",
+    "users_spec",
+    "workers",
+]
+
+#: The options only this module adds (``tests/test_architecture.py`` checks it).
+COMMON_OPTIONS = ("--workers", "--seed", "--users", "--listening", "--out", "--overwrite")
+
+
+def _parent() -> argparse.ArgumentParser:
+    return argparse.ArgumentParser(add_help=False)
+
+
+def positive_int(text: str) -> int:
+    """An integer >= 1 (argparse's ``type``: a named error otherwise)."""
+    value = non_negative_int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
+    return value
+
+
+def non_negative_int(text: str) -> int:
+    """An integer >= 0 (argparse's ``type``: a named error otherwise)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {value}")
+    return value
+
+
+def users_spec(text: str) -> str:
+    """``KIND:N`` with a kind of :data:`eval.users.USER_KINDS` and ``N >= 1`` (checked by
+    :func:`eval.users.parse_users`; ``--listening`` is checked with it by the job)."""
+    from eval.users import parse_users
+
+    try:
+        parse_users(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("--users").lstrip(": ")) from None
+    return text
+
+
+def workers() -> argparse.ArgumentParser:
+    """``--workers N``: the processes that run the episodes (default: one per usable core)."""
+    from langenv.kernels.cores import usable_cores
+
+    p = _parent()
+    p.add_argument(
+        "--workers",
+        type=positive_int,
+        default=usable_cores(),
+        metavar="N",
+        help="parallel worker processes that run the episodes, >= 1 (default: one per usable "
+        "CPU core)",
+    )
+    return p
+
+
+def seed(
+    default: int | None = 0,
+    of: str = "the first simulated user (user i: SEED + i)",
+    otherwise: str = "%(default)s",
+) -> argparse.ArgumentParser:
+    """``--seed``: the seed ``of`` what the job seeds, ``default`` unless given (``otherwise``
+    says what that is where it is not a number: None, for the job to find)."""
+    p = _parent()
+    p.add_argument(
+        "--seed",
+        type=non_negative_int,
+        default=default,
+        help=f"seed of {of}, >= 0 (default: {otherwise})",
+    )
+    return p
+
+
+def users(default: str | None, unless: str = "none") -> argparse.ArgumentParser:
+    """``--users KIND:N``: simulated users (:func:`eval.users.parse_users`); ``unless`` says what
+    the job does without it when ``default`` is None."""
+    p = _parent()
+    p.add_argument(
+        "--users",
+        type=users_spec,
+        default=default,
+        metavar="synthetic:N",
+        help="synthetic:N: N seeded synthetic users, user i with seed SEED + i; listening:N: the "
+        "same people listening to what the robot says (default: "
+        + ("%(default)s" if default is not None else unless)
+        + ")",
+    )
+    return p
+
+
+def people(default: int, per: str) -> argparse.ArgumentParser:
+    """``--users N``: how many simulated users ``per`` run, candidate or exercise."""
+    p = _parent()
+    p.add_argument(
+        "--users",
+        type=positive_int,
+        default=default,
+        metavar="N",
+        help=f"synthetic users per {per}, >= 1: the first N user seeds (default: %(default)s)",
+    )
+    return p
+
+
+def listening() -> argparse.ArgumentParser:
+    """``--listening KEY=VALUE,...``: the listening people's parameters."""
+    p = _parent()
+    p.add_argument(
+        "--listening",
+        default=None,
+        metavar="KEY=VALUE,...",
+        help="the listening people's parameters (langenv.users.ListeningParams, e.g. "
+        "latency=1.2,comply=0.4), with --users listening:N (default: its defaults)",
+    )
+    return p
+
+
+def exercise(before: str = "any episode runs") -> argparse.ArgumentParser:
+    """``--exercise NAME|FILE``: the exercise, checked before ``before``."""
+    p = _parent()
+    p.add_argument(
+        "--exercise",
+        default=None,
+        metavar="NAME|FILE",
+        help=f"exercise: a shipped name (langctrl exercise list) or a YAML path, checked before "
+        f"{before} (default: the study's external_rotation)",
+    )
+    return p
+
+
+def out_dir(
+    holds: str, default: Path | None = None, otherwise: str | None = None
+) -> argparse.ArgumentParser:
+    """``--out DIR``: the job's output directory, which ``holds`` what the job writes; required
+    unless ``default`` or ``otherwise`` (what the job does without it, the default None)."""
+    p = _parent()
+    if otherwise is not None:
+        shown = f"default: {otherwise}"
+    else:
+        shown = "required" if default is None else "default: %(default)s"
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=default,
+        required=default is None and otherwise is None,
+        metavar="DIR",
+        help=f"output directory: {holds} ({shown})",
+    )
+    return p
+
+
+def out_file(
+    what: str, default: str | None = None, metavar: str | None = None
+) -> argparse.ArgumentParser:
+    """``--out FILE``: the file (or file stem) the job writes, ``what``; required unless
+    ``default`` (a phrase) says where it goes without it."""
+    p = _parent()
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        required=default is None,
+        metavar=metavar,
+        help=f"{what} to write ({'required' if default is None else 'default: ' + default})",
+    )
+    return p
+
+
+def overwrite(what: str) -> argparse.ArgumentParser:
+    """``--overwrite``: replace ``what`` (without it the job refuses)."""
+    p = _parent()
+    p.add_argument("--overwrite", action="store_true", help=f"replace {what} (default: refuse)")
+    return p
