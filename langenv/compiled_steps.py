@@ -1,5 +1,6 @@
-""":mod:`langenv.env_kernels` bound to one ``LangCtrlEnv``: its arrays, packed from the parts'
-declarations, and the state handed to and from the env's Python objects."""
+""":mod:`langenv.env_kernels` bound to one ``LangCtrlEnv``: the session's record (its arrays'
+addresses, :data:`~langenv.env_kernels.SESSION`), and the state handed to and from the env's
+Python objects."""
 
 from __future__ import annotations
 
@@ -19,12 +20,16 @@ _E = ek.ENV_STEPS.at
 _LOADED = ek.ENV_STEPS.span("p", "pause_factor")
 """The state loaded from the env's Python objects in one slice: the paces, the env's times, the
 timeline's state, the cooperation count, the user's table step, the pause factor."""
+_NONE = np.zeros(0)
+"""The episode's arrays (the cooperation history, the user's force table) until :meth:`load`."""
 
 
 class CompiledSteps:
     """:func:`langenv.env_kernels.run` bound to one ``LangCtrlEnv`` (typed ``Any``:
-    ``langenv.env`` imports this module): loads the env's state into ``es`` before the ticks and
-    hands it back after them.
+    ``langenv.env`` imports this module): the session's record, built once (:attr:`record`),
+    and its state loaded into ``es`` before the ticks and handed back after them. The single
+    env and a batch (:mod:`langenv.batch`, whose table holds a copy of each session's record)
+    run the same kernels on it.
 
     The compiled ticks apply when the motion's tick is compiled and running, the user is one of
     :data:`TABULATED_USERS` (a tabulated force against the motion), the force sensor has no
@@ -33,24 +38,33 @@ class CompiledSteps:
 
     Args:
         env: The env.
-        es: The array to keep ``es`` in (a row of a batch's, :mod:`langenv.batch`); None: a new
-            one.
+
+    Attributes:
+        order: The phrase graph's vertices in the record's order (``es[phrase]`` indexes it).
+        es: The env's ticks' array (:data:`~langenv.env_kernels.ENV_STEPS`).
+        named: The record's arrays by name (kept alive here while their addresses are used).
+        record: The session's row of :data:`~langenv.env_kernels.SESSION`.
     """
 
-    def __init__(self, env: Any, es: np.ndarray | None = None) -> None:
+    def __init__(self, env: Any) -> None:
         self.env = env
         graph = env.speech.graph
         self.order: tuple[str, ...] = tuple(graph.phrases)
         self.index = {u: i for i, u in enumerate(self.order)}
-        self.mid, self.slot, self.kid_ptr, self.kids = graph.packed(self.order)
-        self.lg = env.leg_plan.packed(
+        mid, slot, kid_ptr, kids = graph.packed(self.order)
+        lg = env.leg_plan.packed(
             [graph.segment(u) for u in self.order],
             [graph.is_gate(u) for u in self.order],
         )
-        self._graph = (self.mid, self.slot, self.kid_ptr, self.kids, self.lg)
-        self._head: tuple[np.ndarray, ...] | None = None
-        self.es = es if es is not None else ek.ENV_STEPS.zeros()
+        self.es = ek.ENV_STEPS.zeros()
         ek.ENV_STEPS.pack(self.es, {**env.paces.limits.settings(), "dt": env.dt})
+        self.named: dict[str, np.ndarray] = {
+            **env.motion.compiled_tick.named, "es": self.es, "hist": _NONE, "table": _NONE,
+            "mid": mid, "slot": slot, "kid_ptr": kid_ptr,
+            "kids": kids, "lg": lg, "tails": env.observation_tails(self.order),
+            "dur": np.array([graph.duration[u] for u in self.order], dtype=np.float64),
+        }  # fmt: skip
+        self.record = ek.SESSION.pack(ek.SESSION.zeros(), self.named)  # the episode's: load
 
     def usable(self) -> bool:
         """Whether the compiled ticks apply now (see the class docstring)."""
@@ -69,8 +83,8 @@ class CompiledSteps:
     ) -> tuple[int, int, int, float, float]:
         """Up to ``n`` ticks (:func:`~langenv.env_kernels.run`); returns its answer and the
         reward integrals."""
-        args: tuple[Any, ...] = (*self.load(em_int, pace_int), p_cmd, a_cmd, n)
-        done, answer, code = ek.run(*args)
+        self.load(em_int, pace_int)
+        done, answer, code = ek.run(self.record, p_cmd, a_cmd, n)
         if done:
             em_int, pace_int = self.store()
         return done, answer, code, em_int, pace_int
@@ -80,29 +94,24 @@ class CompiledSteps:
     ) -> tuple[int, int, int, float, float]:
         """:func:`~langenv.env_kernels.run_law` from the env's state, handed back after it;
         returns its answer and the reward integrals of the tick that stopped the run."""
-        args: tuple[Any, ...] = (*self.load(0.0, 0.0), law, rows, rewards)
-        done, answer, code = ek.run_law(*args)
+        self.load(0.0, 0.0)
+        done, answer, code = ek.run_law(self.record, law, rows, rewards)
         em_int, pace_int = 0.0, 0.0
         if done or answer != ek.R_PYTHON:  # some tick ran
             em_int, pace_int = self.store()
         return done, answer, code, em_int, pace_int
 
-    def arrays(self) -> tuple[np.ndarray, ...]:
-        """The arrays :func:`~langenv.env_kernels.run` takes first (``ws`` ... ``lg``), in
-        order; ``es`` as it is (see :meth:`load`)."""
-        return self._arrays(self.env.user.force_table()[0])
-
-    def _arrays(self, table: np.ndarray) -> tuple[np.ndarray, ...]:
-        head = self._head
-        if head is None:  # the tick's arrays and es: fixed for the env's life
-            head = self._head = (*self.env.motion.compiled_tick.arrays(), self.es)
-        return (*head, self.env.coop_history, table, *self._graph)
-
-    def load(self, em_int: float, pace_int: float) -> tuple[np.ndarray, ...]:
-        """The env's state into ``es`` (before compiled ticks); returns :meth:`arrays`."""
+    def load(self, em_int: float, pace_int: float) -> None:
+        """The env's state into ``es`` (before compiled ticks), and the episode's arrays into
+        the record where a reset made new ones."""
         env = self.env
         paces, speech = env.paces, env.speech
         table, step = env.user.force_table()
+        hist = env.coop_history
+        named = self.named
+        if table is not named["table"] or hist is not named["hist"]:
+            named["table"], named["hist"] = table, hist
+            ek.SESSION.pack(self.record, named)
         u = speech.phrase
         pos, t, a, mark, slot, in_pause = speech.state_values()
         self.es[_LOADED] = (
@@ -111,7 +120,6 @@ class CompiledSteps:
             pos, t, a, mark, -1.0 if u is None else self.index[u], slot, in_pause,
             env.coop_index, step, env.pause_factor,
         )  # fmt: skip
-        return self._arrays(table)
 
     def store(self) -> tuple[float, float]:
         """``es`` back into the env's state (after compiled ticks); returns the reward

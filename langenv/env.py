@@ -345,7 +345,6 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self.dt = self.motion.dt
         if not math.isclose(self.dt * PHYSICS_HZ, 1.0, rel_tol=1e-9):
             raise ConfigError(f"the arm model's timestep must be 0.002 s, got {self.dt}")
-        self._steps = CompiledSteps(self) if self.motion.compiled else None
 
         n_choice = 1 if choice_mode == "target" else self.max_children
         self.action_space = spaces.Box(-1.0, 1.0, (2 + n_choice,), np.float32)
@@ -367,6 +366,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self._terminated = False
         self._am_paid = False
         self._reset_episode_state()
+        self._steps = CompiledSteps(self) if self.motion.compiled else None
 
     def _leg_plan(self, graph: PhraseGraph) -> LegPlan:
         """The plan of ``graph``'s legs on the exercise (:mod:`langenv.speech.legs`)."""

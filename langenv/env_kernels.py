@@ -11,9 +11,12 @@ where Python has work to do: before a tick in which a phrase's clip or slot ends
 phrase is chosen in Python), after a tick whose control part needs the Python parts (joint-limit
 avoidance, bad input), after a protective stop, and when both motion and speech are over.
 
-``es`` is :data:`ENV_STEPS`: the pace actuator's, the speech timeline's and the env's own
-declarations. :func:`run_law` adds the paper's aligner, decided every tick
-(:func:`langenv.control.pacing_kernels.law_commands`), for ``LangCtrlEnv.run_law``.
+Every kernel takes a session's one record, :data:`SESSION` (its arrays' addresses: the tick's,
+the env's, the phrase graph's), and views the arrays it reads; the single env and the batch
+(:mod:`langenv.batch.kernels`) call the same :func:`run` on it. ``es`` is :data:`ENV_STEPS`: the
+pace actuator's, the speech timeline's and the env's own declarations. :func:`run_law` adds the
+paper's aligner, decided every tick (:func:`langenv.control.pacing_kernels.law_commands`), for
+``LangCtrlEnv.run_law``.
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ from langenv.control.pacing_kernels import law_commands
 from langenv.control.pacing_kernels import step as pace_step
 from langenv.kernels import kernel
 from langenv.kernels.mjc import P_POW
+from langenv.kernels.views import ArrayField, Record, f8, f8_2, i8
 from langenv.layout import Field, Layout
 from langenv.motion import tick_kernels as mk
 from langenv.speech.graph_kernels import eta, fill
@@ -46,6 +50,7 @@ __all__ = [
     "R_OVER",
     "R_PYTHON",
     "R_STOP",
+    "SESSION",
     "run",
     "run_law",
 ]
@@ -93,43 +98,41 @@ ROW_FIELDS = (
 joint positions and the person's force)."""
 _N_ROW = len(ROW_FIELDS)
 
+SESSION = Record(
+    "session",
+    mk.TICK_ARRAYS,
+    (
+        ArrayField("es", doc="the env's ticks' array (:data:`ENV_STEPS`)"),
+        ArrayField("hist", doc="the cooperation history (a ring)"),
+        ArrayField("table", doc="the user's force table"),
+        ArrayField("mid", doc="the graph's mid-lengths"),
+        ArrayField("slot", doc="the graph's slots (n, 3)"),
+        ArrayField("kid_ptr", "int64", "the graph's children offsets"),
+        ArrayField("kids", "int64", "the graph's children"),
+        ArrayField("lg", doc="the graph's legs (``LegPlan.packed``)"),
+        ArrayField("tails", "float32", "the observation's child blocks per vertex and the end's"),
+        ArrayField("dur", doc="each vertex's clip length at a = 1 (s)"),
+    ),
+)
+"""A session's arrays, reached by address (:mod:`langenv.kernels.views`): the tick's
+(:data:`~langenv.motion.tick_kernels.TICK_ARRAYS`, first), the env's, the phrase graph's in
+:meth:`LangCtrlEnv.compiled_steps <langenv.env.LangCtrlEnv.compiled_steps>`'s order and the
+observation's. One int64 row per session, built by :class:`~langenv.compiled_steps.CompiledSteps`;
+what :func:`run`, :func:`run_law` and the batch's kernels (:mod:`langenv.batch.kernels`) take."""
+
 R_DONE, R_PYTHON, R_CONTROL, R_STOP, R_OVER = 0, 1, 2, 3, 4
 """:func:`run`'s answers (see there)."""
 
 _E = ENV_STEPS.at
+_S = SESSION.at
 _T = mk.TICK.at
 _L = LAW.at
 
 
 @kernel
-def run(
-    ws: np.ndarray,
-    path: np.ndarray,
-    aw: np.ndarray,
-    ai: np.ndarray,
-    jac: np.ndarray,
-    xpos: np.ndarray,
-    xmat: np.ndarray,
-    qpos: np.ndarray,
-    qvel: np.ndarray,
-    ctrl: np.ndarray,
-    qfrc: np.ndarray,
-    prm: np.ndarray,
-    tab: np.ndarray,
-    ptr: np.ndarray,
-    es: np.ndarray,
-    hist: np.ndarray,
-    table: np.ndarray,
-    mid: np.ndarray,
-    slot: np.ndarray,
-    kid_ptr: np.ndarray,
-    kids: np.ndarray,
-    lg: np.ndarray,
-    p_cmd: float,
-    a_cmd: float,
-    n: int,
-) -> tuple[int, int, int]:
-    """Up to ``n`` ticks of the env (speech going on iff ``es[phrase] >= 0``).
+def run(s: np.ndarray, p_cmd: float, a_cmd: float, n: int) -> tuple[int, int, int]:
+    """Up to ``n`` ticks of the env of the session ``s`` (its :data:`SESSION` row; speech going
+    on iff ``es[phrase] >= 0``), with the step's pace commands ``p_cmd``, ``a_cmd``.
 
     Returns:
         ``(ticks done, answer, code)``: :data:`R_DONE` after ``n`` ticks; :data:`R_PYTHON`: the
@@ -138,9 +141,12 @@ def run(
         Python's); :data:`R_STOP`: the last tick ended in a protective stop (``code``: the
         limit); :data:`R_OVER`: motion and speech are over after the last tick.
     """
+    ws, es, hist, table = f8(s, _S.ws), f8(s, _S.es), f8(s, _S.hist), f8(s, _S.table)
+    mid, slot, kid_ptr, kids = f8(s, _S.mid), f8_2(s, _S.slot, 3), i8(s, _S.kid_ptr), i8(s, _S.kids)
+    lg = f8(s, _S.lg)
     dt = es[_E.dt]
     u = int(es[_E.phrase])
-    pow_fn = ptr[P_POW]
+    pow_fn = i8(s, _S.ptr)[P_POW]
     size = hist.shape[0]
     for i in range(n):
         p_new, p_dot, a = pace_step(
@@ -163,10 +169,7 @@ def run(
                 return i, R_PYTHON, 0  # the user's ConfigError
         es[_E.p], es[_E.p_dot], es[_E.a] = p_new, p_dot, a
         es[_E.f_user], es[_E.f_user + 1], es[_E.f_user + 2] = f0, f1, f2
-        code, stop = mk.tick(
-            ws, path, aw, ai, jac, xpos, xmat, qpos, qvel, ctrl, qfrc, prm, tab, ptr,
-            f0, f1, f2, f0, f1, f2, p_new, p_dot,
-        )  # fmt: skip
+        code, stop = mk.tick(s, f0, f1, f2, f0, f1, f2, p_new, p_dot)
         if code != mk.OK:
             return i + 1, R_CONTROL, code
         speed = ws[_T.hand_speed]
@@ -212,34 +215,10 @@ def run(
 
 @kernel
 def run_law(
-    ws: np.ndarray,
-    path: np.ndarray,
-    aw: np.ndarray,
-    ai: np.ndarray,
-    jac: np.ndarray,
-    xpos: np.ndarray,
-    xmat: np.ndarray,
-    qpos: np.ndarray,
-    qvel: np.ndarray,
-    ctrl: np.ndarray,
-    qfrc: np.ndarray,
-    prm: np.ndarray,
-    tab: np.ndarray,
-    ptr: np.ndarray,
-    es: np.ndarray,
-    hist: np.ndarray,
-    table: np.ndarray,
-    mid: np.ndarray,
-    slot: np.ndarray,
-    kid_ptr: np.ndarray,
-    kids: np.ndarray,
-    lg: np.ndarray,
-    law: np.ndarray,
-    rows: np.ndarray,
-    rewards: np.ndarray,
+    s: np.ndarray, law: np.ndarray, rows: np.ndarray, rewards: np.ndarray
 ) -> tuple[int, int, int]:
-    """Up to ``rows.shape[0]`` one-tick steps of the law (``law``: :data:`LAW`; the env at
-    500 Hz).
+    """Up to ``rows.shape[0]`` one-tick steps of the law (``law``: :data:`LAW`) by the session
+    ``s`` (its :data:`SESSION` row; the env at 500 Hz).
 
     At 500 Hz an analytic aligner takes one env step per tick, and the Python around each tick
     (observation, policy, info, the return to Python) costs several times the tick. When the
@@ -260,6 +239,7 @@ def run_law(
         and its step is Python's to finish (not counted, not recorded); before
         :data:`R_PYTHON` nothing of the next step is done.
     """
+    ws, es, qpos = f8(s, _S.ws), f8(s, _S.es), f8(s, _S.qpos)
     n_q = qpos.shape[0]
     t_scale = law[_L.t_scale]
     for k in range(rows.shape[0]):
@@ -272,10 +252,7 @@ def run_law(
         es[_E.em_int] = 0.0
         es[_E.pace_int] = 0.0
         es[_E.max_speed] = 0.0
-        _, answer, code = run(
-            ws, path, aw, ai, jac, xpos, xmat, qpos, qvel, ctrl, qfrc, prm, tab, ptr, es, hist,
-            table, mid, slot, kid_ptr, kids, lg, p_cmd, a_cmd, 1,
-        )  # fmt: skip
+        _, answer, code = run(s, p_cmd, a_cmd, 1)
         if answer != R_DONE:
             return k, answer, code
         r_em, r_pace = rk.step_terms(

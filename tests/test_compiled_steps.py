@@ -1,20 +1,26 @@
-"""The env's compiled ticks (langenv.env_kernels) against its Python ticks: bit-identical."""
+"""The env's compiled ticks (langenv.env_kernels) against its Python ticks: bit-identical; the
+session's one record (env_kernels.SESSION) and the views that read it."""
 
 from __future__ import annotations
 
 from typing import Any
 
+import numba
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from langenv import env_kernels as ek
 from langenv.compiled_steps import CompiledSteps
 from langenv.control.admittance import AdmittanceParams
 from langenv.control.cooperation import CooperationFilter
 from langenv.control.trajectory import default_exercise
 from langenv.env import LangCtrlEnv
+from langenv.errors import ConfigError
 from langenv.kernels import mjc
+from langenv.kernels.views import ArrayField, Record, f8, f8_2
+from langenv.motion import tick_kernels as mk
 from langenv.motion.tick import GuidedArm
 from langenv.robot.arm import Arm
 from langenv.robot.force_sensor import ForceSensor
@@ -122,3 +128,53 @@ def test_compiled_square_on_a_dense_sample() -> None:
     xs = np.random.default_rng(0).uniform(-0.8, 0.8, 20000).tolist()
     assert all(mjc.py_square(_POW, x) == x**2 for x in xs)
     assert any(x * x != x**2 for x in xs)  # the case that needs pow
+
+
+def _address(arr: np.ndarray) -> int:
+    return int(arr.ctypes.data) if arr.size else 0
+
+
+def test_the_session_record_is_the_envs_arrays() -> None:
+    """One record per session (env_kernels.SESSION, the tick's arrays first): each entry is its
+    array's address and length, and a reset's new arrays (the user's table, the cooperation
+    history) are in it before the next compiled ticks."""
+    assert ek.SESSION.arrays[: len(mk.TICK_ARRAYS.arrays)] == mk.TICK_ARRAYS.arrays
+    env = LangCtrlEnv()
+    env.reset(seed=0)
+    env.step(np.zeros(3))
+    steps = env.compiled_steps
+    assert steps is not None
+    at = ek.SESSION.layout
+    for a in ek.SESSION.arrays:
+        arr = steps.named[a.name]
+        assert steps.record[at.slot(a.name)] == _address(arr), a.name
+        assert steps.record[at.slot(f"{a.name}_n")] == arr.size, a.name
+    tick = env.motion.compiled_tick
+    assert tick is not None
+    assert np.array_equal(tick.record, steps.record[: mk.TICK_ARRAYS.size])
+    t = np.linspace(0.0, 20.0, 401)
+    user = ReplayUser(Session("made", t, np.clip(0.6 + 0.4 * np.cos(t), 0.0, 1.0)))
+    env.reset(seed=1, options={"user": user})
+    env.step(np.zeros(3))
+    table_at = steps.record[at.slot("table")]
+    assert table_at == _address(user.force_table()[0])
+    assert steps.record[at.slot("hist")] == _address(env.coop_history)
+
+
+@numba.njit
+def _viewed(row: np.ndarray, k: int, j: int) -> tuple[np.ndarray, np.ndarray]:
+    return f8(row, k).copy(), f8_2(row, j, 3).copy()
+
+
+def test_views_read_a_records_arrays_and_pack_checks_them() -> None:
+    rec = Record("r", (ArrayField("a"), ArrayField("b", doc="(n, 3)")))
+    a, b = np.arange(4.0), np.arange(6.0).reshape(2, 3)
+    row = rec.pack(rec.zeros(), {"a": a, "b": b})
+    got_a, got_b = _viewed(row, rec.at.a, rec.at.b)
+    assert np.array_equal(got_a, a) and np.array_equal(got_b, b)
+    with pytest.raises(ConfigError, match="missing"):
+        rec.pack(rec.zeros(), {"a": a})
+    with pytest.raises(ConfigError, match="float64"):
+        rec.pack(rec.zeros(), {"a": a.astype(np.float32), "b": b})
+    with pytest.raises(ConfigError, match="strided"):
+        rec.pack(rec.zeros(), {"a": a[::2], "b": b})

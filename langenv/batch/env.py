@@ -19,7 +19,6 @@ from langenv.control.pacing import COMMAND_MIN
 from langenv.env import LangCtrlEnv
 from langenv.errors import ActionError, ConfigError
 from langenv.kernels.cores import usable_cores
-from langenv.kernels.views import address
 from langenv.speech.choice import duration_factor
 from langenv.speech.graph import graph_path
 from langenv.speech.shared import shared_graph
@@ -172,9 +171,8 @@ class LangCtrlVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
             else None
         )
         self._ticks = first.ticks_per_step
-        self._sessions = np.zeros((n, bk.SESSION.size), np.int64)
+        self._sessions = ek.SESSION.zeros(n)
         self._control = bk.CONTROL.zeros(n)
-        self._keep: list[tuple[np.ndarray, ...]] = [()] * n
         self._names: list[tuple[str, ...]] = [()] * n
         self._compiled = np.zeros(n, bool)
         self._elapsed = np.zeros(n, np.int64)
@@ -387,6 +385,7 @@ class LangCtrlVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
             self._compiled[i] = False  # until its next reset
             return
         steps.load(em_int, pace_int)
+        self._sessions[i] = steps.record  # the same unless the load took new arrays
         t_speech = env.t_speech
         ctl[_C.t_speech] = math.nan if t_speech is None else t_speech
         ctl[_C.left] = left
@@ -402,7 +401,7 @@ class LangCtrlVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         return obs, info
 
     def _bind(self, i: int) -> None:
-        """Session ``i``'s arrays into the batch's tables (after its construction and every
+        """Session ``i``'s record into the batch's tables (after its construction and every
         reset: its force table and cooperation history are new each episode)."""
         env = self.envs[i]
         steps = env.compiled_steps
@@ -410,54 +409,8 @@ class LangCtrlVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         if steps is None or not self._compiled[i]:
             return
         steps.load(0.0, 0.0)
-        arrays = steps.arrays()
-        graph = env.speech.graph
-        order = steps.order
-        tails = env.observation_tails(order)
-        dur = np.array([graph.duration[u] for u in order], dtype=np.float64)
-        named = dict(
-            zip(
-                (
-                    "ws",
-                    "path",
-                    "aw",
-                    "ai",
-                    "jac",
-                    "xpos",
-                    "xmat",
-                    "qpos",
-                    "qvel",
-                    "ctrl",
-                    "qfrc",
-                    "prm",
-                    "tab",
-                    "ptr",
-                    "es",
-                    "hist",
-                    "table",
-                    "mid",
-                    "slot",
-                    "kid_ptr",
-                    "kids",
-                    "lg",
-                ),
-                arrays,
-                strict=True,
-            )
-        )
-        named["tails"], named["dur"] = tails, dur
-        ints = ("ai", "ptr", "kid_ptr", "kids")
-        row = {}
-        for name, arr in named.items():
-            dtype = np.int64 if name in ints else (np.float32 if name == "tails" else np.float64)
-            arr = np.asarray(arr)
-            row[f"{name}_at"] = address(arr, dtype) if arr.size else 0
-            row[f"{name}_n"] = arr.size
-        values = np.zeros(bk.SESSION.size)
-        bk.SESSION.pack(values, row)
-        self._sessions[i] = values.astype(np.int64)
-        self._keep[i] = tuple(named.values())  # alive while the batch reads them
-        self._names[i] = order
+        self._sessions[i] = steps.record
+        self._names[i] = steps.order
         lim = env.paces.limits
         t_speech = env.t_speech
         bk.CONTROL.pack(

@@ -2,9 +2,10 @@
 
 Each session of a :class:`~langenv.batch.env.LangCtrlVectorEnv` is a whole ``LangCtrlEnv``
 whose compiled arrays (the tick's, the arm's, MuJoCo's, the env's ticks', the phrase graph's,
-the user's force table) stay where they are; the batch keeps a table of their addresses and
-lengths (:data:`SESSION`, one row per session) and a control row per session (:data:`CONTROL`:
-the step's pace commands, ticks left, the answer). :func:`run_parallel` runs
+the user's force table) stay where they are; the batch keeps a table of the sessions' records
+(:data:`langenv.env_kernels.SESSION`: their arrays' addresses, one row per session, each the
+row the single env steps with) and a control row per session (:data:`CONTROL`: the step's pace
+commands, ticks left, the answer). :func:`run_parallel` runs
 :func:`langenv.env_kernels.run` for every active session, spread over the cores by Numba's
 ``prange`` (threads, without the GIL; MuJoCo's ``mj_step`` on separate ``mjData`` is
 thread-safe); :func:`run_serial` runs a list of sessions in the calling thread (without the
@@ -23,9 +24,8 @@ import numpy as np
 
 from langenv import env_kernels as ek
 from langenv.control.pacing_kernels import command_from_action as command
-from langenv.control.trajectory import SEGMENT
-from langenv.kernels import jit
-from langenv.kernels.views import f4_2, f8, f8_2, i8
+from langenv.kernels import jit, kernel
+from langenv.kernels.views import f4_2, f8, i8
 from langenv.layout import Field, Layout
 from langenv.motion import tick_kernels as mk
 from langenv.task import observation_kernels as ok
@@ -35,46 +35,12 @@ from langenv.task.observation import TREND_WINDOW
 __all__ = [
     "CONTROL",
     "INFO",
-    "SESSION",
     "begin",
     "observe",
     "run_parallel",
     "run_serial",
 ]
 
-_ARRAYS = (
-    ("ws", "the tick's work array (:data:`~langenv.motion.tick_kernels.TICK`, legs, bounds)"),
-    ("path", "the packed trajectory (rows of :data:`~langenv.control.trajectory.SEGMENT`)"),
-    ("aw", "the arm controller's array (:data:`~langenv.robot.arm.ARM`)"),
-    ("ai", "the arm's joint addresses (int64)"),
-    ("jac", "the handle's Jacobian (6 nv)"),
-    ("xpos", "the handle site's position"),
-    ("xmat", "the handle site's orientation"),
-    ("qpos", "``mjData.qpos``"),
-    ("qvel", "``mjData.qvel``"),
-    ("ctrl", "``mjData.ctrl``"),
-    ("qfrc", "``mjData.qfrc_applied``"),
-    ("prm", "FastETC's parameters"),
-    ("tab", "FastETC's tables"),
-    ("ptr", "MuJoCo's pointers (int64)"),
-    ("es", "the env's ticks' array (:data:`~langenv.env_kernels.ENV_STEPS`)"),
-    ("hist", "the cooperation history"),
-    ("table", "the user's force table"),
-    ("mid", "the graph's mid-lengths"),
-    ("slot", "the graph's slots (n, 3)"),
-    ("kid_ptr", "the graph's children offsets (int64)"),
-    ("kids", "the graph's children (int64)"),
-    ("lg", "the graph's legs (:meth:`LegPlan.packed <langenv.speech.legs.LegPlan.packed>`)"),
-    ("tails", "the observation's child blocks per vertex (float32)"),
-    ("dur", "each vertex's clip length at a = 1 (s)"),
-)
-SESSION = Layout(
-    "session",
-    tuple(Field(f"{name}_at", kind="int", doc=f"address of {doc}") for name, doc in _ARRAYS),
-    tuple(Field(f"{name}_n", kind="int", doc=f"length of {name}") for name, _ in _ARRAYS),
-)
-"""One session's arrays for the batch's kernels: each one's address and length (an int64 row;
-2-D arrays: their number of entries)."""
 CONTROL = Layout(
     "control",
     (
@@ -103,46 +69,18 @@ INFO = (
 """The columns of :func:`observe`'s info rows (flags as 0/1, ``t_motion``/``t_speech`` NaN while
 going on, ``phrase`` the vertex's index or -1, ``leg`` the motion's leg index)."""
 
-_S = SESSION.at
+_S = ek.SESSION.at
 _C = CONTROL.at
 _E = ek.ENV_STEPS.at
 _T = mk.TICK.at
-_SEG = SEGMENT.size
 _N_INFO = len(INFO)
 
 
-@jit
+@kernel
 def _run_one(s: np.ndarray, c: np.ndarray) -> None:
-    """:func:`langenv.env_kernels.run` for one session (``s``: its :data:`SESSION` row, ``c``:
-    its :data:`CONTROL` row)."""
-    n_v = s[_S.mid_n]
-    done, answer, code = ek.run(
-        f8(s[_S.ws_at], s[_S.ws_n]),
-        f8_2(s[_S.path_at], s[_S.path_n] // _SEG, _SEG),
-        f8(s[_S.aw_at], s[_S.aw_n]),
-        i8(s[_S.ai_at], s[_S.ai_n]),
-        f8(s[_S.jac_at], s[_S.jac_n]),
-        f8(s[_S.xpos_at], s[_S.xpos_n]),
-        f8(s[_S.xmat_at], s[_S.xmat_n]),
-        f8(s[_S.qpos_at], s[_S.qpos_n]),
-        f8(s[_S.qvel_at], s[_S.qvel_n]),
-        f8(s[_S.ctrl_at], s[_S.ctrl_n]),
-        f8(s[_S.qfrc_at], s[_S.qfrc_n]),
-        f8(s[_S.prm_at], s[_S.prm_n]),
-        f8(s[_S.tab_at], s[_S.tab_n]),
-        i8(s[_S.ptr_at], s[_S.ptr_n]),
-        f8(s[_S.es_at], s[_S.es_n]),
-        f8(s[_S.hist_at], s[_S.hist_n]),
-        f8(s[_S.table_at], s[_S.table_n]),
-        f8(s[_S.mid_at], n_v),
-        f8_2(s[_S.slot_at], n_v, 3),
-        i8(s[_S.kid_ptr_at], s[_S.kid_ptr_n]),
-        i8(s[_S.kids_at], s[_S.kids_n]),
-        f8(s[_S.lg_at], s[_S.lg_n]),
-        c[_C.p_cmd],
-        c[_C.a_cmd],
-        int(c[_C.left]),
-    )
+    """:func:`langenv.env_kernels.run` for one session (``s``: its
+    :data:`~langenv.env_kernels.SESSION` row, ``c``: its :data:`CONTROL` row)."""
+    done, answer, code = ek.run(s, c[_C.p_cmd], c[_C.a_cmd], int(c[_C.left]))
     c[_C.left] -= done
     c[_C.answer] = answer
     c[_C.code] = code
@@ -188,8 +126,7 @@ def begin(
         c[_C.p_cmd] = command(actions[i, 0], c[_C.p_max], c_min)
         c[_C.a_cmd] = command(actions[i, 1], c[_C.a_max], c_min)
         c[_C.left] = ticks
-        s = sessions[i]
-        es = f8(s[_S.es_at], s[_S.es_n])
+        es = f8(sessions[i], _S.es)
         es[_E.em_int] = 0.0
         es[_E.pace_int] = 0.0
         es[_E.max_speed] = 0.0
@@ -212,13 +149,10 @@ def observe(
     for k in range(which.shape[0]):
         i = which[k]
         s, c = sessions[i], control[i]
-        ws = f8(s[_S.ws_at], s[_S.ws_n])
-        es = f8(s[_S.es_at], s[_S.es_n])
-        hist = f8(s[_S.hist_at], s[_S.hist_n])
-        n_v = s[_S.mid_n]
-        kid_ptr = i8(s[_S.kid_ptr_at], s[_S.kid_ptr_n])
-        dur = f8(s[_S.dur_at], n_v)
-        tails = f4_2(s[_S.tails_at], n_v + 1, s[_S.tails_n] // (n_v + 1))
+        ws, es, hist = f8(s, _S.ws), f8(s, _S.es), f8(s, _S.hist)
+        kid_ptr, dur = i8(s, _S.kid_ptr), f8(s, _S.dur)
+        n_v = dur.shape[0]
+        tails = f4_2(s, _S.tails, s[_S.tails_n] // (n_v + 1))
         t_x, t_a, p, a = es[_E.t_h], es[_E.t_a], es[_E.p], es[_E.a]
         coop = ws[_T.c]
         ci = int(es[_E.coop_i])

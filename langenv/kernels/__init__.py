@@ -6,8 +6,10 @@ whose layout the part declares once (:mod:`langenv.layout`); :mod:`langenv.motio
 composes them into one tick and :mod:`langenv.env_kernels` into the env's ticks. This package
 holds what they share: the decorators (:func:`jit`, :func:`kernel`, :func:`inline`),
 :mod:`~langenv.kernels.blas` (MuJoCo's dense routines, in MuJoCo's order),
-:mod:`~langenv.kernels.pymath` (CPython's ``hypot``/``dist``) and :mod:`~langenv.kernels.mjc`
-(MuJoCo's steps and the C library's ``pow``, called by address). It imports nothing of langenv
+:mod:`~langenv.kernels.pymath` (CPython's ``hypot``/``dist``), :mod:`~langenv.kernels.mjc`
+(MuJoCo's steps and the C library's ``pow``, called by address) and
+:mod:`~langenv.kernels.views` (arrays by address: a session's one record, which every kernel of
+the env's ticks takes). It imports nothing of langenv
 but its errors and the layouts.
 
 The kernels repeat their references' arithmetic operation for operation (the same order of

@@ -4,7 +4,8 @@ the parts' declarations, and the calls.
 :class:`CompiledTick` packs the guided arm's work array (:data:`~langenv.motion.tick_kernels.TICK`:
 each part's settings by the names it declares, :meth:`GuidedArm.tick_settings
 <langenv.motion.tick.GuidedArm.tick_settings>`; then the legs and the joints' bounds) and the arm
-controller's (:meth:`Arm.compiled_arrays <langenv.robot.arm.Arm.compiled_arrays>`), runs a tick
+controller's (:meth:`Arm.compiled_arrays <langenv.robot.arm.Arm.compiled_arrays>`), keeps the
+row of the tick's arrays' addresses (:data:`~langenv.motion.tick_kernels.TICK_ARRAYS`), runs a tick
 as one compiled call (:func:`langenv.motion.tick_kernels.tick`: the control law, MuJoCo's
 ``mj_step2``/``mj_step1``/``mj_jacSite`` through :mod:`langenv.kernels.mjc`, the observation),
 and lets the guided arm take back the state its Python objects expose after each tick
@@ -44,6 +45,7 @@ class CompiledTick:
     Attributes:
         ws: The tick's work array (:data:`~langenv.motion.tick_kernels.TICK`, the legs, the bounds).
         aw, ai: The arm controller's arrays (:mod:`langenv.robot.arm_kernels`).
+        record: The tick's arrays' row (:data:`~langenv.motion.tick_kernels.TICK_ARRAYS`).
     """
 
     def __init__(self, motion: Any) -> None:
@@ -57,26 +59,22 @@ class CompiledTick:
         ws[mk.TICK.size + legs.size :] = bounds
         assert legs.size == LEG.size * guide.n_legs
         self.ws = ws
-        self.path, self.prm, self.tab = motion.etc.path, motion.etc.prm, motion.etc.tab
         self.aw, self.ai = arm.compiled_arrays()
         views = arm.compiled_views()
-        self.jac, self.xpos, self.xmat = views["jac"], views["xpos"], views["xmat"]
-        self.qpos, self.qvel, self.ctrl, self.qfrc = (
-            views["qpos"], views["qvel"], views["ctrl"], views["qfrc"],
-        )  # fmt: skip
         self.model, self.data = arm.model, arm.data
         self.full_dofs: bool = arm.full_dofs
         self.ptr = mjc.pointers(arm.model, arm.data, views["jacp"], views["jacr"], arm.site_id)
         self._hv: np.ndarray | None = None
-        self._arrays: tuple[np.ndarray, ...] = (
-            self.ws, self.path, self.aw, self.ai, self.jac, self.xpos, self.xmat, self.qpos,
-            self.qvel, self.ctrl, self.qfrc, self.prm, self.tab, self.ptr,
-        )  # fmt: skip
-
-    def arrays(self) -> tuple[np.ndarray, ...]:
-        """The arrays :func:`~langenv.motion.tick_kernels.tick` takes first, in its order (``ws``
-        ... ``ptr``)."""
-        return self._arrays
+        etc = motion.etc
+        self.named: dict[str, np.ndarray] = {
+            "ws": ws, "path": etc.path, "aw": self.aw, "ai": self.ai, "prm": etc.prm,
+            "tab": etc.tab, "ptr": self.ptr,
+            **{k: views[k] for k in ("jac", "xpos", "xmat", "qpos", "qvel", "ctrl", "qfrc")},
+        }  # fmt: skip
+        """The arrays of :data:`~langenv.motion.tick_kernels.TICK_ARRAYS` by name (kept alive
+        here while their addresses are used)."""
+        self.record = mk.TICK_ARRAYS.pack(mk.TICK_ARRAYS.zeros(), self.named)
+        """Their row: what the tick's kernels take."""
 
     # ------------------------------------------------------------------ state
     def load(self) -> None:
@@ -117,8 +115,7 @@ class CompiledTick:
             m0, m1, m2 = f0 + n0, f1 + n1, f2 + n2
         else:
             m0, m1, m2 = f0, f1, f2
-        args: tuple[Any, ...] = (*self.arrays(), f0, f1, f2, m0, m1, m2, p, p_dot)
-        code, stop = mk.tick(*args)
+        code, stop = mk.tick(self.record, f0, f1, f2, m0, m1, m2, p, p_dot)
         if code != mk.OK:
             self.finish_rare(code, f_user, p, p_dot)
             self.finish(f0, f1, f2)
@@ -135,10 +132,7 @@ class CompiledTick:
         mujoco.mj_step2(self.model, self.data)
         mujoco.mj_step1(self.model, self.data)
         self.motion.arm.update_jacobian()
-        stop = mk.observe(
-            self.ws, self.path, self.prm, self.tab, self.ai, self.jac, self.xpos, self.qpos,
-            self.qvel, math.hypot(f0, f1, f2),
-        )  # fmt: skip
+        stop = mk.observe(self.record, math.hypot(f0, f1, f2))
         self.sync()
         if stop != STOP_NONE:
             self.stop(f0, f1, f2)
@@ -157,7 +151,8 @@ class CompiledTick:
             )
         arm.avoid_limits_compiled(self.aw)
         f0, f1, f2 = f_user.tolist()
-        ak.apply(self.aw, self.ai, self.jac, self.ctrl, self.qfrc, f0, f1, f2)
+        n = self.named
+        ak.apply(n["aw"], n["ai"], n["jac"], n["ctrl"], n["qfrc"], f0, f1, f2)
 
     def stop(self, f0: float, f1: float, f2: float) -> None:
         """A limit was breached: the monitor names the stop (the same checks, in Python)."""

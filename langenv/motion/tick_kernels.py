@@ -31,10 +31,12 @@ from langenv.control.cooperation import COOPERATION_SETTINGS, COOPERATION_STATE
 from langenv.control.cooperation_kernels import update as cooperation_update
 from langenv.control.guide import GUIDE_SETTINGS, GUIDE_STATE, LEG
 from langenv.control.motion_etc_kernels import estimate_parts
+from langenv.control.trajectory import SEGMENT
 from langenv.control.trajectory_kernels import locate, point
 from langenv.kernels import inline, kernel, mjc
 from langenv.kernels.blas import mul_mat_vec
 from langenv.kernels.pymath import dist3, hypot3
+from langenv.kernels.views import ArrayField, Record, f8, f8_2, i8
 from langenv.layout import Field, Layout
 from langenv.robot import arm_kernels
 from langenv.robot.force_sensor import SENSOR_SETTINGS, SENSOR_STATE
@@ -48,6 +50,7 @@ __all__ = [
     "MOTION_STATE",
     "OK",
     "TICK",
+    "TICK_ARRAYS",
     "control",
     "legs_at",
     "observe",
@@ -90,7 +93,32 @@ TICK = Layout(
 """The tick's work array: state, then settings; then ``n_legs`` rows of
 :data:`~langenv.control.guide.LEG` and two bounds per joint (:func:`legs_at`)."""
 
+TICK_ARRAYS = Record(
+    "tick_arrays",
+    (
+        ArrayField("ws", doc="the tick's work array (:data:`TICK`, the legs, the bounds)"),
+        ArrayField("path", doc="the packed trajectory (rows of ``trajectory.SEGMENT``)"),
+        ArrayField("aw", doc="the arm controller's array (:data:`~langenv.robot.arm.ARM`)"),
+        ArrayField("ai", "int64", "the arm's joint addresses"),
+        ArrayField("jac", doc="the handle's Jacobian (6 nv)"),
+        ArrayField("xpos", doc="the handle site's position"),
+        ArrayField("xmat", doc="the handle site's orientation"),
+        ArrayField("qpos", doc="``mjData.qpos``"),
+        ArrayField("qvel", doc="``mjData.qvel``"),
+        ArrayField("ctrl", doc="``mjData.ctrl``"),
+        ArrayField("qfrc", doc="``mjData.qfrc_applied``"),
+        ArrayField("prm", doc="FastETC's parameters"),
+        ArrayField("tab", doc="FastETC's tables"),
+        ArrayField("ptr", "int64", "MuJoCo's pointers (:func:`langenv.kernels.mjc.pointers`)"),
+    ),
+)
+"""The tick's arrays, reached by address (:mod:`langenv.kernels.views`): what :func:`tick`,
+:func:`control` and :func:`observe` take (a row of it, or of a record it begins:
+:data:`langenv.env_kernels.SESSION`)."""
+
 _T = TICK.at
+_A = TICK_ARRAYS.at
+_SEG = SEGMENT.size
 _SIZE = TICK.size
 _LEG = LEG.size
 OK = 0
@@ -104,6 +132,11 @@ codes (:mod:`langenv.control.admittance_kernels`) for bad pace input; the arm's
 def legs_at(ws: np.ndarray) -> np.ndarray:
     """The legs' rows in ``ws`` (flat)."""
     return ws[_SIZE : _SIZE + _LEG * int(ws[_T.n_legs])]
+
+
+@inline
+def _path(rec: np.ndarray) -> np.ndarray:
+    return f8_2(rec, _A.path, _SEG)
 
 
 @inline
@@ -135,17 +168,7 @@ def _command(ws: np.ndarray, path: np.ndarray, x0: float, x1: float, x2: float) 
 
 @kernel
 def control(
-    ws: np.ndarray,
-    path: np.ndarray,
-    aw: np.ndarray,
-    ai: np.ndarray,
-    jac: np.ndarray,
-    xpos: np.ndarray,
-    xmat: np.ndarray,
-    qpos: np.ndarray,
-    qvel: np.ndarray,
-    ctrl: np.ndarray,
-    qfrc: np.ndarray,
+    rec: np.ndarray,
     f0: float,
     f1: float,
     f2: float,
@@ -158,6 +181,7 @@ def control(
     """The tick up to the physics step: ``ctrl`` and ``qfrc_applied`` set.
 
     Args:
+        rec: The tick's arrays (a row of :data:`TICK_ARRAYS`, or of a record it begins).
         f0, f1, f2: The person's force on the handle (N).
         m0, m1, m2: That force plus the sensor's noise (N); the deadband of
             :meth:`ForceSensor.measure <langenv.robot.force_sensor.ForceSensor.measure>` is
@@ -168,6 +192,9 @@ def control(
         :data:`OK`; the arm's ``LIMITS_DUE`` (re-solve, then ``arm_kernels.apply``); or a
         negative code for bad input (nothing done for :data:`BAD_FORCE`).
     """
+    ws, path, aw, ai = f8(rec, _A.ws), _path(rec), f8(rec, _A.aw), i8(rec, _A.ai)
+    jac, xpos, xmat = f8(rec, _A.jac), f8(rec, _A.xpos), f8(rec, _A.xmat)
+    qpos, qvel, ctrl, qfrc = f8(rec, _A.qpos), f8(rec, _A.qvel), f8(rec, _A.ctrl), f8(rec, _A.qfrc)
     ok, m0, m1, m2 = deadband(m0, m1, m2, ws[_T.deadband])
     if not ok:
         return BAD_FORCE
@@ -214,24 +241,17 @@ def control(
 
 
 @kernel
-def observe(
-    ws: np.ndarray,
-    path: np.ndarray,
-    prm: np.ndarray,
-    tab: np.ndarray,
-    ai: np.ndarray,
-    jac: np.ndarray,
-    xpos: np.ndarray,
-    qpos: np.ndarray,
-    qvel: np.ndarray,
-    force: float,
-) -> int:
+def observe(rec: np.ndarray, force: float) -> int:
     """The tick after the physics step: ``t_x``, the hand's velocity and distance from the
-    path, the time, and the safety monitor (``force``: the magnitude on the handle, N).
+    path, the time, and the safety monitor (``rec``: as :func:`control`'s; ``force``: the
+    magnitude on the handle, N).
 
     Returns:
         The limit breached (:mod:`langenv.robot.safety_kernels`' ``STOP_*``), ``STOP_NONE`` if none.
     """
+    ws, path, prm, tab = f8(rec, _A.ws), _path(rec), f8(rec, _A.prm), f8(rec, _A.tab)
+    ai, jac, xpos = i8(rec, _A.ai), f8(rec, _A.jac), f8(rec, _A.xpos)
+    qpos, qvel = f8(rec, _A.qpos), f8(rec, _A.qvel)
     c0, c1, c2 = ws[_T.v_cmd], ws[_T.v_cmd + 1], ws[_T.v_cmd + 2]
     tan = _T.tangent
     if ws[_T.done] != 0.0:
@@ -297,20 +317,7 @@ def physics(ptr: np.ndarray) -> None:
 
 @kernel
 def tick(
-    ws: np.ndarray,
-    path: np.ndarray,
-    aw: np.ndarray,
-    ai: np.ndarray,
-    jac: np.ndarray,
-    xpos: np.ndarray,
-    xmat: np.ndarray,
-    qpos: np.ndarray,
-    qvel: np.ndarray,
-    ctrl: np.ndarray,
-    qfrc: np.ndarray,
-    prm: np.ndarray,
-    tab: np.ndarray,
-    ptr: np.ndarray,
+    rec: np.ndarray,
     f0: float,
     f1: float,
     f2: float,
@@ -320,7 +327,8 @@ def tick(
     p: float,
     p_dot: float,
 ) -> tuple[int, int]:
-    """A whole tick in one call: :func:`control`, :func:`physics`, :func:`observe`.
+    """A whole tick in one call: :func:`control`, :func:`physics`, :func:`observe` (``rec``: as
+    :func:`control`'s).
 
     Returns:
         ``(control's answer, observe's answer)``; when control's is not :data:`OK` the tick
@@ -328,10 +336,8 @@ def tick(
         finishes it (:meth:`CompiledTick.finish
         <langenv.motion.compiled_tick.CompiledTick.finish>`).
     """
-    code = control(
-        ws, path, aw, ai, jac, xpos, xmat, qpos, qvel, ctrl, qfrc, f0, f1, f2, m0, m1, m2, p, p_dot
-    )
+    code = control(rec, f0, f1, f2, m0, m1, m2, p, p_dot)
     if code != OK:
         return code, STOP_NONE
-    physics(ptr)
-    return OK, observe(ws, path, prm, tab, ai, jac, xpos, qpos, qvel, hypot3(f0, f1, f2))
+    physics(i8(rec, _A.ptr))
+    return OK, observe(rec, hypot3(f0, f1, f2))
