@@ -521,7 +521,7 @@ class EpisodeRecorder:
     ) -> None:
         """Record several samples at once: ``info`` maps each key :meth:`append` reads (and
         optionally the scene keys) to one value per sample (a column, or rows for the scene
-        keys), all with the same phrase (e.g. :attr:`langenv.env.LawSteps.info`).
+        keys), all with the same phrase (e.g. :attr:`langenv.compiled_steps.LawSteps.info`).
 
         Raises:
             ConfigError: naming the key, if a required key is missing or the lengths differ.

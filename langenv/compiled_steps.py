@@ -4,14 +4,19 @@ Python objects."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from langenv import env_kernels as ek
+from langenv.control.pacing import PaceLaw
+from langenv.errors import ConfigError
+from langenv.robot.arm import Arm
+from langenv.task.observation import T_SCALE
 from langenv.users import PerturbedUser, ReplayUser, SyntheticUser
 
-__all__ = ["TABULATED_USERS", "CompiledSteps"]
+__all__ = ["LAW_CHUNK", "TABULATED_USERS", "CompiledSteps", "LawSteps", "run_law"]
 
 TABULATED_USERS = (SyntheticUser, PerturbedUser, ReplayUser)
 """The users whose force the compiled ticks compute (a table against the motion)."""
@@ -135,3 +140,83 @@ class CompiledSteps:
         motion.f_user = es[_E.f_user : _E.f_user + 3].copy()
         motion.compiled_tick.sync()
         return em_int, pace_int
+
+
+LAW_CHUNK = 4096
+"""Most steps one :meth:`LangCtrlEnv.run_law` call takes (8 s at 500 Hz; its arrays ~0.6 MB)."""
+
+
+@dataclass(frozen=True)
+class LawSteps:
+    """Steps taken by :meth:`LangCtrlEnv.run_law`.
+
+    Attributes:
+        steps: Steps finished in compiled code (not counting ``last``'s).
+        info: Per step (``steps`` rows) the info values ``time``, ``cooperation``,
+            ``hand_speed``, ``p``, ``a``, ``t_x``, ``t_a``, ``em``, ``motion_done`` and
+            ``speech_done`` (these two as 0/1), ``leg`` (the leg's index), the joint positions
+            ``qpos`` (rad, shape ``(steps, nq)``) and the person's force ``f_user`` (N, shape
+            ``(steps, 3)``).
+        rewards: Each step's reward, shape ``(steps,)``.
+        phrase: The phrase (``info["phrase"]``) during these steps (they never cross a boundary).
+        in_pause: Whether these steps lie in the pause after it.
+        last: ``(observation, reward, terminated, truncated, info)`` of one more step the law
+            took and Python finished (the episode's end, a protective stop, joint-limit
+            avoidance), or None.
+    """
+
+    steps: int
+    info: dict[str, np.ndarray]
+    rewards: np.ndarray
+    phrase: str | None
+    in_pause: bool
+    last: tuple[np.ndarray, float, bool, bool, dict[str, Any]] | None
+
+
+def run_law(env: Any, law: PaceLaw, max_steps: int) -> LawSteps:
+    """:meth:`LangCtrlEnv.run_law <langenv.env.LangCtrlEnv.run_law>` (see there), through the
+    env's hooks for a batch."""
+    if env.ticks_per_step != 1:
+        raise ConfigError(
+            f"run_law needs decision_hz=500 (one tick per step), got {env.decision_hz}"
+        )
+    if not isinstance(law, PaceLaw):
+        raise ConfigError(f"law must be a PaceLaw, got {type(law).__name__}")
+    if isinstance(max_steps, bool) or not isinstance(max_steps, int | np.integer):
+        raise ConfigError(f"max_steps must be an integer, got {max_steps!r}")
+    if max_steps < 0:
+        raise ConfigError(f"max_steps must be >= 0, got {max_steps}")
+    arm = env.motion.arm
+    n_q = arm.data.qpos.shape[0] if isinstance(arm, Arm) else 0
+    n = _law_steps_left(env, max_steps)
+    rows = np.zeros((n, len(ek.ROW_FIELDS) + n_q + 3))
+    rewards = np.zeros(n)
+    phrase, in_pause = env.speech.phrase, env.speech.in_pause
+    done, last = 0, None
+    steps = env.compiled_steps
+    if n and steps is not None:
+        env.take_choice([0.0] * (env.action_space.shape[0] - 2))  # the law's phrase rule
+        done, answer, code, em_int, pace_int = steps.run_law(_law_array(env, law), rows, rewards)
+        if answer not in (ek.R_DONE, ek.R_PYTHON):  # a tick ended as only Python can
+            em, pace, _ = env.finish_event(answer, code, 0.0, 0.0)
+            last = env.step_result(em_int + em * env.dt, pace_int + pace * env.dt)
+    k = len(ek.ROW_FIELDS)
+    info = {name: rows[:done, j] for j, name in enumerate(ek.ROW_FIELDS)}
+    info["qpos"], info["f_user"] = rows[:done, k : k + n_q], rows[:done, k + n_q :]
+    return LawSteps(done, info, rewards[:done], phrase, in_pause, last)
+
+
+def _law_steps_left(env: Any, max_steps: int) -> int:
+    """Steps :func:`run_law` may take: at most ``max_steps`` and :data:`LAW_CHUNK`, and one
+    fewer than the steps left to the session's length (that last step is Python's)."""
+    n = min(int(max_steps), LAW_CHUNK)
+    if env.ticks_left is not None:
+        n = min(n, env.ticks_left - 1)
+    return max(0, n) if env.runs_compiled else 0
+
+
+def _law_array(env: Any, law: PaceLaw) -> np.ndarray:
+    """``law`` and the reward weights as :func:`langenv.env_kernels.run_law` reads them
+    (:data:`~langenv.env_kernels.LAW`)."""
+    weights = {"w_em": env.w_em, "w_pace": env.w_pace, "t_scale": T_SCALE}
+    return ek.LAW.pack_all(ek.LAW.zeros(), law.values(), weights)

@@ -3,9 +3,7 @@
 from __future__ import annotations
 
 import math
-import numbers
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
@@ -14,12 +12,12 @@ import numpy as np
 from gymnasium import spaces
 
 from langenv import env_kernels as ek
-from langenv.compiled_steps import CompiledSteps
+from langenv.compiled_steps import CompiledSteps, LawSteps, run_law
 from langenv.control.admittance import AdmittanceParams
 from langenv.control.cooperation import CooperationFilter
 from langenv.control.pacing import PaceActuator, PaceLaw, PaceLimits, command_from_action
 from langenv.control.trajectory import Trajectory
-from langenv.errors import ActionError, ConfigError
+from langenv.errors import ConfigError
 from langenv.exercise import Exercise, resolve_exercise
 from langenv.motion.tick import GuidedArm
 from langenv.robot.arm import Arm
@@ -35,10 +33,21 @@ from langenv.speech.legs import LegPlan, leg_plan
 from langenv.speech.shared import shared_clips, shared_graph
 from langenv.speech.timeline import SpeechTimeline
 from langenv.task import reward
-from langenv.task.observation import T_SCALE, TREND_WINDOW, ObservationEncoder, observation_size
-from langenv.users import CallableUser, Listener, ListeningUser, ReplayUser, SyntheticUser, User
+from langenv.task.action import parse_action
+from langenv.task.info import step_info
+from langenv.task.observation import TREND_WINDOW, ObservationEncoder, observation_size
+from langenv.users import Listener, User
+from langenv.users.make import make_user
+from langenv.validation import (
+    check_rates,
+    check_render_mode,
+    child_blocks,
+    non_negative,
+    pixels,
+    session_length,
+)
 
-__all__ = ["LAW_CHUNK", "LangCtrlEnv", "LawSteps", "make_env"]
+__all__ = ["LangCtrlEnv", "make_env"]
 
 PHYSICS_HZ = 500
 
@@ -183,7 +192,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     and LC-noAP give theirs with ``pace_law()``) can let the env take its steps:
     ``env.unwrapped.run_law(law, max_steps)`` (``decision_hz=500``) applies the law at every tick
     inside the compiled ticks, exactly as the policy would through the observation and the action,
-    and returns each step's info values and reward (:class:`LawSteps`). It stops where a step needs
+    and returns each step's info values and reward (:class:`~langenv.compiled_steps.LawSteps`). It stops where a step needs
     Python: a step it began and the env finished in Python (the episode's end, a protective stop)
     comes back as ``last``; without one, take the next step with
     ``env.step(policy.act(env.unwrapped.observation()))`` (a phrase boundary) and call it again. The episode is the
@@ -221,22 +230,8 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
 
     ## Version history
 
-    * v0 (langctrl 0.6): the time limit is a session length, ``max_seconds`` (60 s at any
-      ``decision_hz``), instead of 1500 steps at registration (3 s at 500 Hz); episodes that
-      ended before 60 s are unchanged. ``users="listening"`` added (a person who responds to
-      the words' intents, told what they hear: :class:`~langenv.users.Listener`); the shipped
-      scripts mark intents; episodes of every other person unchanged.
-    * v0 (langctrl 0.5): ``exercise`` added (exercises as data), ``robot`` (a
-      :class:`~langenv.robot.io.RobotIO`) and ``robot_acceleration`` added, the default phrase
-      graph has pauses and fillers (the study's is ``"study"``); the study's exercise with the
-      study's graph gives the episodes it gave; ``use_phrase_graph`` (another graph of as many
-      choices from the next reset: training across worlds) added.
-    * v0 (langctrl 0.4): ``run_law`` and ``observation()`` added; episodes unchanged.
-    * v0 (langctrl 0.2): plant, speech and synthetic users fitted to the study's recordings (the
-      lab's leg switching instead of a rest at each end, the acceleration-limited command, a 43 deg
-      arc, the study's speech lengths, recalibrated users); the safety layer and protective stops.
-      Results and models of 0.1 are not comparable with it.
-    * v0 (langctrl 0.1): initial release.
+    What changed in each release of ``LangCtrl-v0``: the environment guide
+    (``docs/environment.md``, "Version history").
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 25}  # noqa: RUF012
@@ -271,26 +266,16 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         max_seconds: float | None = 60.0,
     ) -> None:
         super().__init__()
-        if (
-            isinstance(decision_hz, bool)
-            or not isinstance(decision_hz, int | np.integer)
-            or decision_hz <= 0
-            or PHYSICS_HZ % int(decision_hz)
-        ):
-            raise ConfigError(
-                f"decision_hz must be a positive integer dividing 500, got {decision_hz!r}"
-            )
-        if choice_mode not in ("target", "scores"):
-            raise ConfigError(f"choice_mode must be 'target' or 'scores', got {choice_mode!r}")
+        check_rates(decision_hz, choice_mode, PHYSICS_HZ)
         weights = [
-            _non_negative(n, w) for n, w in (("w_em", w_em), ("w_pace", w_pace), ("w_am", w_am))
+            non_negative(n, w) for n, w in (("w_em", w_em), ("w_pace", w_pace), ("w_am", w_am))
         ]
-        _check_render_mode(render_mode)
+        check_render_mode(render_mode)
         self.render_mode = render_mode
-        self.width, self.height = _pixels("width", width), _pixels("height", height)
+        self.width, self.height = pixels("width", width), pixels("height", height)
         self.decision_hz = int(decision_hz)
         self.ticks_per_step = PHYSICS_HZ // self.decision_hz
-        self.max_seconds, self.max_ticks = _session_length(max_seconds)
+        self.max_seconds, self.max_ticks = session_length(max_seconds, PHYSICS_HZ)
         self.choice_mode = choice_mode
         self.w_em, self.w_pace, self.w_am = weights
         if safety is not None and not isinstance(safety, SafetyLimits):
@@ -310,7 +295,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         arm: Arm | IOArm
         if robot is None:
             arm = Arm(model_path, handle_site)
-            self.user: User = _make_user(users, session)
+            self.user: User = make_user(users, session)
         else:
             if render_mode is not None:
                 raise ConfigError("render_mode needs the simulation: pass robot=None")
@@ -319,16 +304,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self.clips = clips if clips is not None else shared_clips()
         graph = phrase_graph if phrase_graph is not None else self.exercise.graph
         self.graph = shared_graph(graph_path(graph), self.clips)  # one per process: read-only
-        self.max_children = max(1, self.graph.max_children)
-        if max_children is not None:  # one observation layout for envs of different graphs
-            if isinstance(max_children, bool) or not isinstance(max_children, numbers.Integral):
-                raise ConfigError(f"max_children must be an int, got {max_children!r}")
-            if max_children < self.max_children:
-                raise ConfigError(
-                    f"max_children must be >= the graph's largest out-degree "
-                    f"{self.max_children}, got {max_children}"
-                )
-            self.max_children = int(max_children)
+        self.max_children = child_blocks(self.graph.max_children, max_children)
 
         params = admittance if admittance is not None else self.exercise.admittance()
         self.motion = GuidedArm(
@@ -347,15 +323,20 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             raise ConfigError(f"the arm model's timestep must be 0.002 s, got {self.dt}")
 
         n_choice = 1 if choice_mode == "target" else self.max_children
-        self.action_space = spaces.Box(-1.0, 1.0, (2 + n_choice,), np.float32)
+        self._action_shape = (2 + n_choice,)
+        self.action_space = spaces.Box(-1.0, 1.0, self._action_shape, np.float32)
         durations = {u: (self.graph.t_min(u), self.graph.t_max(u)) for u in self.graph.phrases}
         self._encoder = ObservationEncoder(self.max_children, durations)
         size = observation_size(self.max_children)
         self.observation_space = spaces.Box(-1.0, 1.0, (size,), np.float32)
         self._obs = np.zeros(size, np.float32)
         self._choice_u: list[float] = [0.0] * n_choice
+        self._init_state()
+        self._steps = CompiledSteps(self) if self.motion.compiled else None
+
+    def _init_state(self) -> None:
+        """The env's state before its first reset (the episode's own in :meth:`reset`)."""
         self._pause_factor = 1.0  # the pause rule's target over t_x (target mode: 2**(2u))
-        self._renderer: Any = None
         self._ear: Ear | None = None
         self.time = 0.0
         self.t_a = 0.0
@@ -366,7 +347,6 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self._terminated = False
         self._am_paid = False
         self._reset_episode_state()
-        self._steps = CompiledSteps(self) if self.motion.compiled else None
 
     def _leg_plan(self, graph: PhraseGraph) -> LegPlan:
         """The plan of ``graph``'s legs on the exercise (:mod:`langenv.speech.legs`)."""
@@ -423,7 +403,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         if options and "user" in options:
             if isinstance(self.user, MeasuredUser):
                 raise ConfigError("on a robot the person is real: reset(options={'user'}) refused")
-            self.user = _make_user(options["user"], None)
+            self.user = make_user(options["user"], None)
         self.user.reset(self.np_random)
         self.motion.reset()
         self.paces.reset()
@@ -431,13 +411,10 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self._ear = Ear(self.speech) if isinstance(self.user, Listener) else None
         self._reset_episode_state()
         self._update_speech_eta()
-        return self._observation(), self._info()
+        return self._observation(), step_info(self)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        values = self._parse_action(action)
-        for v in values:
-            if not -1.000001 <= v <= 1.000001:  # also rejects NaN
-                raise ActionError(f"action must be finite and lie in [-1, 1], got {values}")
+        values = parse_action(action, self._action_shape)
         lim = self.paces.limits
         p_cmd = command_from_action(values[0], lim.p_max)
         a_cmd = command_from_action(values[1], lim.a_max)
@@ -487,7 +464,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         The same episode, step for step and bit for bit, as a policy that is ``law`` stepping
         the env (``env.step(policy.act(obs))``), without returning to Python between steps:
         for analytic aligners at 500 Hz, whose steps cost several times their tick in Python.
-        It takes at most :data:`LAW_CHUNK` steps per call and stops early where a step needs
+        It takes at most :data:`~langenv.compiled_steps.LAW_CHUNK` steps per call and stops early where a step needs
         Python. A step the law began whose tick ended as only Python can finish it (the end of
         the episode, a protective stop, joint-limit avoidance) is finished and returned as
         ``last``; when ``last`` is None, the next step needs Python (a phrase's clip or slot
@@ -499,42 +476,13 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             max_steps: Most steps to take (a time limit's steps left), >= 0.
 
         Returns:
-            The steps taken (:class:`LawSteps`): their info values and rewards, and ``last``.
+            The steps taken (:class:`~langenv.compiled_steps.LawSteps`): their info values and rewards, and ``last``.
 
         Raises:
             ConfigError: if the env does not step one tick at a time (``decision_hz=500``), or for
                 a bad ``law`` or ``max_steps``.
         """
-        if self.ticks_per_step != 1:
-            raise ConfigError(
-                f"run_law needs decision_hz=500 (one tick per step), got {self.decision_hz}"
-            )
-        if not isinstance(law, PaceLaw):
-            raise ConfigError(f"law must be a PaceLaw, got {type(law).__name__}")
-        if isinstance(max_steps, bool) or not isinstance(max_steps, int | np.integer):
-            raise ConfigError(f"max_steps must be an integer, got {max_steps!r}")
-        if max_steps < 0:
-            raise ConfigError(f"max_steps must be >= 0, got {max_steps}")
-        arm = self.motion.arm
-        n_q = arm.data.qpos.shape[0] if isinstance(arm, Arm) else 0
-        n = self._law_steps_left(max_steps)
-        rows = np.zeros((n, len(ek.ROW_FIELDS) + n_q + 3))
-        rewards = np.zeros(n)
-        phrase, in_pause = self.speech.phrase, self.speech.in_pause
-        done, last = 0, None
-        if n and self._steps is not None:
-            self._choice_u = [0.0] * len(self._choice_u)  # the law's phrase rule
-            self._pause_factor = 1.0
-            done, answer, code, em_int, pace_int = self._steps.run_law(
-                self._law_array(law), rows, rewards
-            )
-            if answer not in (ek.R_DONE, ek.R_PYTHON):  # a tick ended as only Python can
-                em, pace = self._after_compiled(answer, code)
-                last = self._step_result(em_int + em * self.dt, pace_int + pace * self.dt)
-        k = len(ek.ROW_FIELDS)
-        info = {name: rows[:done, j] for j, name in enumerate(ek.ROW_FIELDS)}
-        info["qpos"], info["f_user"] = rows[:done, k : k + n_q], rows[:done, k + n_q :]
-        return LawSteps(done, info, rewards[:done], phrase, in_pause, last)
+        return run_law(self, law, max_steps)
 
     # ------------------------------------------------------------------ a batch's hooks
     @property
@@ -636,32 +584,22 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
                 r_am = reward.am_term(self.am, self.w_am)
             self._am_paid = True
         total = reward.total(r_em, r_pace, r_am)
-        info = self._info()
+        info = step_info(self)
         info.update(reward_em=r_em, reward_pace=r_pace, reward_am=r_am)
         return self._observation(), float(total), self._terminated, self.truncated, info
 
     @property
     def truncated(self) -> bool:
         """Whether the episode has reached its length (``max_seconds``) without ending."""
-        return (
-            not self._terminated
-            and self.max_ticks is not None
-            and round(self.time * PHYSICS_HZ) >= self.max_ticks
-        )
+        left = self.ticks_left
+        return not self._terminated and left is not None and left <= 0
 
-    def _law_steps_left(self, max_steps: int) -> int:
-        """Steps :meth:`run_law` may take: at most ``max_steps`` and :data:`LAW_CHUNK`, and one
-        fewer than the steps left to the session's length (that last step is Python's)."""
-        n = min(int(max_steps), LAW_CHUNK)
-        if self.max_ticks is not None:
-            n = min(n, self.max_ticks - round(self.time * PHYSICS_HZ) - 1)
-        return max(0, n) if self.runs_compiled else 0
-
-    def _law_array(self, law: PaceLaw) -> np.ndarray:
-        """``law`` and the reward weights as :func:`langenv.env_kernels.run_law` reads them
-        (:data:`~langenv.env_kernels.LAW`)."""
-        weights = {"w_em": self.w_em, "w_pace": self.w_pace, "t_scale": T_SCALE}
-        return ek.LAW.pack_all(ek.LAW.zeros(), law.values(), weights)
+    @property
+    def ticks_left(self) -> int | None:
+        """Ticks left to the session's length (``max_seconds``); None without one."""
+        if self.max_ticks is None:
+            return None
+        return self.max_ticks - round(self.time * PHYSICS_HZ)
 
     def render(self) -> np.ndarray | None:
         arm = self.motion.arm
@@ -679,33 +617,6 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         super().close()
 
     # ------------------------------------------------------------------ internals
-    def _parse_action(self, action: Any) -> list[float]:
-        """``action``'s values (of the action space's shape) as floats, or :class:`ActionError`."""
-        shape = self.action_space.shape
-        if type(action) is np.ndarray and action.dtype in _FLOAT_DTYPES and action.shape == shape:
-            return action.tolist()  # the common case, without a float64 copy
-        if action is None:
-            raise ActionError(
-                f"action is None; pass an array of shape {shape} with values in [-1, 1] "
-                "(env.action_space.sample() gives one)"
-            )
-        if isinstance(action, str | bytes | dict):
-            raise ActionError(
-                f"action must be an array of shape {shape} with values in [-1, 1], "
-                f"got a {type(action).__name__}: {action!r:.80}"
-            )
-        try:
-            act = np.asarray(action, dtype=np.float64)
-        except (TypeError, ValueError) as exc:
-            raise ActionError(
-                f"action must be an array of shape {shape} of numbers in [-1, 1], "
-                f"got {action!r:.80} ({exc})"
-            ) from None
-        if act.shape != shape:
-            raise ActionError(f"action must have shape {shape}, got shape {act.shape}")
-        values: list[float] = act.tolist()
-        return values
-
     def _reset_episode_state(self) -> None:
         self.time = 0.0
         self.t_a = 0.0
@@ -856,66 +767,6 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         )
         return self._obs.copy()
 
-    def _info(self) -> dict[str, Any]:
-        m = self.motion
-        stop = m.safety_stop
-        return {
-            "time": self.time,
-            "t_x": self.t_h,
-            "t_a": self.t_a,
-            "em": self.t_a - self.t_h,
-            "p": self.paces.p,
-            "a": self.paces.a,
-            "cooperation": m.cooperation,
-            "hand_speed": m.hand_speed,
-            "progress": m.progress,
-            "leg": m.state.leg,
-            "phrase": self.speech.phrase,
-            "in_pause": self.speech.in_pause,
-            "motion_done": m.motion_done,
-            "speech_done": self.speech.done,
-            "t_motion": m.t_motion_end,
-            "t_speech": self.t_speech_end,
-            "am": self.am if self._terminated and stop is None else None,
-            "path_deviation": m.path_deviation,
-            "max_hand_speed": self._max_speed,
-            "safety_stop": stop.limit if stop is not None else None,
-            "safety_message": stop.message if stop is not None else "",
-        }
-
-
-LAW_CHUNK = 4096
-"""Most steps one :meth:`LangCtrlEnv.run_law` call takes (8 s at 500 Hz; its arrays ~0.6 MB)."""
-
-
-@dataclass(frozen=True)
-class LawSteps:
-    """Steps taken by :meth:`LangCtrlEnv.run_law`.
-
-    Attributes:
-        steps: Steps finished in compiled code (not counting ``last``'s).
-        info: Per step (``steps`` rows) the info values ``time``, ``cooperation``,
-            ``hand_speed``, ``p``, ``a``, ``t_x``, ``t_a``, ``em``, ``motion_done`` and
-            ``speech_done`` (these two as 0/1), ``leg`` (the leg's index), the joint positions ``qpos`` (rad, shape ``(steps, nq)``) and
-            the person's force ``f_user`` (N, shape ``(steps, 3)``).
-        rewards: Each step's reward, shape ``(steps,)``.
-        phrase: The phrase (``info["phrase"]``) during these steps (they never cross a boundary).
-        in_pause: Whether these steps lie in the pause after it.
-        last: ``(observation, reward, terminated, truncated, info)`` of one more step the law
-            took and Python finished (the episode's end, a protective stop, joint-limit
-            avoidance), or None.
-    """
-
-    steps: int
-    info: dict[str, np.ndarray]
-    rewards: np.ndarray
-    phrase: str | None
-    in_pause: bool
-    last: tuple[np.ndarray, float, bool, bool, dict[str, Any]] | None
-
-
-_FLOAT_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))  # actions taken as they are
-
 
 def make_env(**kwargs: Any) -> LangCtrlEnv:
     """Entry point of ``LangCtrl-v0``: ``LangCtrlEnv(**kwargs)``.
@@ -924,65 +775,3 @@ def make_env(**kwargs: Any) -> LangCtrlEnv:
     which names a mode it does not support, instead of wrapping it for ``"human"`` on its own.
     """
     return LangCtrlEnv(**kwargs)
-
-
-def _non_negative(name: str, value: Any) -> float:
-    """A finite number >= 0, or :class:`ConfigError` naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ConfigError(f"{name} must be a number, got {type(value).__name__} {value!r}")
-    v = float(value)
-    if not (math.isfinite(v) and v >= 0.0):
-        raise ConfigError(f"{name} must be finite and >= 0, got {value!r}")
-    return v
-
-
-def _session_length(value: Any) -> tuple[float | None, int | None]:
-    """``max_seconds`` checked, and its ticks (rounded up): ``(None, None)`` for no limit."""
-    if value is None:
-        return None, None
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ConfigError(f"max_seconds must be a number of seconds or None, got {value!r}")
-    v = float(value)
-    if not (math.isfinite(v) and v > 0.0):
-        raise ConfigError(f"max_seconds must be finite and > 0 (s), got {value!r}")
-    return v, math.ceil(round(v * PHYSICS_HZ, 6))
-
-
-def _pixels(name: str, value: Any) -> int:
-    """A positive integer (a render size), or :class:`ConfigError` naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
-        raise ConfigError(f"{name} must be a positive integer (pixels), got {value!r}")
-    return int(value)
-
-
-def _check_render_mode(render_mode: Any) -> None:
-    if render_mode is None or render_mode == "rgb_array":
-        return
-    hint = ""
-    if render_mode == "human":
-        hint = (
-            "; LangCtrl-v0 renders off-screen: for a window, wrap an env made with "
-            "render_mode='rgb_array' in gymnasium.wrappers.HumanRendering (needs pygame)"
-        )
-    raise ConfigError(f"render_mode must be None or 'rgb_array', got {render_mode!r}{hint}")
-
-
-def _make_user(users: Any, session: str | Path | None) -> User:
-    """Build the user model from the ``users`` argument."""
-    if isinstance(users, str):
-        if users == "synthetic":
-            return SyntheticUser()
-        if users == "listening":
-            return ListeningUser()
-        if users == "replay":
-            if session is None:
-                raise ConfigError("users='replay' needs session=PATH to a session CSV")
-            return ReplayUser.from_csv(session)
-        raise ConfigError(
-            f"users must be 'synthetic', 'listening', 'replay', a User or a callable; got {users!r}"
-        )
-    if hasattr(users, "reset") and hasattr(users, "force"):
-        return users
-    if callable(users):
-        return CallableUser(users)
-    raise ConfigError(f"users must be 'synthetic', 'replay', a User or a callable; got {users!r}")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import difflib
 import io
 import math
+import numbers
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import fields
 from pathlib import Path
@@ -20,9 +21,15 @@ __all__ = [
     "MIN_SAMPLE_SPACING",
     "as_vec3",
     "as_vector",
+    "check_rates",
+    "check_render_mode",
     "check_time_axis",
+    "child_blocks",
     "dataclass_from_dict",
     "finite_positive",
+    "non_negative",
+    "pixels",
+    "session_length",
     "suggest",
     "yaml_text",
 ]
@@ -178,3 +185,78 @@ def check_time_axis(
             f"{where}: column 't' has samples {gap:.3g} s apart ({at(i)} and {at(i + 1)}), "
             f"closer than the {MIN_SAMPLE_SPACING:g} s minimum spacing (are the times in seconds?)"
         )
+
+
+def non_negative(name: str, value: Any) -> float:
+    """A finite number >= 0, or :class:`ConfigError` naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ConfigError(f"{name} must be a number, got {type(value).__name__} {value!r}")
+    v = float(value)
+    if not (math.isfinite(v) and v >= 0.0):
+        raise ConfigError(f"{name} must be finite and >= 0, got {value!r}")
+    return v
+
+
+def session_length(value: Any, hz: int) -> tuple[float | None, int | None]:
+    """``max_seconds`` checked, and its ticks at ``hz`` (rounded up): ``(None, None)`` for no
+    limit."""
+    if value is None:
+        return None, None
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ConfigError(f"max_seconds must be a number of seconds or None, got {value!r}")
+    v = float(value)
+    if not (math.isfinite(v) and v > 0.0):
+        raise ConfigError(f"max_seconds must be finite and > 0 (s), got {value!r}")
+    return v, math.ceil(round(v * hz, 6))
+
+
+def pixels(name: str, value: Any) -> int:
+    """A positive integer (a render size), or :class:`ConfigError` naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
+        raise ConfigError(f"{name} must be a positive integer (pixels), got {value!r}")
+    return int(value)
+
+
+def check_rates(decision_hz: Any, choice_mode: Any, hz: int) -> None:
+    """The env's ``decision_hz`` a positive integer dividing ``hz`` and ``choice_mode`` a mode, or
+    :class:`ConfigError` naming them."""
+    if (
+        isinstance(decision_hz, bool)
+        or not isinstance(decision_hz, int | np.integer)
+        or decision_hz <= 0
+        or hz % int(decision_hz)
+    ):
+        raise ConfigError(
+            f"decision_hz must be a positive integer dividing {hz}, got {decision_hz!r}"
+        )
+    if choice_mode not in ("target", "scores"):
+        raise ConfigError(f"choice_mode must be 'target' or 'scores', got {choice_mode!r}")
+
+
+def child_blocks(largest: int, max_children: Any) -> int:
+    """The observation's child blocks: at least the graph's ``largest`` out-degree (and 1);
+    ``max_children`` checked."""
+    blocks = max(1, largest)
+    if max_children is None:
+        return blocks
+    if isinstance(max_children, bool) or not isinstance(max_children, numbers.Integral):
+        raise ConfigError(f"max_children must be an int, got {max_children!r}")
+    if max_children < blocks:
+        raise ConfigError(
+            f"max_children must be >= the graph's largest out-degree {blocks}, got {max_children}"
+        )
+    return int(max_children)
+
+
+def check_render_mode(render_mode: Any) -> None:
+    """The env's ``render_mode``: None or ``"rgb_array"``, or :class:`ConfigError` saying how
+    to get a window."""
+    if render_mode is None or render_mode == "rgb_array":
+        return
+    hint = ""
+    if render_mode == "human":
+        hint = (
+            "; LangCtrl-v0 renders off-screen: for a window, wrap an env made with "
+            "render_mode='rgb_array' in gymnasium.wrappers.HumanRendering (needs pygame)"
+        )
+    raise ConfigError(f"render_mode must be None or 'rgb_array', got {render_mode!r}{hint}")

@@ -15,9 +15,9 @@ from hypothesis import strategies as st
 
 import langenv
 from langenv import env_kernels as ek
+from langenv.compiled_steps import LAW_CHUNK
 from langenv.control.pacing import PaceLaw, PaceLimits, command_from_action
 from langenv.control.pacing_kernels import law_commands
-from langenv.env import LAW_CHUNK
 from langenv.errors import ConfigError
 from langenv.exercise import speak
 from langenv.task.observation import Obs, encode_flag, encode_fraction, encode_seconds

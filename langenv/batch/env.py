@@ -17,11 +17,12 @@ from langenv import env_kernels as ek
 from langenv.batch import kernels as bk
 from langenv.control.pacing import COMMAND_MIN
 from langenv.env import LangCtrlEnv
-from langenv.errors import ActionError, ConfigError
+from langenv.errors import ConfigError
 from langenv.kernels.cores import usable_cores
 from langenv.speech.choice import duration_factor
 from langenv.speech.graph import graph_path
 from langenv.speech.shared import shared_graph
+from langenv.task.action import parse_actions
 from langenv.task.observation import T_SCALE
 
 __all__ = ["PARALLEL_MODES", "LangCtrlVectorEnv", "make_vector_env"]
@@ -224,7 +225,7 @@ class LangCtrlVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         """Step every session with its row of ``actions`` (shape ``(num_envs, *action_shape)``);
         see the class docstring for the autoreset."""
         n = self.num_envs
-        act = _checked_actions(actions, (n, *self.single_action_space.shape))  # type: ignore[misc]
+        act = parse_actions(actions, (n, *self.single_action_space.shape))  # type: ignore[misc]
         rewards = np.zeros(n)
         terminated = np.zeros(n, bool)
         truncated = np.zeros(n, bool)
@@ -468,26 +469,6 @@ def _max_children(kwargs: dict[str, Any]) -> int:
 def _graph_children(path: str) -> int:
     """A graph file's largest out-degree (the graph the sessions share: :func:`shared_graph`)."""
     return max(1, shared_graph(path).max_children)
-
-
-def _checked_actions(actions: Any, shape: tuple[int, ...]) -> np.ndarray:
-    """``actions`` as float64 of ``shape``, each in [-1, 1] (the single env's tolerance), or
-    :class:`ActionError` naming the first bad session."""
-    try:
-        act = np.asarray(actions, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ActionError(
-            f"actions must be an array of shape {shape} of numbers, got {actions!r:.80} ({exc})"
-        ) from None
-    if act.shape != shape:
-        raise ActionError(f"actions must have shape {shape}, got shape {act.shape}")
-    ok = (act >= -1.000001) & (act <= 1.000001)  # also rejects NaN
-    if not ok.all():
-        i = int(np.flatnonzero(~ok.reshape(shape[0], -1).all(axis=1))[0])
-        raise ActionError(
-            f"session {i}: action must be finite and lie in [-1, 1], got {act[i].tolist()}"
-        )
-    return act
 
 
 def _add_info(infos: dict[str, Any], info: dict[str, Any], i: int, n: int) -> None:

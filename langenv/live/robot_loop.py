@@ -41,6 +41,7 @@ from langenv.robot.io import RobotIO
 from langenv.robot.io_arm import IOArm
 from langenv.robot.safety import SafetyStop
 from langenv.speech.vocoder import VariableRateVocoder
+from langenv.task.info import step_info
 from langenv.users.base import User
 from langenv.users.session_csv import OPTIONAL_COLUMNS, REQUIRED_COLUMNS, write_session
 
@@ -252,7 +253,7 @@ class RobotLoop:
                 if collecting:
                     gc.enable()
                 if info:  # the log too, whatever ended the session (an error included)
-                    self._log(env._info())
+                    self._log(step_info(env))
                 log = self._write()
         stop = env.motion.safety_stop if env.motion.safety_stop is not None else arm.fault
         compute = np.asarray(arm.compute_s) * 1e3
