@@ -48,6 +48,7 @@ COMMANDS: MappingProxyType[str, Command] = MappingProxyType(
         "compare": Command("eval.compare", "compare policies on simulated or recorded users"),
         "exercises": Command("eval.exercises", "every shipped exercise under AC, LC-noAP and LC"),
         "generalise": Command("eval.generalise", "a learned model on held-out exercises and users"),
+        "coach-grid": Command("eval.coach_grid", "coaches across a listening person's assumptions"),
         "fidelity": Command("eval.fidelity", "the simulation against the recorded sessions"),
         "train": Command("train.ppo", "train the learned aligner (SB3 PPO)"),
         "sweep": Command("eval.sweep", "run a sweep of sessions from a YAML file, resumably"),
