@@ -63,7 +63,7 @@ def _make_motion() -> Any:
     from langenv.control.admittance import AdmittanceParams
     from langenv.control.cooperation import CooperationFilter
     from langenv.control.trajectory import default_exercise
-    from langenv.motion import GuidedArm
+    from langenv.motion.tick import GuidedArm
     from langenv.robot.arm import Arm
     from langenv.robot.force_sensor import ForceSensor
 

@@ -16,9 +16,9 @@ import numpy as np
 from langenv.control.admittance import AdmittanceParams, VariableAdmittance
 from langenv.control.guide import Guide, GuideState
 from langenv.control.motion_etc import DT, FastETC, reference_etc
+from langenv.control.pacing import PaceLimits
 from langenv.control.trajectory import Trajectory
 from langenv.control.virtual_loop import ForceFn, PaceFn, simulate_virtual
-from langenv.pacing import PaceLimits
 
 __all__ = ["etc_agreement", "random_pace", "random_resistance"]
 

@@ -45,7 +45,7 @@ def split_path(traj: Trajectory, pieces: int) -> Trajectory:
 def _motion(traj: Trajectory) -> Any:
     from langenv.control.admittance import AdmittanceParams
     from langenv.control.cooperation import CooperationFilter
-    from langenv.motion import GuidedArm
+    from langenv.motion.tick import GuidedArm
     from langenv.robot.arm import Arm
     from langenv.robot.force_sensor import ForceSensor
 

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from langenv.safety import STOP_LIMITS, SafetyLimits
+from langenv.robot.safety import STOP_LIMITS, SafetyLimits
 from langenv.users import CallableUser
 
 __all__ = ["ADVERSARIES", "FuzzResult", "adversary", "fuzz", "fuzz_episode"]

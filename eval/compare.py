@@ -104,7 +104,7 @@ class CompareArgs:
             per-user differences) or ``mean``.
         video: Render each session's video (MP4 with the speech as its sound track).
         overwrite: Replace the outputs of an earlier run in a non-empty ``out``.
-        exercise: The exercise (a shipped name or a YAML path; ``python -m langenv.exercise
+        exercise: The exercise (a shipped name or a YAML path; ``langctrl exercise
             list``), checked before any episode runs; None: the study's. Its script's graphs
             are spoken: ``graph`` by the policies that choose phrases (unless ``phrase_graph``
             or ``policy_graphs``), ``single`` by AC and LC-noAP.
@@ -790,7 +790,7 @@ def run_jobs(jobs: list[Job], workers: int) -> list[dict[str, Any]]:
             context = multiprocessing.get_context()
             if context.get_start_method() == "fork":
                 _preload()
-            from langenv.warm import warm_up
+            from langenv.batch.warm import warm_up
 
             warm_up()  # compiled once here: the workers inherit it or load it, never compile it
             with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:

@@ -159,7 +159,7 @@ def table(rows: list[dict[str, Any]]) -> str:
 
 
 def _verdict(rows: list[dict[str, Any]]) -> list[str]:
-    from langenv.safety import SafetyLimits
+    from langenv.robot.safety import SafetyLimits
 
     limit = SafetyLimits().max_deviation
     bad = []

@@ -18,7 +18,7 @@ exercise and user twice, the groups of the tables are then ``EXERCISE (populatio
 
 **The bars** (:func:`bars`): each learned policy against ``--base`` (default ``lc-fill-end``,
 the best analytic policy, chosen on the validation worlds: the most sessions within 1 s, then the
-most content; ``docs/history.md``, issue 38), on the same
+most content; ``HISTORY.md``, issue 38), on the same
 episodes, paired, per group and all together: the share of sessions with ``|AM| <= 1 s`` no
 lower, the content share higher with the 95 % bootstrap interval of the difference above 0, the
 voice heard natural no lower than the base's - 0.02, no more protective stops, and the mean share
@@ -27,7 +27,7 @@ of legs whose words start within 1 s of the leg (``legs_in_step``, :mod:`eval.le
 
 ``--role`` is ``validation`` by default. The test exercises and users are for the claim: look
 at them (``--role test``) only with the model you ship, at most twice per study, and record each
-look in ``docs/history.md``; the command says so when it runs on them.
+look in ``HISTORY.md``; the command says so when it runs on them.
 
 Writes into ``OUT`` (refused when it holds files, unless ``--overwrite``):
 
@@ -668,7 +668,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if ns.role == "test":
         print(
             "langctrl generalise: this is a look at the TEST exercises and users: record it and "
-            "its figures in docs/history.md (at most two looks per study)",
+            "its figures in HISTORY.md (at most two looks per study)",
             file=sys.stderr,
         )
     specs = [*analytic, *learned_specs]

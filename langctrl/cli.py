@@ -52,10 +52,12 @@ COMMANDS: MappingProxyType[str, Command] = MappingProxyType(
         "fidelity": Command("eval.fidelity", "the simulation against the recorded sessions"),
         "train": Command("train.ppo", "train the learned aligner (SB3 PPO)"),
         "sweep": Command("eval.sweep", "run a sweep of sessions from a YAML file, resumably"),
-        "play": Command("langenv.play", "live mode: drag the handle, the robot talks you through"),
-        "exercise": Command("langenv.exercise", "list, check and draw exercises"),
-        "speech": Command("langenv.speech", "check, write and render phrase graphs"),
-        "robot": Command("langenv.robot.ur", "run on a UR (or URSim) through ur-rtde"),
+        "play": Command(
+            "langctrl.jobs.play", "live mode: drag the handle, the robot talks you through"
+        ),
+        "exercise": Command("langctrl.jobs.exercise", "list, check and draw exercises"),
+        "speech": Command("langctrl.jobs.speech", "check, write and render phrase graphs"),
+        "robot": Command("langctrl.jobs.robot", "run on a UR (or URSim) through ur-rtde"),
         "bench": Command("bench", "speed and accuracy figures"),
         "export": Command("train.export", "a training checkpoint as a model (ppo:PATH)", "tool"),
         "ensemble": Command("train.ensemble", "several models acting as one", "tool"),
@@ -74,7 +76,7 @@ def _listing() -> str:
         lines.append(f"{title}:")
         for name, cmd in COMMANDS.items():
             if cmd.group == group:
-                lines.append(f"  {name:11s} {'python -m ' + cmd.module:27s} {cmd.summary}")
+                lines.append(f"  {name:11s} {'python -m ' + cmd.module:32s} {cmd.summary}")
     lines.append("")
     lines.append("langctrl JOB --help: the job's options, the same as python -m MODULE --help.")
     return "\n".join(lines)

@@ -14,26 +14,26 @@ import numpy as np
 from gymnasium import spaces
 
 from langenv import env_kernels as ek
-from langenv import reward
 from langenv.compiled_steps import CompiledSteps
 from langenv.control.admittance import AdmittanceParams
 from langenv.control.cooperation import CooperationFilter
+from langenv.control.pacing import PaceActuator, PaceLaw, PaceLimits, command_from_action
 from langenv.control.trajectory import Trajectory
 from langenv.errors import ActionError, ConfigError
 from langenv.exercise import Exercise, resolve_exercise
-from langenv.motion import GuidedArm
-from langenv.observation import T_SCALE, TREND_WINDOW, ObservationEncoder, observation_size
-from langenv.pacing import PaceActuator, PaceLaw, PaceLimits, command_from_action
+from langenv.motion.tick import GuidedArm
 from langenv.robot.arm import Arm
 from langenv.robot.force_sensor import ForceSensor
 from langenv.robot.io import RobotIO
 from langenv.robot.io_arm import IOArm, MeasuredUser
-from langenv.safety import SafetyLimits
+from langenv.robot.safety import SafetyLimits
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.graph import PhraseGraph, graph_path
 from langenv.speech.hearing import Ear
 from langenv.speech.legs import LegPlan, leg_plan
 from langenv.speech.timeline import SpeechTimeline
+from langenv.task import reward
+from langenv.task.observation import T_SCALE, TREND_WINDOW, ObservationEncoder, observation_size
 from langenv.users import CallableUser, Listener, ListeningUser, ReplayUser, SyntheticUser, User
 
 __all__ = ["LAW_CHUNK", "LangCtrlEnv", "LawSteps", "make_env"]
@@ -58,7 +58,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     * Exercise (``exercise``, a file of :mod:`langenv.exercise`; by default the study's
       ``external_rotation``, the same path as :func:`~langenv.control.trajectory.default_exercise`):
       an arc of 43 deg out, straight back, the arc again; one leg each (the arc angle is fitted to
-      the recorded legs). Any checked exercise works the same way (``python -m langenv.exercise
+      the recorded legs). Any checked exercise works the same way (``langctrl exercise
       list``): its legs, its nominal speed (the guide's plateau) and its phrase graph.
     * Legs (:mod:`langenv.control.guide`), as in the study's lab code: the full propelling force
       up to a leg's end, and the next leg as soon as the hand's 6-D pose is within 0.1 of the
@@ -110,7 +110,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     ## Observation space
 
     ``Box(-1, 1, (16 + 3 max_children,), float32)``; times are divided by ``T_SCALE = 40`` s. The
-    layout's one home is :mod:`langenv.observation`: the field names of :class:`~langenv.observation.Obs`
+    layout's one home is :mod:`langenv.task.observation`: the field names of :class:`~langenv.task.observation.Obs`
     index it, and its decoders (``seconds``, ``pace``, ``fraction``, ``flag``, ``child``...) read it.
 
     | index | field | name | unit / scaling |
@@ -157,8 +157,8 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
 
     ## Safety
 
-    Modelled on a UR5's safety functions (:mod:`langenv.safety`; limits in ``safety``, a
-    :class:`~langenv.safety.SafetyLimits`). The arm never *commands* a hand speed above
+    Modelled on a UR5's safety functions (:mod:`langenv.robot.safety`; limits in ``safety``, a
+    :class:`~langenv.robot.safety.SafetyLimits`). The arm never *commands* a hand speed above
     ``max_speed`` (0.5 m/s) nor motion away from the path beyond ``hold_deviation`` (0.08 m). At
     every tick a monitor checks what happens anyway (a person's force acts on the arm itself); a
     breach is a protective stop: the arm halts and holds still, and the episode terminates with
@@ -178,7 +178,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
 
     ## Pace laws in compiled code (``run_law``)
 
-    A policy that is the paper's aligner law (:class:`~langenv.pacing.PaceLaw`; ``policies``' LC
+    A policy that is the paper's aligner law (:class:`~langenv.control.pacing.PaceLaw`; ``policies``' LC
     and LC-noAP give theirs with ``pace_law()``) can let the env take its steps:
     ``env.unwrapped.run_law(law, max_steps)`` (``decision_hz=500``) applies the law at every tick
     inside the compiled ticks, exactly as the policy would through the observation and the action,
@@ -197,7 +197,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     |---|---|---|
     | ``users`` | ``"synthetic"`` | ``"synthetic"``, ``"listening"`` (a synthetic person who responds to the words' intents, :class:`~langenv.users.ListeningUser`), ``"replay"`` (with ``session``), a :class:`~langenv.users.User` or a callable ``f(t, hand_velocity, tangent) -> (3,)`` N |
     | ``session`` | ``None`` | session CSV (``t, cooperation``) for ``users="replay"`` |
-    | ``exercise`` | ``"external_rotation"`` | a shipped exercise's name (``python -m langenv.exercise list``), an exercise YAML path or an :class:`~langenv.exercise.Exercise` |
+    | ``exercise`` | ``"external_rotation"`` | a shipped exercise's name (``langctrl exercise list``), an exercise YAML path or an :class:`~langenv.exercise.Exercise` |
     | ``phrase_graph`` | the exercise's (``script.graph``: for the study's exercise ``"default"``) | YAML path or a shipped graph: ``"default"`` (= ``"lc"``, LC's graph with pauses and fillers), ``"study"`` (the study's LC graph), ``"lc-noap"``, ``"ac"`` |
     | ``trajectory`` | ``None`` | a :class:`~langenv.control.trajectory.Trajectory` instead of the exercise's path; with ``exercise``, that exercise's path in another frame (its legs, which name the script's) |
     | ``decision_hz`` | 25 | agent decisions per second; must divide 500 (an analytic policy holds the paper's law at its own rate, ``policy.decision_hz``) |
@@ -207,12 +207,12 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     | ``sensor_noise`` | 0 | force sensor noise std (N) |
     | ``deadband`` | 5 | force sensor deadband (N) |
     | ``admittance`` | SPEC §2, ``propel_force = speed * D0`` | :class:`~langenv.control.admittance.AdmittanceParams` (given: its own propelling force, not the exercise's speed) |
-    | ``paces`` | SPEC §2 | :class:`~langenv.pacing.PaceLimits` (bounds, ``k_p``, ``k_a``) |
-    | ``safety`` | see Safety | :class:`~langenv.safety.SafetyLimits` |
+    | ``paces`` | SPEC §2 | :class:`~langenv.control.pacing.PaceLimits` (bounds, ``k_p``, ``k_a``) |
+    | ``safety`` | see Safety | :class:`~langenv.robot.safety.SafetyLimits` |
     | ``model_path``, ``handle_site`` | our UR5, ``"handle"`` | another arm MJCF and its handle site |
     | ``render_mode`` | ``None`` | ``"rgb_array"`` (off-screen; needs ``MUJOCO_GL=egl`` or ``osmesa``); for a window wrap the env in ``gymnasium.wrappers.HumanRendering`` (needs pygame) |
     | ``width``, ``height`` | 640, 480 | render size (pixels) |
-    | ``robot`` | ``None`` | a :class:`~langenv.robot.io.RobotIO` to drive instead of the simulation (a real UR, its fake, or :class:`~langenv.robot.sim_io.MujocoRobot`): each tick sends ``speedL`` and waits for the robot's next period; the person's force is the wrist sensor's reading (``users`` is ignored); robot faults are stops too (:data:`~langenv.safety.ROBOT_STOPS`) |
+    | ``robot`` | ``None`` | a :class:`~langenv.robot.io.RobotIO` to drive instead of the simulation (a real UR, its fake, or :class:`~langenv.robot.sim_io.MujocoRobot`): each tick sends ``speedL`` and waits for the robot's next period; the person's force is the wrist sensor's reading (``users`` is ignored); robot faults are stops too (:data:`~langenv.robot.safety.ROBOT_STOPS`) |
     | ``robot_acceleration`` | 1.0 | ``speedL``'s acceleration (m/s^2) with ``robot`` |
     | ``max_children`` | ``None`` | child blocks of the observation (and choices in ``"scores"`` mode), at least the graph's largest out-degree (the default): envs of different graphs then share one observation layout, the extra blocks empty |
 
@@ -570,7 +570,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     def observation_tails(self, order: tuple[str, ...]) -> np.ndarray:
         """The observation's child blocks of each vertex of ``order`` and of the speech's end,
         as :meth:`ObservationEncoder.tail_table
-        <langenv.observation.ObservationEncoder.tail_table>` gives them for this env's graph."""
+        <langenv.task.observation.ObservationEncoder.tail_table>` gives them for this env's graph."""
         graph = self.speech.graph
         return self._encoder.tail_table(order, {u: graph.children(u) for u in order})
 
@@ -583,7 +583,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
     # ------------------------------------------------------------------ the compiled steps' state
     @property
     def coop_history(self) -> np.ndarray:
-        """The cooperation samples of the last :data:`~langenv.observation.TREND_WINDOW`
+        """The cooperation samples of the last :data:`~langenv.task.observation.TREND_WINDOW`
         (a ring, written at :attr:`coop_index` modulo its size; the compiled ticks write it)."""
         return self._coop_hist
 
@@ -829,7 +829,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self.t_a, self.t_h = self.speech.eta(hz, last), hz[last]
 
     def _observation(self) -> np.ndarray:
-        """The observation (layout and scales: :mod:`langenv.observation`)."""
+        """The observation (layout and scales: :mod:`langenv.task.observation`)."""
         m, sp = self.motion, self.speech
         a = self.paces.a
         hist, i = self._coop_hist, self._coop_i

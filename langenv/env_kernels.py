@@ -1,19 +1,19 @@
 """The env's ticks, compiled: pacing, the user's force, the tick, speech, ``t_a`` and the rewards.
 
 :func:`run` repeats, tick after tick, what ``LangCtrlEnv._tick`` does in the common case: the pace
-laws (:func:`langenv.pacing_kernels.step`), a tabulated user's force against the motion
-(:mod:`langenv.users.table_kernels`), the compiled tick (:func:`langenv.motion_kernels.tick`),
+laws (:func:`langenv.control.pacing_kernels.step`), a tabulated user's force against the motion
+(:mod:`langenv.users.table_kernels`), the compiled tick (:func:`langenv.motion.tick_kernels.tick`),
 the speech timeline's advance inside a vertex (:meth:`SpeechTimeline.step
 <langenv.speech.timeline.SpeechTimeline.step>`), the speech ETC
 (:func:`langenv.speech.graph_kernels.eta`), the cooperation history and the reward integrands
-(:func:`langenv.reward_kernels.integrands`), the same operations in the same order. It stops
+(:func:`langenv.task.reward_kernels.integrands`), the same operations in the same order. It stops
 where Python has work to do: before a tick in which a phrase's clip or slot ends (the next
 phrase is chosen in Python), after a tick whose control part needs the Python parts (joint-limit
 avoidance, bad input), after a protective stop, and when both motion and speech are over.
 
 ``es`` is :data:`ENV_STEPS`: the pace actuator's, the speech timeline's and the env's own
 declarations. :func:`run_law` adds the paper's aligner, decided every tick
-(:func:`langenv.pacing_kernels.law_commands`), for ``LangCtrlEnv.run_law``.
+(:func:`langenv.control.pacing_kernels.law_commands`), for ``LangCtrlEnv.run_law``.
 """
 
 from __future__ import annotations
@@ -22,17 +22,17 @@ import math
 
 import numpy as np
 
-from langenv import motion_kernels as mk
-from langenv import reward_kernels as rk
+from langenv.control.pacing import PACE_LAW, PACE_SETTINGS, PACE_STATE
+from langenv.control.pacing_kernels import law_commands
+from langenv.control.pacing_kernels import step as pace_step
 from langenv.kernels import kernel
 from langenv.kernels.mjc import P_POW
 from langenv.layout import Field, Layout
-from langenv.pacing import PACE_LAW, PACE_SETTINGS, PACE_STATE
-from langenv.pacing_kernels import law_commands
-from langenv.pacing_kernels import step as pace_step
+from langenv.motion import tick_kernels as mk
 from langenv.speech.graph_kernels import eta, fill
 from langenv.speech.legs_kernels import gate, horizon, motion_segment, segment
 from langenv.speech.timeline import TIMELINE_STATE
+from langenv.task import reward_kernels as rk
 from langenv.users.table_kernels import against_motion, magnitude
 
 __all__ = [
@@ -243,8 +243,8 @@ def run_law(
 
     At 500 Hz an analytic aligner takes one env step per tick, and the Python around each tick
     (observation, policy, info, the return to Python) costs several times the tick. When the
-    policy is exactly the law of :class:`~langenv.pacing.PaceLaw`, this repeats, tick after tick
-    and without leaving compiled code, what the policy and the env do for one step: the
+    policy is exactly the law of :class:`~langenv.control.pacing.PaceLaw`, this repeats, tick after
+    tick and without leaving compiled code, what the policy and the env do for one step: the
     observation's fields the law reads rounded to float32 as the observation stores them, the
     law, the action rounded to float32, the env's map from action to pace commands, then
     :func:`run` for one tick, and the step's reward and the info values the episode log keeps.

@@ -16,8 +16,8 @@ each leg, from the guide's switch into it to the switch out of it).
 line beginning ``warning:``; :func:`leg_warnings` does the same per leg for a script with
 ``@leg`` marks (a leg's words against the hand's time in it: :func:`leg_fit_warnings`), and
 warns about a leg without words and a script without marks (aligned at the end only).
-``python -m langenv.exercise check`` prints them for an exercise's script, ``python -m
-langenv.speech author SCRIPT --exercise E`` for a script being written.
+``langctrl exercise check`` prints them for an exercise's script, ``langctrl speech author
+SCRIPT --exercise E`` for a script being written.
 Nothing here refuses a script: a short script still ends with the motion when its last phrase
 waits (the silence before it is what the warning is about).
 """
@@ -34,9 +34,9 @@ from typing import Any
 import numpy as np
 
 from langenv.control.etc_cache import etc_cache_dir
+from langenv.control.pacing import PaceLimits
 from langenv.exercise import Exercise
 from langenv.files import temp_file
-from langenv.pacing import PaceLimits
 from langenv.speech.coverage import NATURAL, coverage, leg_lengths, natural_lengths
 from langenv.speech.graph import PhraseGraph, graph_path
 

@@ -24,11 +24,11 @@ from typing import Any, Literal
 
 import numpy as np
 
-from langenv import observation as ob
+from langenv.control.pacing import PaceLaw, PaceLimits, action_from_command, command_from_action
 from langenv.errors import ConfigError
 from langenv.exercise.spec import GRAPH_ROLES
-from langenv.observation import Obs
-from langenv.pacing import PaceLaw, PaceLimits, action_from_command, command_from_action
+from langenv.task import observation as ob
+from langenv.task.observation import Obs
 from policies.aligner import AlignerGains, audio_command, optimal_paces
 from policies.coach import (
     COACH_RULE,
@@ -478,7 +478,7 @@ def _lc(name: str, **kw: Any) -> Callable[[int | None], LanguageController]:
 
 
 # ``lc-fill``'s settings, tuned on the validation worlds of ``configs/ppo_general.yaml``
-# (shoulder_extension x the 48 validation users, perturbed; docs/history.md, issue 38).
+# (shoulder_extension x the 48 validation users, perturbed; HISTORY.md, issue 38).
 #: The content rule's margin (s).
 FILL_MARGIN = 0.25
 #: How much it trusts the person's pace so far.

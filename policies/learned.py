@@ -35,11 +35,11 @@ from typing import Any, Literal
 import numpy as np
 import yaml
 
-from langenv import observation as ob
+from langenv.control.pacing import PaceLimits, action_from_command, command_from_action
 from langenv.errors import ConfigError, GraphChoicesError, ModelError, ObservationLayoutError
 from langenv.exercise.script import SpokenGraph, graph_label
-from langenv.observation import Obs
-from langenv.pacing import PaceLimits, action_from_command, command_from_action
+from langenv.task import observation as ob
+from langenv.task.observation import Obs
 from policies.aligner import AlignerGains
 from policies.analytic import LanguageController
 
@@ -72,7 +72,7 @@ FEATURES: tuple[str, ...] = (
 
 def observation_layout(max_children: int) -> dict[str, Any]:
     """The learned policy's input layout for a phrase graph whose largest out-degree is
-    ``max_children``: the env's fields (:mod:`langenv.observation`, with its scales), the child
+    ``max_children``: the env's fields (:mod:`langenv.task.observation`, with its scales), the child
     blocks, then :data:`FEATURES`.
 
     Returns:

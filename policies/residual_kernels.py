@@ -1,5 +1,5 @@
 """:class:`~policies.learned.ResidualLC` for a batch of sessions, compiled: the same features and
-the same actions, bit for bit (``tests/test_residual_kernels.py``), at a fraction of a
+the same actions, bit for bit (``tests/test_train_batched.py``), at a fraction of a
 microsecond per session instead of tens.
 
 The Python class keeps its state in attributes (the base LC's motion-rate estimate, the
@@ -19,9 +19,10 @@ from pathlib import Path
 import numpy as np
 
 import langenv
+from langenv.control.pacing import COMMAND_MIN, PaceLimits
 from langenv.kernels import SOURCES, clear_stale_cache, inline, jit
 from langenv.layout import Field, Layout
-from langenv.observation import (
+from langenv.task.observation import (
     CHILD_FIELDS,
     ELAPSED_SCALE,
     FIRST_CHILD,
@@ -29,7 +30,6 @@ from langenv.observation import (
     T_SCALE,
     Obs,
 )
-from langenv.pacing import COMMAND_MIN, PaceLimits
 from policies.aligner import AlignerGains
 from policies.analytic import NEW_HORIZON
 
@@ -154,7 +154,7 @@ def _clip1(x: float) -> float:
 
 @inline
 def _action_from_command(cmd: float, upper: float) -> float:
-    """:func:`langenv.pacing.action_from_command`."""
+    """:func:`langenv.control.pacing.action_from_command`."""
     if cmd >= 1.0:
         u = (cmd - 1.0) / (upper - 1.0)
     else:
@@ -164,7 +164,7 @@ def _action_from_command(cmd: float, upper: float) -> float:
 
 @inline
 def _command_from_action(u: float, upper: float) -> float:
-    """:func:`langenv.pacing.command_from_action`."""
+    """:func:`langenv.control.pacing.command_from_action`."""
     if u >= 0.0:
         return 1.0 + (upper - 1.0) * u
     return 1.0 + (1.0 - COMMAND_MIN) * u

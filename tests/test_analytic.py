@@ -9,10 +9,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import langenv
-from langenv import observation as ob
+from langenv.control.pacing import command_from_action
 from langenv.errors import ConfigError
-from langenv.observation import Obs
-from langenv.pacing import command_from_action
+from langenv.task import observation as ob
+from langenv.task.observation import Obs
 from policies.analytic import (
     AdmittanceController,
     LanguageController,

@@ -3,13 +3,13 @@ including those inside functions and under ``TYPE_CHECKING``).
 
     langenv  <-  policies  <-  train, eval  <-  bench  <-  langctrl
 
-Inside ``langenv`` its *parts* (its subpackages and top-level modules: ``control``, ``robot``,
-``speech``, ``users``, ``kernels``, ``motion``, ``env``, ...) are layered too: no two import each
-other, directly or through others (:func:`langenv_part_cycles`). A package's ``__main__`` is a
-job (the command ``langctrl NAME`` runs), above every part, as ``langctrl`` is above every
-package: it may import any part and nothing imports it; the package root ``langenv/__init__``
-(the registration and the version) is not a part either. Every module that compiles kernels or
-declares a layout is watched by the kernels' stale-cache check (``langenv.kernels.SOURCES``).
+Inside ``langenv`` its *parts* (its subpackages, its top-level modules and the package root
+``langenv/__init__``, every module counted, ``__main__`` too) follow one declared order,
+:data:`LANGENV_LAYERS`, lowest first: a part imports only parts of the layers below its own, so no
+two import each other, directly or through others (:func:`langenv_part_cycles`). The jobs that
+run the parts from the command line live above them all, in ``langctrl.jobs``. Every module that
+compiles kernels or declares a layout is watched by the kernels' stale-cache check
+(``langenv.kernels.SOURCES``).
 
 The env package ``langenv`` stands alone (it finds policies by name through entry points, never
 by import); ``policies`` needs only ``langenv``; ``train`` and ``eval`` need ``policies`` and
@@ -31,6 +31,25 @@ import grimp
 import pytest
 
 PACKAGES = ("langenv", "policies", "train", "eval", "bench", "langctrl")
+
+#: langenv's parts in layers, lowest first: a part may import only parts of the layers below its
+#: own. ``__init__`` is the package root (the version, the env's registration, and MuJoCo's GL
+#: backend chosen through ``robot.gl`` before anything loads MuJoCo). docs/ARCHITECTURE.md shows it.
+LANGENV_LAYERS: tuple[tuple[str, ...], ...] = (
+    ("errors", "files", "vec"),
+    ("layout", "validation"),
+    ("kernels",),
+    ("robot", "task"),
+    ("__init__",),
+    ("control",),
+    ("speech",),
+    ("exercise", "users"),
+    ("motion", "worlds"),
+    ("env_kernels",),
+    ("compiled_steps",),
+    ("env",),
+    ("batch", "live", "script_fit"),
+)
 
 #: package -> the project's packages it must not import, even indirectly
 FORBIDDEN: dict[str, tuple[str, ...]] = {
@@ -108,18 +127,18 @@ def test_no_import_cycles() -> None:
 
 
 def part_of(module: str) -> str | None:
-    """The part of ``langenv`` that ``module`` belongs to, or None for the package root and the
-    jobs (``__main__`` modules)."""
+    """The part of ``langenv`` that ``module`` belongs to (``__init__`` for the package root), or
+    None outside ``langenv``. Every module counts, ``__main__`` modules too."""
     names = module.split(".")
-    if names[0] != "langenv" or len(names) < 2 or names[-1] == "__main__":
+    if names[0] != "langenv":
         return None
-    return names[1]
+    return names[1] if len(names) > 1 else "__init__"
 
 
 def part_graph(graph: grimp.ImportGraph) -> grimp.ImportGraph:
     """``langenv``'s parts and which imports which (directly, by any of their modules)."""
     parts = grimp.ImportGraph()
-    for module in graph.find_children("langenv") | graph.find_descendants("langenv"):
+    for module in {"langenv"} | graph.find_descendants("langenv"):
         a = part_of(module)
         if a is None:
             continue
@@ -162,10 +181,33 @@ def test_langenv_parts_import_no_cycle() -> None:
     for group in cycles:
         for a, b in itertools.permutations(group, 2):
             chain = graph.find_shortest_chain(
-                importer=f"langenv.{a}", imported=f"langenv.{b}", as_packages=True
+                importer=_module(a), imported=_module(b), as_packages="__init__" not in (a, b)
             )
             chains.append(" -> ".join(chain or ()))
     assert cycles == [], f"langenv's parts import each other: {cycles}; e.g. {chains[:4]}"
+
+
+def test_langenv_parts_follow_the_declared_layers() -> None:
+    """Every part is declared once, and imports only parts of the layers below its own."""
+    graph = _graph()
+    parts = part_graph(graph)
+    declared = [p for layer in LANGENV_LAYERS for p in layer]
+    assert len(declared) == len(set(declared)), "a part declared twice"
+    assert sorted(parts.modules) == sorted(declared), "the declared parts are langenv's parts"
+    level = {p: i for i, layer in enumerate(LANGENV_LAYERS) for p in layer}
+    upward = []
+    for a in sorted(parts.modules):
+        for b in sorted(parts.find_modules_directly_imported_by(a)):
+            if level[b] >= level[a]:
+                chain = graph.find_shortest_chain(
+                    importer=_module(a), imported=_module(b), as_packages="__init__" not in (a, b)
+                )
+                upward.append(f"{a} -> {b}: {' -> '.join(chain or ())}")
+    assert upward == [], f"imports not downward in LANGENV_LAYERS: {upward}"
+
+
+def _module(part: str) -> str:
+    return "langenv" if part == "__init__" else f"langenv.{part}"
 
 
 def test_the_kernels_stale_cache_check_watches_every_compiled_module() -> None:
@@ -208,7 +250,13 @@ if __name__ == "__main__":
             chain = g.find_shortest_chain(importer=package, imported=other, as_packages=True)
             print(f"  {package} -> {other}: {'none' if chain is None else ' -> '.join(chain)}")
     print(f"import cycles: {import_cycles(g) or 'none'}")
-    print(f"cycles among langenv's parts: {langenv_part_cycles(g) or 'none'}")
+    cycles = langenv_part_cycles(g)
+    pairs = sum(len(group) * (len(group) - 1) // 2 for group in cycles)
+    print(f"cycles among langenv's parts: {cycles or 'none'} ({pairs} pairs)")
+    top = sorted(p.name for p in (Path(__file__).resolve().parents[1] / "langenv").glob("*.py"))
+    print(f"modules at langenv's top: {len(top)} ({', '.join(top)})")
+    for i, layer in enumerate(LANGENV_LAYERS):
+        print(f"  declared layer {i}: {', '.join(layer)}")
     for i, layer in enumerate(layers(part_graph(g))):
         print(f"  langenv layer {i}: {', '.join(layer)}")
 

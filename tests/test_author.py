@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
+from langctrl.jobs.speech import main
 from langenv.errors import ScriptError
-from langenv.speech.__main__ import main
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.author import author, graph_yaml, parse_script
 from langenv.speech.coverage import coverage
@@ -195,7 +195,7 @@ def test_author_runs_as_a_module(tmp_path: Path) -> None:
         [
             sys.executable,
             "-m",
-            "langenv.speech",
+            "langctrl.jobs.speech",
             "author",
             str(script),
             "--out",

@@ -170,7 +170,7 @@ def test_console_script_runs_the_jobs() -> None:
     assert top.returncode == 0 and all(f"  {job} " in top.stdout for job in ISSUE_JOBS)
     ours = subprocess.run([script, "exercise", "--help"], **run)  # type: ignore[call-overload]
     theirs = subprocess.run(  # type: ignore[call-overload]
-        [sys.executable, "-m", "langenv.exercise", "--help"], **run
+        [sys.executable, "-m", "langctrl.jobs.exercise", "--help"], **run
     )
     assert ours.returncode == theirs.returncode == 0
     assert ours.stdout == theirs.stdout

@@ -15,7 +15,7 @@ from langenv.control.cooperation import CooperationFilter
 from langenv.control.trajectory import default_exercise
 from langenv.env import LangCtrlEnv
 from langenv.kernels import mjc
-from langenv.motion import GuidedArm
+from langenv.motion.tick import GuidedArm
 from langenv.robot.arm import Arm
 from langenv.robot.force_sensor import ForceSensor
 from langenv.users import ReplayUser, SyntheticUser

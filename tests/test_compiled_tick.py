@@ -12,10 +12,10 @@ from langenv.control.admittance import AdmittanceParams
 from langenv.control.cooperation import CooperationFilter
 from langenv.control.trajectory import default_exercise
 from langenv.errors import ActionError, ConfigError
-from langenv.motion import GuidedArm
+from langenv.motion.tick import GuidedArm
 from langenv.robot.arm import Arm
 from langenv.robot.force_sensor import ForceSensor
-from langenv.safety import SafetyLimits
+from langenv.robot.safety import SafetyLimits
 
 pytestmark = pytest.mark.portable
 

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from eval.compare import Job, run_episode
-from langenv import observation as ob
 from langenv.errors import ConfigError
-from langenv.observation import Obs
+from langenv.task import observation as ob
+from langenv.task.observation import Obs
 from langenv.users import PerturbedUser
 from langenv.worlds import WorldEnv, WorldSplit
 from policies.analytic import (

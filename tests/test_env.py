@@ -13,9 +13,9 @@ import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
 
 import langenv
+from langenv.control.pacing import PaceLimits
 from langenv.env import LangCtrlEnv
 from langenv.errors import ActionError, ConfigError, PhraseGraphError
-from langenv.pacing import PaceLimits
 from policies import load_policy
 from policies.aligner import AlignerGains, optimal_paces
 
@@ -354,7 +354,7 @@ def test_max_children_pads_the_observation_to_one_layout() -> None:
     the extra child blocks are empty, and fewer than the graph needs is refused by name."""
     from langenv.env import LangCtrlEnv
     from langenv.errors import ConfigError
-    from langenv.observation import CHILD_FIELDS, observation_size
+    from langenv.task.observation import CHILD_FIELDS, observation_size
 
     plain = LangCtrlEnv(phrase_graph="study")
     wide = LangCtrlEnv(phrase_graph="study", max_children=plain.max_children + 2)

@@ -8,8 +8,8 @@ import gymnasium as gym
 import numpy as np
 
 import langenv
-from langenv import observation as ob
-from langenv.observation import Obs
+from langenv.task import observation as ob
+from langenv.task.observation import Obs
 from policies.analytic import make_analytic
 
 

@@ -1,4 +1,4 @@
-"""python -m langenv.exercise list | check | render: output and exit codes 0, 1, 2."""
+"""langctrl exercise list | check | render: output and exit codes 0, 1, 2."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
+from langctrl.jobs.exercise import main
 from langenv.exercise import SHIPPED_EXERCISES
-from langenv.exercise.__main__ import main
 
 BAD = """\
 name: bad_one
@@ -58,7 +58,7 @@ def test_check_warns_of_the_study_s_words_naming_the_entry(
 ) -> None:
     """A new exercise that speaks a shipped graph would say "move your hand away from your
     body" (the study's external rotation) on any path: check says so, naming the entry."""
-    import langenv.exercise.__main__ as cli
+    import langctrl.jobs.exercise as cli
 
     path = _unscripted(tmp_path, script)
     if "scripts/" in script:

@@ -18,10 +18,10 @@ from langenv.control.trajectory import default_exercise
 from langenv.env import LangCtrlEnv
 from langenv.errors import ConfigError
 from langenv.exercise import SHIPPED_EXERCISES, resolve_exercise
-from langenv.motion import GuidedArm
+from langenv.motion.tick import GuidedArm
 from langenv.robot.arm import Arm
 from langenv.robot.force_sensor import ForceSensor
-from langenv.safety import SafetyLimits
+from langenv.robot.safety import SafetyLimits
 from policies import load_policy
 
 

@@ -14,8 +14,8 @@ import yaml
 
 from eval.compare import main as compare
 from eval.episode import EpisodeLog
+from langctrl.jobs.play import main as play
 from langenv.exercise import resolve_exercise
-from langenv.play import main as play
 
 REPO = Path(__file__).resolve().parents[1]
 

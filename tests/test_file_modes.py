@@ -65,7 +65,7 @@ def test_a_compare_job_writes_files_others_can_read(tmp_path: Path, mask: int) -
 
 
 def test_an_authored_graph_and_a_rendered_wav_get_the_users_mode(tmp_path: Path, mask: int) -> None:
-    from langenv.speech.__main__ import main
+    from langctrl.jobs.speech import main
 
     script = tmp_path / "s.txt"
     script.write_text("Reach forward.\nAnd back.\n")

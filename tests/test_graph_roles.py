@@ -252,7 +252,7 @@ def test_verdict_and_summary_name_the_graph() -> None:
 
 
 def test_play_and_the_robot_loop_speak_the_exercise_s_graph(tmp_path: Path) -> None:
-    from langenv.play import main as play_main
+    from langctrl.jobs.play import main as play_main
 
     wav = tmp_path / "x.wav"
     args = ["--headless", "--seconds", "1", "--audio-out", str(wav)]

@@ -13,11 +13,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import langenv
-from langenv import observation as ob
+from langenv.control.pacing import command_from_action
 from langenv.errors import ConfigError
 from langenv.exercise import speak
-from langenv.observation import ChildField, Obs
-from langenv.pacing import command_from_action
+from langenv.task import observation as ob
+from langenv.task.observation import ChildField, Obs
 from policies import load_policy
 from policies.analytic import LanguageController
 from policies.learned import FEATURES, PPOPolicy, ResidualLC, ResidualSpec, model_files

@@ -1,5 +1,5 @@
 """Live mode: the real-time loop headless, its audio stream, the ring, the drag user, the policy
-registry and the clear errors of ``python -m langenv.play``."""
+registry and the clear errors of ``langctrl play``."""
 
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ import pytest
 import soundfile as sf
 
 import langenv
+from langctrl.jobs.play import main, parse_args
 from langenv.errors import ConfigError, DeviceError
 from langenv.live.drag import DragUser
 from langenv.live.loop import RealTimeLoop
@@ -20,7 +21,6 @@ from langenv.live.registry import POLICY_GROUP, load_registered_policy, register
 from langenv.live.ring import AudioRing
 from langenv.live.sinks import SoundCardSink, WavSink
 from langenv.live.stream import DEFAULT_LAG
-from langenv.play import main, parse_args
 from langenv.speech.render import render_history
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -47,7 +47,8 @@ def test_unknown_or_broken_policy_is_a_clear_error() -> None:
 
 def test_live_mode_imports_no_policy_training_or_eval_code() -> None:
     """The live mode finds policies through entry points, never by importing them."""
-    for path in [*(ROOT / "langenv" / "live").rglob("*.py"), ROOT / "langenv" / "play.py"]:
+    play = ROOT / "langctrl" / "jobs" / "play.py"
+    for path in [*(ROOT / "langenv" / "live").rglob("*.py"), play]:
         for node in ast.walk(ast.parse(path.read_text(), str(path))):
             names = []
             if isinstance(node, ast.Import):

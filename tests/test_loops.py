@@ -19,6 +19,7 @@ import pytest
 
 import langenv
 from bench.etc_agreement import random_pace, random_resistance
+from langctrl.jobs.exercise import main as exercise_cli
 from langenv.control.admittance import AdmittanceParams, VariableAdmittance
 from langenv.control.cooperation import CooperationFilter
 from langenv.control.guide import GATE_REACH, Guide
@@ -36,13 +37,12 @@ from langenv.control.virtual_loop import simulate_virtual
 from langenv.env import LangCtrlEnv
 from langenv.errors import ExerciseError
 from langenv.exercise import SHIPPED_EXERCISES, Exercise, load_exercise, resolve_exercise
-from langenv.exercise.__main__ import main as exercise_cli
 from langenv.exercise.check import check_exercise
 from langenv.exercise.path_checks import path_problems
-from langenv.motion import GuidedArm
+from langenv.motion.tick import GuidedArm
 from langenv.robot.arm import Arm
 from langenv.robot.force_sensor import ForceSensor
-from langenv.safety import SafetyLimits
+from langenv.robot.safety import SafetyLimits
 from policies import load_policy
 
 DATA = Path(__file__).parent / "data" / "exercises"

@@ -1,5 +1,5 @@
-"""The observation's one home (langenv/observation.py): encoders and decoders agree, and the env
-writes what its ``info`` reports, where the policies read it."""
+"""The observation's one home (langenv/task/observation.py): encoders and decoders agree, and the
+env writes what its ``info`` reports, where the policies read it."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import langenv
-from langenv import observation as ob
-from langenv.observation import ChildField, Obs, ObservationEncoder
+from langenv.task import observation as ob
+from langenv.task.observation import ChildField, Obs, ObservationEncoder
 
 F32 = 1e-6  # the observation is float32: about 7 significant digits
 

@@ -15,12 +15,12 @@ from hypothesis import strategies as st
 
 import langenv
 from langenv import env_kernels as ek
+from langenv.control.pacing import PaceLaw, PaceLimits, command_from_action
+from langenv.control.pacing_kernels import law_commands
 from langenv.env import LAW_CHUNK
 from langenv.errors import ConfigError
 from langenv.exercise import speak
-from langenv.observation import Obs, encode_flag, encode_fraction, encode_seconds
-from langenv.pacing import PaceLaw, PaceLimits, command_from_action
-from langenv.pacing_kernels import law_commands
+from langenv.task.observation import Obs, encode_flag, encode_fraction, encode_seconds
 from langenv.users import SyntheticUser
 from langenv.users.synthetic import LogNormal, SyntheticUserParams
 from policies.analytic import LanguageController, make_analytic

@@ -653,7 +653,7 @@ def test_ctrl_c_exits_130_with_one_line(tmp_path: Path) -> None:
         time.sleep(0.2)
     time.sleep(2.0)  # well inside the first rollout
     # Under a loaded machine a first Ctrl-C was seen to be lost (the run went on training; cause
-    # not found, see docs/history.md): press it again, as a person would, at most five times
+    # not found, see HISTORY.md): press it again, as a person would, at most five times
     stderr = ""
     for _ in range(5):
         os.killpg(proc.pid, signal.SIGINT)

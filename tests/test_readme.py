@@ -75,7 +75,7 @@ BUDGET: dict[str, Shrink | Skip] = {
     "models/speech_seeds/ppo_speech_s1000000.zip --model "
     "models/speech_seeds/ppo_speech_s2000000.zip --role test --users 48 --population both "
     "--out out/speech_test": Skip(
-        "the learned phrase chooser's look at the test sets (docs/history.md records it); "
+        "the learned phrase chooser's look at the test sets (HISTORY.md records it); "
         "tools/results.py runs it for the README's table, the generalise job is tested on "
         "validation people"
     ),

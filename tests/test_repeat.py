@@ -317,7 +317,7 @@ def test_bad_repeats_in_scripts_name_line_and_column(text: str, message: str) ->
 def test_the_cli_names_a_bad_repeat_without_a_traceback(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from langenv.speech.__main__ import main
+    from langctrl.jobs.speech import main
 
     path = write(tmp_path, GOOD.replace("times: 3, ", ""))
     assert main(["check", str(path), "--cache-dir", str(tmp_path / "c")]) == 1

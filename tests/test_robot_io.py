@@ -85,7 +85,7 @@ def test_write_session_round_trip(tmp_path: Path) -> None:
 def test_play_runs_a_session_through_the_seam(tmp_path: Path, robot: str, capsys) -> None:
     """Real time on a shared machine may end it early on a late period: a named stop, still
     logged; either way the loop ran on the robot and said how it ended."""
-    from langenv.play import main
+    from langctrl.jobs.play import main
 
     wav, log = tmp_path / "a.wav", tmp_path / "s.csv"
     argv = ["--robot", robot, "--headless", "--seconds", "0.5", "--audio-out", str(wav)]
@@ -127,8 +127,8 @@ def test_play_on_a_robot_runs_the_chosen_exercise(tmp_path: Path, capsys) -> Non
     """--exercise with --robot: the session starts at that exercise's start (it ran the study's)."""
     import csv
 
+    from langctrl.jobs.play import main
     from langenv.exercise import resolve_exercise
-    from langenv.play import main
 
     wav, log = tmp_path / "a.wav", tmp_path / "s.csv"
     argv = ["--robot", "ur-fake", "--headless", "--seconds", "0.3", "--audio-out", str(wav)]

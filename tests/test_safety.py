@@ -18,10 +18,10 @@ from langenv.control.cooperation import CooperationFilter
 from langenv.control.trajectory import default_exercise
 from langenv.errors import ConfigError
 from langenv.exercise import speak
-from langenv.motion import GuidedArm
+from langenv.motion.tick import GuidedArm
 from langenv.robot.arm import Arm
 from langenv.robot.force_sensor import ForceSensor
-from langenv.safety import (
+from langenv.robot.safety import (
     HOLD_TIME,
     JOINT_CHECK_MAX,
     STOP_LIMITS,

@@ -6,10 +6,10 @@ from pathlib import Path
 
 import pytest
 
+from langctrl.jobs.exercise import main as exercise_main
+from langctrl.jobs.speech import main as speech_main
 from langenv.exercise import resolve_exercise
-from langenv.exercise.__main__ import main as exercise_main
 from langenv.script_fit import MotionTimes, fit_warnings, motion_times
-from langenv.speech.__main__ import main as speech_main
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.author import author
 from langenv.speech.graph import PhraseGraph

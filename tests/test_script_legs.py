@@ -7,12 +7,12 @@ from pathlib import Path
 
 import pytest
 
+from langctrl.jobs.exercise import main as exercise_main
+from langctrl.jobs.speech import main as speech_main
 from langenv.errors import PhraseGraphError, ScriptError
 from langenv.exercise import resolve_exercise
-from langenv.exercise.__main__ import main as exercise_main
 from langenv.exercise.check import leg_problems
 from langenv.script_fit import MotionTimes, leg_fit_warnings, leg_warnings
-from langenv.speech.__main__ import main as speech_main
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.author import author, graph_yaml, parse_script
 from langenv.speech.coverage import leg_lengths

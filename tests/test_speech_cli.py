@@ -1,4 +1,4 @@
-"""`python -m langenv.speech check|render`, and the renderers behind it."""
+"""`langctrl speech check|render`, and the renderers behind it."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 import soundfile as sf
 
+from langctrl.jobs.speech import main
 from langenv.errors import ConfigError
-from langenv.speech.__main__ import main
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.graph import PhraseGraph, default_graph_path
 from langenv.speech.render import plan_speech, render_history, render_speech
@@ -144,7 +144,7 @@ def test_render_rejects_unknown_output_type(
 def test_module_entry_point_runs() -> None:
     env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     res = subprocess.run(
-        [sys.executable, "-m", "langenv.speech", "--help"],
+        [sys.executable, "-m", "langctrl.jobs.speech", "--help"],
         capture_output=True,
         text=True,
         env=env,

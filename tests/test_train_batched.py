@@ -13,7 +13,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 
 import langenv  # noqa: F401
 from langenv.errors import ConfigError
-from langenv.observation import Obs, observation_size
+from langenv.task.observation import Obs, observation_size
 from policies import residual_kernels as rk
 from policies.learned import FEATURES, ResidualLC, ResidualSpec
 from train.ppo import TrainArgs, _resolve, _wrapper_class, use_batched

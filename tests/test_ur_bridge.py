@@ -14,13 +14,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from langctrl.jobs.robot import main as ur_main
 from langenv.errors import ConfigError, DeviceError
 from langenv.live.registry import load_registered_policy
 from langenv.live.robot_loop import LOG_COLUMNS, RobotLoop
 from langenv.live.ur_exercise import exercise_trajectory
 from langenv.live.ur_preflight import move_to_start, run_checks, zero_sensor
 from langenv.robot.ur import fake_rtde
-from langenv.robot.ur.__main__ import main as ur_main
 from langenv.robot.ur.bridge import URRobot
 from langenv.robot.ur.config import URConfig, load_ur_config
 from langenv.users import load_session
@@ -653,7 +653,7 @@ def test_write_speed_sends_no_unbounded_rotation() -> None:
 def test_robot_refuses_to_replace_a_log_without_overwrite(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from langenv.robot.ur.__main__ import parse_args
+    from langctrl.jobs.robot import parse_args
 
     log = tmp_path / "session.csv"
     log.write_text("t\n0\n")

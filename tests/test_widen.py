@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import yaml
 
-from langenv import observation as ob
 from langenv.errors import ConfigError
+from langenv.task import observation as ob
 from policies.learned import PPOPolicy, observation_layout
 from train.widen import main, widen
 

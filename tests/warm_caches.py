@@ -3,7 +3,7 @@
 Run by ``tests/conftest.py`` (in the xdist controller, as a subprocess) so that two workers never
 compile the same cached function at once: librosa's ``pyin``/``stft`` (their numba gufuncs are
 cached in librosa's package folder, and numba's gufunc cache is not safe when two processes write
-it together, numba issue 10128) and the project's own kernels (:mod:`langenv.warm`).
+it together, numba issue 10128) and the project's own kernels (:mod:`langenv.batch.warm`).
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import numpy as np
 
 
 def main() -> None:
-    from langenv.warm import warm_up
+    from langenv.batch.warm import warm_up
 
     seconds = warm_up()
     import librosa

@@ -117,7 +117,7 @@ EXERCISES = "langctrl exercises --out out/exercises"  # 48 people per exercise a
 #: The learned phrase chooser's test look (issue 44; the split's test people, 6 000 000 on, are
 #: read from the model's config): the shipped model and its two seed siblings on the test
 #: exercises x the 48 test people, perturbed and plain; a look at the test sets, recorded in
-#: docs/history.md (rerunning it gives the same figures).
+#: HISTORY.md (rerunning it gives the same figures).
 SPEECH_LOOK = (
     "langctrl generalise --model models/ppo_speech.zip "
     "--model models/speech_seeds/ppo_speech_s1000000.zip "

@@ -52,11 +52,11 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from langenv import observation as ob
+from langenv.control.pacing import PaceLaw
 from langenv.errors import ConfigError
-from langenv.pacing import PaceLaw
 from langenv.speech.in_step import boundaries, graph_legs, in_step, said_words
 from langenv.speech.voice import voice_rate, words_heard
+from langenv.task import observation as ob
 from policies.analytic import FILL_ANTICIPATE, FILL_K_C, FILL_MARGIN, FILL_PAUSE_SCALE
 from policies.learned import ResidualLC, ResidualSpec
 

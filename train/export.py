@@ -26,7 +26,7 @@ its evaluation ineligible. The exported config records the choice (``selected_by
 ``--choice-only`` exports only the phrase-choice part of the learned correction: the exported
 config's residual gets ``pace_scale = audio_scale = 0``, so the paces are the base controller's
 and the network only moves the next-phrase target (``choice_only: true`` records it). The models
-shipped from attempt 12 to 14 were exported this way (``docs/history.md``).
+shipped from attempt 12 to 14 were exported this way (``HISTORY.md``).
 
 ``--terminal S`` gives the exported model's base controller a terminal phase of ``S`` s
 (:class:`policies.analytic.LanguageController`'s ``terminal``; ``terminal_at_export`` records

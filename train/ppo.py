@@ -42,7 +42,7 @@ run with one line (the resume point is already on disk) and exit status 130.
 Exercises: ``env_kwargs.exercise`` is one exercise (a shipped name or a YAML path; default the
 study's) or a list of them: training env ``i`` then guides exercise ``i mod k`` (give ``n_envs`` a
 multiple of ``k``), and the periodic evaluation runs one env per exercise, the held-out users
-spread over them. Every exercise is checked (``python -m langenv.exercise check``) before
+spread over them. Every exercise is checked (``langctrl exercise check``) before
 training starts; they must share the phrase graph (the observation's size depends on it).
 
 Seeds: training envs are seeded ``seed + i`` (``seed >= 1_000_000`` by default, far from the
@@ -1309,7 +1309,7 @@ class _SubprocVecEnv(SubprocVecEnv):
     float64), so that the two give the same run."""
 
     def __init__(self, env_fns: list[Any], start_method: str | None = None) -> None:
-        from langenv.warm import warm_up
+        from langenv.batch.warm import warm_up
 
         warm_up()  # compiled here once, before the workers start (they would compile together)
         super().__init__([_IgnoreSigint(fn) for fn in env_fns], start_method)

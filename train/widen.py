@@ -5,8 +5,8 @@ Run::
     python -m train.widen models/ppo_aligner.zip --max-children 9 --out runs/widened/ppo_aligner9
     python -m train.ppo --config configs/ppo_general.yaml --init-from runs/widened/ppo_aligner9.zip
 
-The learned policy's input holds one block of ``langenv.observation.CHILD_FIELDS`` inputs per choice
-of the graph's largest out-degree (``max_children``), so a model trained on a graph with 6
+The learned policy's input holds one block of ``langenv.task.observation.CHILD_FIELDS`` inputs per
+choice of the graph's largest out-degree (``max_children``), so a model trained on a graph with 6
 choices cannot read an exercise script with 9, nor be fine-tuned on one (``--init-from`` needs
 the same spaces). The widened model has the new child blocks inserted after the old ones, with
 zero weights into both first layers (actor and critic) and neutral normalisation statistics

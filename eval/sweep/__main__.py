@@ -221,8 +221,8 @@ def _run(todo: list[SweepSession], store: Any, ns: argparse.Namespace, spec: Swe
         return 0.0
     from tqdm import tqdm
 
+    from langenv.batch.warm import warm_up
     from langenv.errors import LangEnvError
-    from langenv.warm import warm_up
 
     warm_up()  # compiled once here: the workers load it, never compile it at once
     try:

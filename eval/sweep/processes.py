@@ -1,7 +1,7 @@
 """The ``processes`` backend: batches in local worker processes (``ProcessPoolExecutor``).
 
 The workers are forked where the platform allows, after the driver has imported what they use
-and compiled the kernels (:func:`langenv.warm.warm_up`), so each starts at once. A worker
+and compiled the kernels (:func:`langenv.batch.warm.warm_up`), so each starts at once. A worker
 that dies (killed, out of memory) breaks the pool: the pool is built again and the batches that
 had not finished are run again, up to :data:`MAX_RESTARTS` times.
 """

@@ -46,12 +46,12 @@ class BatchResult:
 
 def warm_worker() -> float:
     """Make this process ready to run sessions: import what a session uses and load the
-    compiled kernels (:func:`langenv.warm.warm_up`), which is what a forked worker of
+    compiled kernels (:func:`langenv.batch.warm.warm_up`), which is what a forked worker of
     the ``processes`` backend inherits from the driver. Returns the seconds it took (about a
     second of CPU in a fresh process)."""
     t0 = time.perf_counter()
     from eval.compare import _preload
-    from langenv.warm import warm_up
+    from langenv.batch.warm import warm_up
 
     _preload()
     warm_up()

@@ -16,12 +16,12 @@ from gymnasium.vector.utils import batch_space
 
 from langenv import env_kernels as ek
 from langenv.batch import kernels as bk
+from langenv.control.pacing import COMMAND_MIN
 from langenv.env import CHOICE_OCTAVES, LangCtrlEnv
 from langenv.errors import ActionError, ConfigError
 from langenv.kernels.views import address
-from langenv.observation import T_SCALE
-from langenv.pacing import COMMAND_MIN
 from langenv.speech.graph import PhraseGraph, graph_path
+from langenv.task.observation import T_SCALE
 
 __all__ = ["PARALLEL_MODES", "LangCtrlVectorEnv", "make_vector_env"]
 

@@ -22,15 +22,15 @@ import numba
 import numpy as np
 
 from langenv import env_kernels as ek
-from langenv import motion_kernels as mk
-from langenv import observation_kernels as ok
-from langenv import reward_kernels as rk
+from langenv.control.pacing_kernels import command
 from langenv.control.trajectory import SEGMENT
 from langenv.kernels import jit
 from langenv.kernels.views import f4_2, f8, f8_2, i8
 from langenv.layout import Field, Layout
-from langenv.observation import TREND_WINDOW
-from langenv.pacing_kernels import command
+from langenv.motion import tick_kernels as mk
+from langenv.task import observation_kernels as ok
+from langenv.task import reward_kernels as rk
+from langenv.task.observation import TREND_WINDOW
 
 __all__ = [
     "CONTROL",
@@ -43,7 +43,7 @@ __all__ = [
 ]
 
 _ARRAYS = (
-    ("ws", "the tick's work array (:data:`~langenv.motion_kernels.TICK`, legs, bounds)"),
+    ("ws", "the tick's work array (:data:`~langenv.motion.tick_kernels.TICK`, legs, bounds)"),
     ("path", "the packed trajectory (rows of :data:`~langenv.control.trajectory.SEGMENT`)"),
     ("aw", "the arm controller's array (:data:`~langenv.robot.arm.ARM`)"),
     ("ai", "the arm's joint addresses (int64)"),
@@ -179,8 +179,8 @@ def begin(
     c_min: float,
 ) -> None:
     """Start a step of every active session: its pace commands from ``actions`` (float64, the
-    env's map :func:`~langenv.pacing.command_from_action`), its ticks, the pause rule's factor,
-    and the step's integrals and highest speed at 0."""
+    env's map :func:`~langenv.control.pacing.command_from_action`), its ticks, the pause rule's
+    factor, and the step's integrals and highest speed at 0."""
     for i in range(sessions.shape[0]):
         c = control[i]
         if c[_C.active] == 0.0:

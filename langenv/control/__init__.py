@@ -2,7 +2,7 @@
 
 Everything here is pure Python/NumPy (no MuJoCo): the virtual closed loop can be simulated on its
 own (:func:`~langenv.control.virtual_loop.simulate_virtual`) and the arm engineer plugs the same
-objects into the 500 Hz tick (:mod:`langenv.motion`).
+objects into the 500 Hz tick (:mod:`langenv.motion.tick`).
 """
 
 from __future__ import annotations

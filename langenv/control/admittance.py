@@ -59,7 +59,8 @@ class AdmittanceParams:
             segments (an addition to the paper; it keeps the hand on arcs).
 
     The bounds of the physical pace are not here: they are the env's
-    :class:`~langenv.pacing.PaceLimits`, their one source; the admittance accepts any pace > 0.
+    :class:`~langenv.control.pacing.PaceLimits`, their one source; the admittance accepts any
+    pace > 0.
 
     Raises:
         ConfigError: a field out of range or non-finite (names the field).
@@ -141,7 +142,7 @@ class VariableAdmittance:
             v: Reference velocity at the start of the step, shape (3,), m/s.
             force: Total force ``F_ext + F_virtual``, shape (3,), N.
             p: Physical pace at the start of the step, > 0 (the env keeps it within its
-                :class:`~langenv.pacing.PaceLimits`).
+                :class:`~langenv.control.pacing.PaceLimits`).
             p_dot: Its rate (1/s), finite; ``p + p_dot dt`` must stay > 0.
             dt: Step (s), > 0.
 

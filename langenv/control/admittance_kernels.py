@@ -1,6 +1,6 @@
 """The variable admittance compiled (:meth:`VariableAdmittance.step
 <langenv.control.admittance.VariableAdmittance.step>`): the same operations in the same order,
-bit-identical results (``tests/test_law_kernels.py``)."""
+bit-identical results (``tests/test_compiled_tick.py``)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """The velocity command compiled (:mod:`langenv.control.command`): ``follow`` and ``cap_speed``,
-the same operations in the same order (``tests/test_law_kernels.py``)."""
+the same operations in the same order (``tests/test_compiled_tick.py``)."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """The cooperation filter compiled (:meth:`CooperationFilter.update
 <langenv.control.cooperation.CooperationFilter.update>`, SPEC §1): the same operations in the
-same order (``tests/test_law_kernels.py``)."""
+same order (``tests/test_compiled_tick.py``)."""
 
 from __future__ import annotations
 

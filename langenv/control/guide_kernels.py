@@ -6,7 +6,7 @@ Pure functions of the guide's state (``s``, ``leg``), the packed path
 :data:`~langenv.control.guide.LEG`, flat: :meth:`Guide.leg_rows
 <langenv.control.guide.Guide.leg_rows>`); the same operations in the same order as the methods
 of :class:`~langenv.control.guide.Guide` (``update``, ``virtual_force``, ``tangent``,
-``speed_limit``), so the results are bit-identical (``tests/test_law_kernels.py``).
+``speed_limit``), so the results are bit-identical (``tests/test_compiled_tick.py``).
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ The hand moves exactly with the command, which follows ``v_ref`` with at most
 rest. :func:`simulate_virtual` runs it from rest at the start of a trajectory, with a given pace
 and an optional external force, and returns the whole run (:class:`VirtualRun`). Tests, figures
 and the motion-ETC agreement check (``bench``) use it; the env runs the same guide and admittance
-on the simulated arm (:mod:`langenv.motion`).
+on the simulated arm (:mod:`langenv.motion.tick`).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Exercises as data: a therapy exercise's path, tool turn, speed and script in a YAML file.
 
-``python -m langenv.exercise list | check NAME|FILE | render NAME --out F.png``; the file format
+``langctrl exercise list | check NAME|FILE | render NAME --out F.png``; the file format
 is documented in :mod:`langenv.exercise.spec`, the checks in :mod:`langenv.exercise.check`, which
 phrase graph each policy speaks on an exercise in :mod:`langenv.exercise.script`.
 """

@@ -5,7 +5,7 @@ with ``yaml.safe_load``, refuses unknown keys, converts the file's units (m, deg
 and gathers every problem it finds (kind, leg, point, detail; the leg's line in the file) into one
 :class:`~langenv.errors.ExerciseError`, so an author fixes them in one pass. It checks the
 format and the path's shape only; whether the arm can follow it safely is
-:func:`~langenv.exercise.check.check_exercise`'s business (``python -m langenv.exercise check``).
+:func:`~langenv.exercise.check.check_exercise`'s business (``langctrl exercise check``).
 """
 
 from __future__ import annotations

@@ -36,7 +36,7 @@ from langenv.robot.arm import Arm
 from langenv.robot.handles import load_model
 from langenv.robot.ik import IK_ACCEPT, solve_ik
 from langenv.robot.rotation import rotation_vector
-from langenv.safety import DEFAULT_MAX_SPEED
+from langenv.robot.safety import DEFAULT_MAX_SPEED
 
 __all__ = [
     "CLEARANCE",

@@ -13,7 +13,7 @@ role       spoken                                        policies
            study's exercise: ``lc-noap``), always        one wording by design
 =========  ============================================  ==========================================
 
-An override (``--graph`` of ``eval.compare`` and ``langenv.play``) replaces the graph of a policy
+An override (``--graph`` of ``eval.compare`` and ``langctrl play``) replaces the graph of a policy
 that chooses phrases; the one wording of the baselines belongs to the exercise (write an exercise
 file with another ``script.single`` to change it). :func:`speak` resolves the graph and hands it
 to the policy's optional ``use_graph(spoken)`` hook, where a policy that must adapt to the graph

@@ -2,7 +2,7 @@
 
 Each law's compiled twin sits beside its Python reference (``control/guide_kernels.py`` beside
 ``control/guide.py``, ``robot/arm_kernels.py`` beside ``robot/arm.py``, ...) and works on arrays
-whose layout the part declares once (:mod:`langenv.layout`); :mod:`langenv.motion_kernels`
+whose layout the part declares once (:mod:`langenv.layout`); :mod:`langenv.motion.tick_kernels`
 composes them into one tick and :mod:`langenv.env_kernels` into the env's ticks. This package
 holds what they share: the decorators (:func:`jit`, :func:`kernel`, :func:`inline`),
 :mod:`~langenv.kernels.blas` (MuJoCo's dense routines, in MuJoCo's order),
@@ -52,11 +52,11 @@ COMPILED = (
     "users/table_kernels.py",
     "speech/legs_kernels.py",
     "speech/graph_kernels.py",
-    "safety_kernels.py",
-    "pacing_kernels.py",
-    "reward_kernels.py",
-    "observation_kernels.py",
-    "motion_kernels.py",
+    "robot/safety_kernels.py",
+    "control/pacing_kernels.py",
+    "task/reward_kernels.py",
+    "task/observation_kernels.py",
+    "motion/tick_kernels.py",
     "env_kernels.py",
     "batch/kernels.py",
 )
@@ -67,7 +67,7 @@ SOURCES = (
     *COMPILED,
     "kernels/__init__.py",
     "layout.py",
-    "observation.py",
+    "task/observation.py",
     "control/trajectory.py",
     "control/guide.py",
     "control/admittance.py",
@@ -75,8 +75,8 @@ SOURCES = (
     "control/command.py",
     "robot/arm.py",
     "robot/force_sensor.py",
-    "safety.py",
-    "pacing.py",
+    "robot/safety.py",
+    "control/pacing.py",
     "speech/timeline.py",
     "speech/legs.py",
 )

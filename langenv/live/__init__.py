@@ -1,6 +1,6 @@
 """Live mode: the environment in real time, with you as the person and the robot's voice aloud.
 
-``python -m langenv.play`` composes these parts (each a class with one job):
+``langctrl play`` composes these parts (each a class with one job):
 
 * :mod:`langenv.live.registry`: policies by name, from the ``langctrl.policies`` entry points
   (langenv itself never imports a policy package);

@@ -39,7 +39,7 @@ from langenv.live.sinks import AudioSink
 from langenv.live.stream import BLOCK, DEFAULT_LAG, SpeechStream
 from langenv.robot.io import RobotIO
 from langenv.robot.io_arm import IOArm
-from langenv.safety import SafetyStop
+from langenv.robot.safety import SafetyStop
 from langenv.speech.vocoder import VariableRateVocoder
 from langenv.users.base import User
 from langenv.users.session_csv import OPTIONAL_COLUMNS, REQUIRED_COLUMNS, write_session

@@ -55,7 +55,7 @@ from langenv.layout import Field, Layout
 from langenv.robot.handles import ArmHandles, load_model
 from langenv.robot.ik import IK_ACCEPT, solve_ik
 from langenv.robot.rotation import rotation_error_matrix, rotation_vector
-from langenv.safety import DEFAULT_MAX_SPEED, SafetyStop
+from langenv.robot.safety import DEFAULT_MAX_SPEED, SafetyStop
 from langenv.validation import as_vec3, finite_positive
 
 if TYPE_CHECKING:
@@ -135,7 +135,7 @@ class Arm:
         handle_site: name of the site where the human force acts and whose velocity is controlled.
         max_hand_speed: hand speed limit (m/s); ``|v_ref|`` and the whole Cartesian command
             are clipped to it (default: the safety limit,
-            :data:`langenv.safety.DEFAULT_MAX_SPEED`).
+            :data:`langenv.robot.safety.DEFAULT_MAX_SPEED`).
         joints: names of the controlled joints (hinge or slide); ``None`` takes every 1-dof joint
             on the kinematic chain from the world to the handle site, base first.
         actuators: names of the velocity actuators driving ``joints`` (same order); ``None``

@@ -1,6 +1,6 @@
 """The force sensor's deadband compiled (:meth:`ForceSensor.measure
 <langenv.robot.force_sensor.ForceSensor.measure>` without its noise, which the compiled tick
-takes as input): the same operations in the same order (``tests/test_law_kernels.py``)."""
+takes as input): the same operations in the same order (``tests/test_compiled_tick.py``)."""
 
 from __future__ import annotations
 

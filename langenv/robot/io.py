@@ -28,10 +28,10 @@ is lost; the loop turns that into the ``connection_lost`` stop.
 
 ## Faults and the stops they cause
 
-The loop (:class:`langenv.robot.io_arm.IOArm` under :class:`langenv.motion.GuidedArm`) ends a
+The loop (:class:`langenv.robot.io_arm.IOArm` under :class:`langenv.motion.tick.GuidedArm`) ends a
 session on the first of these, always with ``stop()`` (``speedStop``) in the same period and the
-speech faded out; the stop's name is in :data:`langenv.safety.STOP_LIMITS` or
-:data:`langenv.safety.ROBOT_STOPS`:
+speech faded out; the stop's name is in :data:`langenv.robot.safety.STOP_LIMITS` or
+:data:`langenv.robot.safety.ROBOT_STOPS`:
 
 | fault | detected by | stop |
 |---|---|---|

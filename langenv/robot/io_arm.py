@@ -1,4 +1,4 @@
-"""IOArm: the arm :class:`~langenv.motion.GuidedArm` drives, over any :class:`RobotIO`.
+"""IOArm: the arm :class:`~langenv.motion.tick.GuidedArm` drives, over any :class:`RobotIO`.
 
 :class:`GuidedArm` was written against MuJoCo's :class:`~langenv.robot.arm.Arm` (``reset``,
 ``hand_position``, ``hand_velocity``, ``joint_positions``, ``step(v, f_ext)``). :class:`IOArm`
@@ -22,7 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from langenv.errors import ConfigError, DeviceError
 from langenv.robot.io import RobotIO, RobotState
-from langenv.safety import SafetyStop
+from langenv.robot.safety import SafetyStop
 from langenv.validation import finite_positive
 
 __all__ = ["LATE_PERIODS", "IOArm", "MeasuredUser"]
@@ -32,7 +32,7 @@ LATE_PERIODS = 2.0
 
 
 class IOArm:
-    """The arm's face for :class:`~langenv.motion.GuidedArm`, over a :class:`RobotIO`.
+    """The arm's face for :class:`~langenv.motion.tick.GuidedArm`, over a :class:`RobotIO`.
 
     Args:
         robot: The robot (its ``period`` is the tick).
@@ -45,7 +45,7 @@ class IOArm:
 
     Attributes:
         fault: The stop that halted the robot: a robot-side one (see
-            :data:`langenv.safety.ROBOT_STOPS`), or the monitor's (:meth:`stop_for`); None
+            :data:`langenv.robot.safety.ROBOT_STOPS`), or the monitor's (:meth:`stop_for`); None
             while it runs.
         compute_s: Per period, the loop's compute time (s, wall clock): from the end of
             ``wait()`` to the start of the next (read, control, speech, policy, logging,

@@ -40,7 +40,7 @@ class MujocoRobot(RobotContext):
             sensor is never bit-for-bit constant: the loop's stuck-sensor check relies on it).
         seed: Seed of the noise's generator.
         realtime: ``wait`` also sleeps until the period's end on the wall clock (a live
-            session, ``python -m langenv.play --robot mujoco``) and reports its lateness;
+            session, ``langctrl play --robot mujoco``) and reports its lateness;
             otherwise the simulation runs as fast as it computes, never late.
 
     Angular velocity commands are ignored: the arm's controller holds the handle's orientation.

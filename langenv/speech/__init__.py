@@ -9,7 +9,7 @@
 * :class:`SpeechTimeline` (``timeline.py``): playback position at audio pace ``a``;
 * :func:`render_speech`, :func:`render_history` (``render.py``): audio of a session's speech
   through the variable-rate phase vocoder (``vocoder.py``);
-* ``python -m langenv.speech check|author|render`` (``__main__.py``).
+* ``langctrl speech check|author|render`` (its command line: ``langctrl/jobs/speech.py``).
 """
 
 from langenv.speech.audio import ClipLibrary

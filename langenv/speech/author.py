@@ -1,4 +1,4 @@
-"""Phrase graphs written from plain text: ``python -m langenv.speech author SCRIPT.txt``.
+"""Phrase graphs written from plain text: ``langctrl speech author SCRIPT.txt``.
 
 A *script* says what the robot may say, one line per step of the exercise, in order::
 

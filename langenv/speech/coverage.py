@@ -20,8 +20,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from langenv.control.pacing import PaceLimits
 from langenv.errors import ConfigError
-from langenv.pacing import PaceLimits
 from langenv.speech.graph import PhraseGraph
 
 __all__ = [
@@ -133,7 +133,7 @@ def coverage(graph: PhraseGraph, limits: PaceLimits | None = None) -> Coverage:
 
     Args:
         graph: The phrase graph.
-        limits: Audio pace bounds (default: the env's, :class:`~langenv.pacing.PaceLimits`).
+        limits: Audio pace bounds (default: the env's, :class:`~langenv.control.pacing.PaceLimits`).
 
     Raises:
         ConfigError: if the natural range ``1 ± NATURAL`` is not inside the pace limits.

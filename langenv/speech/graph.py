@@ -85,7 +85,7 @@ GRAPHS_DIR = Path(__file__).resolve().parents[1] / "assets" / "graphs"
 SHIPPED_GRAPHS: Mapping[str, Path] = MappingProxyType(
     {
         # The product's graph for the default exercise: the study's wordings, shorter late
-        # wordings, pauses and fillers (written from default.txt by `python -m langenv.speech
+        # wordings, pauses and fillers (written from default.txt by `langctrl speech
         # author`). LC speaks it unless told otherwise.
         "default": GRAPHS_DIR / "default.yaml",
         "lc": GRAPHS_DIR / "default.yaml",

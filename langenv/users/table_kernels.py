@@ -1,6 +1,6 @@
 """A tabulated user's force compiled: :func:`~langenv.users.base.sample_table` and
 :func:`~langenv.users.base.against_motion`, the same operations in the same order
-(``tests/test_law_kernels.py``)."""
+(``tests/test_compiled_steps.py``)."""
 
 from __future__ import annotations
 

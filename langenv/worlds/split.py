@@ -183,7 +183,7 @@ class WorldSplit:
         return out
 
     def check(self) -> None:
-        """Load and check every exercise (``python -m langenv.exercise check``) and the graph
+        """Load and check every exercise (``langctrl exercise check``) and the graph
         each speaks; the graphs must all have the same largest number of choices.
 
         Raises:

@@ -3,7 +3,7 @@
 Importing this package needs neither ``ur-rtde`` nor MuJoCo; making a
 :class:`~langenv.robot.ur.bridge.URRobot` without ``ur-rtde`` raises
 :class:`~langenv.errors.DeviceError` naming the extra (``pip install -e ".[ur]"``).
-``python -m langenv.robot.ur --host HOST --dry-run`` connects, checks and prints the plan.
+``langctrl robot --host HOST --dry-run`` connects, checks and prints the plan.
 """
 
 from __future__ import annotations

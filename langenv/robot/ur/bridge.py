@@ -24,8 +24,8 @@ from numpy.typing import NDArray
 
 from langenv.errors import ConfigError, DeviceError
 from langenv.robot.io import RobotContext, RobotState, limit_speed
+from langenv.robot.safety import DEFAULT_MAX_SPEED
 from langenv.robot.ur.config import URConfig
-from langenv.safety import DEFAULT_MAX_SPEED
 from langenv.validation import finite_positive
 
 __all__ = [

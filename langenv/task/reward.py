@@ -4,12 +4,12 @@ Per tick, while speech or motion goes on, two integrands: the misalignment at cu
 ``|t_a/a - t_x/p|`` and the paper's pace objective ``(p-1)^2 [motion on] + (a-1)^2 [speech
 on]`` (:func:`integrands`); per step, their integrals weighted (:func:`step_terms`); once, at the
 episode's end, ``-w_am |AM|`` (:func:`am_term`). The compiled ticks use the twin,
-:mod:`langenv.reward_kernels` (the same operations, ``x ** 2`` as CPython computes it).
+:mod:`langenv.task.reward_kernels` (the same operations, ``x ** 2`` as CPython computes it).
 """
 
 from __future__ import annotations
 
-from langenv.observation import T_SCALE
+from langenv.task.observation import T_SCALE
 
 __all__ = ["am_term", "integrands", "step_terms", "total"]
 

@@ -1,8 +1,8 @@
 """Command line: list the shipped exercises, check one, or draw it.
 
-    python -m langenv.exercise list
-    python -m langenv.exercise check NAME|FILE [NAME|FILE ...]
-    python -m langenv.exercise render NAME|FILE --out F.png
+    langctrl exercise list
+    langctrl exercise check NAME|FILE [NAME|FILE ...]
+    langctrl exercise render NAME|FILE --out F.png
 
 ``check`` loads the file, validates it and runs every check before motion
 (:mod:`langenv.exercise.check`): it prints the figures of a passing exercise, and every problem
@@ -25,11 +25,11 @@ __all__ = ["build_parser", "main"]
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The command line of ``langctrl exercise`` (``python -m langenv.exercise``)."""
+    """The command line of ``langctrl exercise`` (``python -m langctrl.jobs.exercise``)."""
     p = argparse.ArgumentParser(
         prog="langctrl exercise",
         description="List, check and draw LangCtrl therapy exercises (exercise YAML files). Also "
-        "run as python -m langenv.exercise.",
+        "run as python -m langctrl.jobs.exercise.",
         epilog="NAME is a shipped exercise (" + ", ".join(SHIPPED_EXERCISES) + ") and FILE an "
         "exercise YAML (format: langenv/exercise/spec.py, docs/exercises.md).",
     )

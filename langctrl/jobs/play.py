@@ -1,26 +1,26 @@
-"""``python -m langenv.play``: try the controller live, as the person it guides.
+"""``langctrl play``: try the controller live, as the person it guides.
 
 With a display, MuJoCo's viewer opens on the arm: double-click the handle, then Ctrl + right-drag
 to push on it (your drag is the person's force, through the same sensor and deadband); the robot
 speaks through the sound card in real time, slowing, speeding and rewording as you resist, with
 the phrase and the paces shown on screen::
 
-    python -m langenv.play                          # LC, you are the person
-    python -m langenv.play --policy ppo:models/ppo_speech.zip
-    python -m langenv.play --user synthetic --audio-out talk.wav   # watch a simulated person
-    python -m langenv.play --exercise hand_to_mouth  # another exercise (checked first)
+    langctrl play                          # LC, you are the person
+    langctrl play --policy ppo:models/ppo_speech.zip
+    langctrl play --user synthetic --audio-out talk.wav   # watch a simulated person
+    langctrl play --exercise hand_to_mouth  # another exercise (checked first)
 
 Headless (tests, servers): the same real-time loop with no window and no sound card, the audio
 written to a WAV at the sound card's pace; it prints one summary line (late ticks, underruns)::
 
-    python -m langenv.play --headless --seconds 10 --audio-out out/live.wav
+    langctrl play --headless --seconds 10 --audio-out out/live.wav
 
 Through the robot-IO seam (:mod:`langenv.robot.io`) the same session runs on a robot from
 :data:`~langenv.robot.backends.ROBOT_BACKENDS` (:class:`~langenv.live.robot_loop.RobotLoop`,
 one session, the simulated person pushing the simulated robot); a real UR has its own command,
-``python -m langenv.robot.ur``::
+``langctrl robot``::
 
-    python -m langenv.play --robot mujoco --headless --seconds 30 --audio-out out/live.wav \
+    langctrl play --robot mujoco --headless --seconds 30 --audio-out out/live.wav \
         --log-out out/session.csv
 
 Policies are found by name through the ``langctrl.policies`` entry points
@@ -41,13 +41,13 @@ __all__ = ["build_parser", "main", "parse_args"]
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The command line of ``langctrl play`` (``python -m langenv.play``)."""
+    """The command line of ``langctrl play`` (``python -m langctrl.jobs.play``)."""
     from langenv.live.registry import registered_policies
 
     p = argparse.ArgumentParser(
         prog="langctrl play",
         description="Run LangCtrl live: you drag the handle, the robot talks you through it. Also "
-        "run as python -m langenv.play.",
+        "run as python -m langctrl.jobs.play.",
     )
     p.add_argument(
         "--policy",

@@ -1,11 +1,11 @@
-"""``python -m langenv.robot.ur``: the controller on a real UR (or URSim).
+"""``langctrl robot``: the controller on a real UR (or URSim).
 
 ::
 
-    python -m langenv.robot.ur --host 192.168.1.10 --dry-run      # connect, check, print the plan
-    python -m langenv.robot.ur --config configs/ur.yaml --log-out session.csv
-    python -m langenv.robot.ur --host 127.0.0.1 --fake --dry-run  # against the built-in fake
-    python -m langenv.robot.ur --config configs/ur.yaml --exercise hand_to_mouth --dry-run
+    langctrl robot --host 192.168.1.10 --dry-run      # connect, check, print the plan
+    langctrl robot --config configs/ur.yaml --log-out session.csv
+    langctrl robot --host 127.0.0.1 --fake --dry-run  # against the built-in fake
+    langctrl robot --config configs/ur.yaml --exercise hand_to_mouth --dry-run
 
 ``--exercise NAME|PATH`` (default: the study's) is loaded and checked
 (:func:`~langenv.exercise.check.check_exercise`: reach, joint margins, contacts, speed, script)
@@ -34,13 +34,13 @@ __all__ = ["build_parser", "main", "parse_args"]
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The command line of ``langctrl robot`` (``python -m langenv.robot.ur``)."""
+    """The command line of ``langctrl robot`` (``python -m langctrl.jobs.robot``)."""
     from langenv.live.registry import registered_policies
 
     p = argparse.ArgumentParser(
         prog="langctrl robot",
         description="Run LangCtrl on a UR (or URSim) through ur-rtde: connect, check, then one "
-        "guided session. Also run as python -m langenv.robot.ur.",
+        "guided session. Also run as python -m langctrl.jobs.robot.",
     )
     p.add_argument(
         "--host",

@@ -1,5 +1,5 @@
 """The observation's encoder compiled (:meth:`ObservationEncoder.encode
-<langenv.observation.ObservationEncoder.encode>`): the same values, clipped in float64 and
+<langenv.task.observation.ObservationEncoder.encode>`): the same values, clipped in float64 and
 rounded to float32 as the encoder stores them (``tests/test_batch.py``)."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from langenv.kernels import inline, kernel
-from langenv.observation import ELAPSED_SCALE, FIRST_CHILD, PACE_SCALE, SPEED_SCALE, T_SCALE
+from langenv.task.observation import ELAPSED_SCALE, FIRST_CHILD, PACE_SCALE, SPEED_SCALE, T_SCALE
 
 __all__ = ["clip", "encode"]
 
@@ -45,7 +45,7 @@ def encode(
 ) -> None:
     """Fill ``out`` (float32, the observation's size) as ``ObservationEncoder.encode`` does;
     ``tail``: the child blocks (a row of :meth:`ObservationEncoder.tail_table
-    <langenv.observation.ObservationEncoder.tail_table>`)."""
+    <langenv.task.observation.ObservationEncoder.tail_table>`)."""
     out[0] = np.float32(clip(t_x / T_SCALE))
     out[1] = np.float32(clip(t_a / T_SCALE))
     out[2] = np.float32(clip((t_a / a - t_x / p) / T_SCALE))

@@ -1,9 +1,9 @@
 """Command line: check a phrase graph, write one from a plain-text script, or render a
 session's speech to a sound file.
 
-    python -m langenv.speech check GRAPH.yaml [--coverage]
-    python -m langenv.speech author SCRIPT.txt --out GRAPH.yaml
-    python -m langenv.speech render GRAPH.yaml TRACE.csv OUT.wav
+    langctrl speech check GRAPH.yaml [--coverage]
+    langctrl speech author SCRIPT.txt --out GRAPH.yaml
+    langctrl speech render GRAPH.yaml TRACE.csv OUT.wav
 
 Exit status 0 on success, 1 on a bad graph, trace or audio (messages on stderr), 2 on bad usage.
 """
@@ -35,11 +35,11 @@ _FORMATS = {".wav": ("WAV", "PCM_16"), ".flac": ("FLAC", "PCM_16")}
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The command line of ``langctrl speech`` (``python -m langenv.speech``)."""
+    """The command line of ``langctrl speech`` (``python -m langctrl.jobs.speech``)."""
     p = argparse.ArgumentParser(
         prog="langctrl speech",
         description="Check LangCtrl phrase graphs, write one from a plain-text script, and render "
-        "speech at a varying audio pace. Also run as python -m langenv.speech.",
+        "speech at a varying audio pace. Also run as python -m langctrl.jobs.speech.",
         epilog="GRAPH is a phrase-graph YAML file (see docs/speech.md) or the name of a shipped "
         f"graph ({', '.join(sorted(SHIPPED_GRAPHS))}).",
     )

@@ -1,9 +1,10 @@
-"""The pace laws compiled (:mod:`langenv.pacing`): the actuator's first-order laws
-(:meth:`PaceActuator.step <langenv.pacing.PaceActuator.step>`), the action map
-(:func:`~langenv.pacing.command_from_action`, :func:`~langenv.pacing.action_from_command`) and
-the paper's aligner as a :class:`~langenv.pacing.PaceLaw` decides it every tick from the
+"""The pace laws compiled (:mod:`langenv.control.pacing`): the actuator's first-order laws
+(:meth:`PaceActuator.step <langenv.control.pacing.PaceActuator.step>`), the action map
+(:func:`~langenv.control.pacing.command_from_action`,
+:func:`~langenv.control.pacing.action_from_command`) and
+the paper's aligner as a :class:`~langenv.control.pacing.PaceLaw` decides it every tick from the
 observation. The same operations in the same order (``tests/test_pace_law.py``,
-``tests/test_law_kernels.py``)."""
+``tests/test_compiled_steps.py``)."""
 
 from __future__ import annotations
 
@@ -35,8 +36,8 @@ def step(
     a_min: float,
     a_max: float,
 ) -> tuple[float, float, float]:
-    """:meth:`PaceActuator.step <langenv.pacing.PaceActuator.step>`: ``(p, p_dot, a)`` after a
-    tick."""
+    """:meth:`PaceActuator.step <langenv.control.pacing.PaceActuator.step>`: ``(p, p_dot, a)``
+    after a tick."""
     p_new = bounded(p + dt * k_p * (p_cmd - p), p_min, p_max)
     p_dot = (p_new - p) / dt
     a = bounded(a + dt * k_a * (a_cmd - a), a_min, a_max)
@@ -46,7 +47,8 @@ def step(
 @kernel
 def stored(v: float) -> float:
     """``v`` as the observation stores it: clipped to [-1, 1] as
-    :class:`~langenv.observation.ObservationEncoder` clips (NaN stays NaN), rounded to float32."""
+    :class:`~langenv.task.observation.ObservationEncoder` clips (NaN stays NaN), rounded to
+    float32."""
     v = v if -1.0 <= v <= 1.0 else (1.0 if v > 1.0 else (-1.0 if v < -1.0 else v))
     return float(np.float32(v))
 
@@ -61,7 +63,8 @@ def seconds_seen(t: float, t_scale: float) -> float:
 
 @kernel
 def action(cmd: float, upper: float, c_min: float) -> float:
-    """:func:`~langenv.pacing.action_from_command`, rounded to float32 as the action stores it."""
+    """:func:`~langenv.control.pacing.action_from_command`, rounded to float32 as the action
+    stores it."""
     u = (cmd - 1.0) / (upper - 1.0) if cmd >= 1.0 else (cmd - 1.0) / (1.0 - c_min)
     u = u if u > -1.0 else -1.0
     u = u if u < 1.0 else 1.0
@@ -70,7 +73,7 @@ def action(cmd: float, upper: float, c_min: float) -> float:
 
 @inline
 def command(u: float, upper: float, c_min: float) -> float:
-    """:func:`~langenv.pacing.command_from_action`."""
+    """:func:`~langenv.control.pacing.command_from_action`."""
     if u >= 0.0:
         return 1.0 + (upper - 1.0) * u
     return 1.0 + (1.0 - c_min) * u
@@ -93,7 +96,7 @@ def law_commands(
     motion_on: bool,
 ) -> tuple[float, float]:
     """The env's pace commands ``(p_cmd, a_cmd)`` for the state ``t_x``, ``t_a``, ``c``: the
-    observation, :class:`~langenv.pacing.PaceLaw`'s law and the action as a policy at 500 Hz
+    observation, :class:`~langenv.control.pacing.PaceLaw`'s law and the action as a policy at 500 Hz
     sees, decides and sends them (``p_max``, ``a_max``: the env's bounds)."""
     t_x = seconds_seen(t_x, t_scale)
     t_a = seconds_seen(t_a, t_scale)

@@ -1,4 +1,4 @@
-"""One 500 Hz tick of :class:`~langenv.motion.GuidedArm`, compiled: :func:`control` before the
+"""One 500 Hz tick of :class:`~langenv.motion.tick.GuidedArm`, compiled: :func:`control` before the
 physics step, :func:`physics` (MuJoCo's own steps, by address) and :func:`observe` after it.
 
 The tick's work array ``ws`` is :data:`TICK`, composed from the parts' own declarations (the
@@ -10,9 +10,9 @@ function beside its reference (:mod:`langenv.control.guide_kernels`,
 :mod:`~langenv.control.admittance_kernels`, :mod:`~langenv.control.cooperation_kernels`,
 :mod:`~langenv.control.command_kernels`, :mod:`~langenv.control.etc_kernels`,
 :mod:`langenv.robot.force_sensor_kernels`, :mod:`langenv.robot.arm_kernels`,
-:mod:`langenv.safety_kernels`); this module only reads and writes ``ws`` by :data:`TICK`'s slots
-and calls them in the order of :meth:`GuidedArm._tick_python
-<langenv.motion.GuidedArm._tick_python>`, the reference, so the results are bit-identical
+:mod:`langenv.robot.safety_kernels`); this module only reads and writes ``ws`` by :data:`TICK`'s
+slots and calls them in the order of :meth:`GuidedArm._tick_python
+<langenv.motion.tick.GuidedArm._tick_python>`, the reference, so the results are bit-identical
 (``tests/test_compiled_tick.py``).
 """
 
@@ -39,8 +39,8 @@ from langenv.layout import Field, Layout
 from langenv.robot import arm_kernels
 from langenv.robot.force_sensor import SENSOR_SETTINGS, SENSOR_STATE
 from langenv.robot.force_sensor_kernels import deadband
-from langenv.safety import MONITOR_STATE, SAFETY_SETTINGS
-from langenv.safety_kernels import STOP_NONE, check, check_joints, limit_velocity
+from langenv.robot.safety import MONITOR_STATE, SAFETY_SETTINGS
+from langenv.robot.safety_kernels import STOP_NONE, check, check_joints, limit_velocity
 
 __all__ = [
     "BAD_FORCE",
@@ -66,7 +66,7 @@ MOTION_STATE = (
     Field("tangent", 3, doc="the guide's direction of progress at the hand after the tick"),
     Field("t_leg", doc="the motion's time to the current leg's switch after the tick (s)"),
 )
-"""The guided arm's own state (what :class:`~langenv.motion.GuidedArm` exposes)."""
+"""The guided arm's own state (what :class:`~langenv.motion.tick.GuidedArm` exposes)."""
 MOTION_SETTINGS = (Field("dt", doc="the tick (s)"),)
 """The guided arm's own settings."""
 
@@ -230,7 +230,7 @@ def observe(
     path, the time, and the safety monitor (``force``: the magnitude on the handle, N).
 
     Returns:
-        The limit breached (:mod:`langenv.safety_kernels`' ``STOP_*``), ``STOP_NONE`` if none.
+        The limit breached (:mod:`langenv.robot.safety_kernels`' ``STOP_*``), ``STOP_NONE`` if none.
     """
     c0, c1, c2 = ws[_T.v_cmd], ws[_T.v_cmd + 1], ws[_T.v_cmd + 2]
     tan = _T.tangent
@@ -325,7 +325,8 @@ def tick(
     Returns:
         ``(control's answer, observe's answer)``; when control's is not :data:`OK` the tick
         stopped there (physics not stepped; observe's answer is ``STOP_NONE``) and the caller
-        finishes it (:meth:`CompiledTick.finish <langenv.compiled_tick.CompiledTick.finish>`).
+        finishes it (:meth:`CompiledTick.finish
+        <langenv.motion.compiled_tick.CompiledTick.finish>`).
     """
     code = control(
         ws, path, aw, ai, jac, xpos, xmat, qpos, qvel, ctrl, qfrc, f0, f1, f2, m0, m1, m2, p, p_dot

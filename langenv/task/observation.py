@@ -27,7 +27,7 @@ clips):
 | 18 + 3k | child ``k``: ``T_MAX`` | its ``t_max`` (s) | ``t / 40`` | :func:`child` |
 
 The scales are normalisations, not bounds: a value beyond them (a pace outside ``[0.6, 1.4]``
-under wider :class:`~langenv.pacing.PaceLimits`, a time above 40 s) reads as ±1.
+under wider :class:`~langenv.control.pacing.PaceLimits`, a time above 40 s) reads as ±1.
 """
 
 from __future__ import annotations
@@ -295,7 +295,7 @@ class ObservationEncoder:
         """The child blocks of each vertex of ``order`` (given its ``children``), one row each,
         then a row for the end of the speech (no children), float32, shape ``(len(order) + 1,
         CHILD_FIELDS * max_children)``: what the compiled encoder copies
-        (:func:`langenv.observation_kernels.encode`)."""
+        (:func:`langenv.task.observation_kernels.encode`)."""
         rows = [self._tail(children[u]) for u in order]
         rows.append(self._tail(()))
         return np.array(rows, dtype=np.float32).reshape(len(rows), -1)

@@ -8,7 +8,7 @@ cache can be left corrupted (numba issue 10128, for gufuncs). :func:`warm_up` ca
 family the env, the pace laws and the vocoder use, so that the processes started after it load
 compiled code (inherited when forked, from the disk cache otherwise) instead of compiling it.
 
-``python -m langenv.warm`` does the same in a process of its own (the test suite's
+``python -m langenv.batch.warm`` does the same in a process of its own (the test suite's
 controller runs it before its workers start).
 """
 
@@ -31,8 +31,8 @@ def warm_up() -> float:
     already compiled in this process costs nothing more.
     """
     from langenv.batch import LangCtrlVectorEnv
+    from langenv.control.pacing import PaceLaw, PaceLimits
     from langenv.env import LangCtrlEnv
-    from langenv.pacing import PaceLaw, PaceLimits
     from langenv.speech.vocoder import time_stretch
 
     start = time.perf_counter()

@@ -17,7 +17,7 @@
 7. the motion ETC ``t_x`` is estimated from the new state;
 8. the safety monitor checks the hand's speed and distance from the path, the force on the handle
    and the joints; a breach is a **protective stop** (:attr:`GuidedArm.safety_stop`): from then
-   on the arm holds still (see :mod:`langenv.safety`).
+   on the arm holds still (see :mod:`langenv.robot.safety`).
 
 Motion is over when the command has come to rest after the last leg.
 
@@ -32,7 +32,6 @@ from typing import Any
 import numpy as np
 
 from langenv import vec
-from langenv.compiled_tick import CompiledTick
 from langenv.control.admittance import AdmittanceParams, VariableAdmittance
 from langenv.control.command import cap_speed, follow
 from langenv.control.cooperation import CooperationFilter
@@ -40,11 +39,12 @@ from langenv.control.guide import Guide, GuideState
 from langenv.control.motion_etc import FastETC
 from langenv.control.trajectory import Trajectory
 from langenv.kernels import mjc
-from langenv.motion_kernels import TICK
+from langenv.motion.compiled_tick import CompiledTick
+from langenv.motion.tick_kernels import TICK
 from langenv.robot.arm import Arm
 from langenv.robot.force_sensor import ForceSensor
 from langenv.robot.io_arm import IOArm
-from langenv.safety import SafetyLimits, SafetyMonitor, SafetyStop, limit_velocity
+from langenv.robot.safety import SafetyLimits, SafetyMonitor, SafetyStop, limit_velocity
 
 __all__ = ["GuidedArm"]
 
@@ -65,8 +65,8 @@ class GuidedArm:
         params: Virtual dynamics and guide parameters.
         sensor: The handle's force sensor.
         cooperation: The cooperation filter.
-        safety: Safety limits (default :class:`~langenv.safety.SafetyLimits`); its ``max_speed``
-            becomes the arm's velocity command limit (``arm.max_hand_speed``).
+        safety: Safety limits (default :class:`~langenv.robot.safety.SafetyLimits`); its
+            ``max_speed`` becomes the arm's velocity command limit (``arm.max_hand_speed``).
         compiled: Run the tick as compiled code (:mod:`langenv.kernels`, the same operations in
             the same order: bit-identical results, about 5x faster; where MuJoCo's library
             cannot be called from compiled code, the Python parts run); ``False`` runs the
@@ -123,13 +123,13 @@ class GuidedArm:
     # ------------------------------------------------------------------ compiled state
     @property
     def compiled_tick(self) -> CompiledTick | None:
-        """The compiled tick (:class:`~langenv.compiled_tick.CompiledTick`), or None where the
-        Python parts tick (see ``compiled``)."""
+        """The compiled tick (:class:`~langenv.motion.compiled_tick.CompiledTick`), or None where
+        the Python parts tick (see ``compiled``)."""
         return self._compiled
 
     def tick_state(self) -> dict[str, Any]:
         """The state of the guided arm and its parts by the names of
-        :data:`~langenv.motion_kernels.TICK` (what the compiled tick starts from)."""
+        :data:`~langenv.motion.tick_kernels.TICK` (what the compiled tick starts from)."""
         st = self.state
         return {
             "s": st.s, "leg": st.leg, "done": st.done, "v_ref": self._v_ref,
@@ -145,7 +145,7 @@ class GuidedArm:
 
     def tick_settings(self) -> dict[str, Any]:
         """The settings of the guided arm and its parts by the names of
-        :data:`~langenv.motion_kernels.TICK`."""
+        :data:`~langenv.motion.tick_kernels.TICK`."""
         return {
             **self.guide.settings(),
             **self.admittance.settings(),

@@ -1,14 +1,14 @@
-"""The compiled tick bound to one :class:`~langenv.motion.GuidedArm`: its arrays, packed from the
-parts' declarations, and the calls.
+"""The compiled tick bound to one :class:`~langenv.motion.tick.GuidedArm`: its arrays, packed from
+the parts' declarations, and the calls.
 
-:class:`CompiledTick` packs the guided arm's work array (:data:`~langenv.motion_kernels.TICK`:
+:class:`CompiledTick` packs the guided arm's work array (:data:`~langenv.motion.tick_kernels.TICK`:
 each part's settings by the names it declares, :meth:`GuidedArm.tick_settings
-<langenv.motion.GuidedArm.tick_settings>`; then the legs and the joints' bounds) and the arm
+<langenv.motion.tick.GuidedArm.tick_settings>`; then the legs and the joints' bounds) and the arm
 controller's (:meth:`Arm.compiled_arrays <langenv.robot.arm.Arm.compiled_arrays>`), runs a tick
-as one compiled call (:func:`langenv.motion_kernels.tick`: the control law, MuJoCo's
+as one compiled call (:func:`langenv.motion.tick_kernels.tick`: the control law, MuJoCo's
 ``mj_step2``/``mj_step1``/``mj_jacSite`` through :mod:`langenv.kernels.mjc`, the observation),
 and lets the guided arm take back the state its Python objects expose after each tick
-(:meth:`GuidedArm.take_tick_state <langenv.motion.GuidedArm.take_tick_state>`). Rare paths
+(:meth:`GuidedArm.take_tick_state <langenv.motion.tick.GuidedArm.take_tick_state>`). Rare paths
 (joint-limit avoidance, protective stops, bad input) are handed to the Python parts, which stay
 the reference.
 """
@@ -21,12 +21,12 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from langenv import motion_kernels as mk
 from langenv.control.guide import LEG
 from langenv.errors import ActionError, ConfigError
 from langenv.kernels import mjc
+from langenv.motion import tick_kernels as mk
 from langenv.robot import arm_kernels as ak
-from langenv.safety_kernels import STOP_NONE
+from langenv.robot.safety_kernels import STOP_NONE
 
 __all__ = ["CompiledTick"]
 
@@ -37,11 +37,12 @@ class CompiledTick:
     """The compiled 500 Hz tick of ``motion`` (built once; :meth:`load` after each reset).
 
     Args:
-        motion: The :class:`~langenv.motion.GuidedArm` whose parts the tick repeats (typed
-            ``Any``: ``langenv.motion`` imports this module, and the import graph has no cycles).
+        motion: The :class:`~langenv.motion.tick.GuidedArm` whose parts the tick repeats (typed
+            ``Any``: ``langenv.motion.tick`` imports this module, and the import graph has no
+            cycles).
 
     Attributes:
-        ws: The tick's work array (:data:`~langenv.motion_kernels.TICK`, the legs, the bounds).
+        ws: The tick's work array (:data:`~langenv.motion.tick_kernels.TICK`, the legs, the bounds).
         aw, ai: The arm controller's arrays (:mod:`langenv.robot.arm_kernels`).
     """
 
@@ -73,8 +74,8 @@ class CompiledTick:
         )  # fmt: skip
 
     def arrays(self) -> tuple[np.ndarray, ...]:
-        """The arrays :func:`~langenv.motion_kernels.tick` takes first, in its order (``ws`` ...
-        ``ptr``)."""
+        """The arrays :func:`~langenv.motion.tick_kernels.tick` takes first, in its order (``ws``
+        ... ``ptr``)."""
         return self._arrays
 
     # ------------------------------------------------------------------ state

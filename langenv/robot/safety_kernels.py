@@ -1,7 +1,7 @@
-"""The safety layer compiled (:mod:`langenv.safety`): the command limits
-(:func:`~langenv.safety.limit_velocity`) and the monitor's checks
-(:meth:`SafetyMonitor.check <langenv.safety.SafetyMonitor.check>`), the same operations in the
-same order (``tests/test_law_kernels.py``, ``tests/test_compiled_tick.py``)."""
+"""The safety layer compiled (:mod:`langenv.robot.safety`): the command limits
+(:func:`~langenv.robot.safety.limit_velocity`) and the monitor's checks
+(:meth:`SafetyMonitor.check <langenv.robot.safety.SafetyMonitor.check>`), the same operations in the
+same order (``tests/test_compiled_tick.py``)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import math
 import numpy as np
 
 from langenv.kernels import inline, kernel
-from langenv.safety import HOLD_TIME, JOINT_CHECK_MAX
+from langenv.robot.safety import HOLD_TIME, JOINT_CHECK_MAX
 
 __all__ = [
     "STOP_DEVIATION",
@@ -38,7 +38,7 @@ def limit_velocity(
     hold: float,
     vmax: float,
 ) -> tuple[float, float, float]:
-    """:func:`~langenv.safety.limit_velocity` of ``v`` at the offset ``o`` from the path
+    """:func:`~langenv.robot.safety.limit_velocity` of ``v`` at the offset ``o`` from the path
     (``changed`` or not, the values are the same)."""
     d2 = o0 * o0 + o1 * o1 + o2 * o2
     free = hold - vmax * HOLD_TIME
