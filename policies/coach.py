@@ -44,9 +44,9 @@ from typing import Any
 
 import numpy as np
 
-from langenv import observation as ob
 from langenv.errors import ConfigError
-from langenv.observation import Obs
+from langenv.task import observation as ob
+from langenv.task.observation import Obs
 
 __all__ = ["COACH_RULE", "ChildIntents", "CoachRule", "PersonPace", "coach_choice", "load_intents"]
 
