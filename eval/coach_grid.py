@@ -562,7 +562,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     if ns.role == "test":
         print("langctrl coach-grid: this is a look at the TEST exercises and people: record it "
-              "and its figures in docs/history.md", file=sys.stderr)  # fmt: skip
+              "and its figures in HISTORY.md", file=sys.stderr)  # fmt: skip
     ns.out.mkdir(parents=True, exist_ok=True)
     atomic_write(ns.out / "config.json", json.dumps(config, indent=2) + "\n")
     names = policy_names(specs)

@@ -114,7 +114,7 @@ class CoachRule:
 
 
 COACH_RULE = CoachRule()
-"""``lc-coach``'s rule (its thresholds tuned on the validation worlds: docs/history.md,
+"""``lc-coach``'s rule (its thresholds tuned on the validation worlds: HISTORY.md,
 "Coaches (issue 46, parts 3 and 4)")."""
 
 
