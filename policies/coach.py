@@ -113,9 +113,12 @@ class CoachRule:
         return "guide"
 
 
-COACH_RULE = CoachRule()
-"""``lc-coach``'s rule (its thresholds tuned on the validation worlds: HISTORY.md,
-"Coaches (issue 46, parts 3 and 4)")."""
+COACH_RULE = CoachRule(encourage_c=0.0, pace_band=0.05, slack=0.5)
+"""``lc-coach``'s rule, tuned on the validation worlds (shoulder_extension, 16 validation people
+listening, the 19 points of ``configs/coach_grid.yaml``; HISTORY.md, "Coaches (issue 46, parts
+3 and 4)"): never ``encourage`` (its effect, 5-12 %, does not pay for the shorter wording),
+``faster``/``slower`` beyond 5 % of the planned pace, and no wording more than 0.5 s shorter
+than the content rule's."""
 
 
 class ChildIntents:
