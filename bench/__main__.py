@@ -17,6 +17,7 @@ Figures (all measured here, on this machine, in this process):
 | ``env_steps_per_s`` | ``1e6 / env_step_us``: env steps per second on one core |
 | ``env_step_ratio`` | ``env_step_us / (20 mj_step_us)``, with ``mj_step_us`` measured again in rounds alternating with the episodes (target <= 1.5) |
 | ``single_steps_per_s``, ``batched_steps_per_s``, ``batched_ratio`` | the single env and the batched env (``langenv.batch``: 32 sessions, every core) measured alternating in one run (``bench/batched.py``): steps per second (all sessions together) and the median of the rounds' ratios; with ``batched_sessions``, ``batched_threads`` and ``load_1min`` (the machine's load average: other programs share the cores) |
+| ``batch_rss_8_mib``, ``batch_rss_128_mib``, ``batch_mib_per_session`` | peak resident memory (MiB) of a process that builds ``gym.make_vec("LangCtrl-v0", num_envs=N)``, resets it and takes 50 steps, for N = 8 and 128 (each in a fresh process: ``bench/memory.py``), and what a session adds, ``(RSS(128) - RSS(8)) / 120`` (target <= 1) |
 | ``train_steps_per_s`` | PPO with the shipped recipe (``configs/ppo.yaml``: 32 envs stepped as one batched env, ``--vec-env auto``, the residual LC wrappers on the batch) for 16384 steps: env steps per second of ``model.learn`` (rollouts and updates; building the envs not counted) |
 | ``audio_rtf`` | seconds of speech rendered by the variable-rate phase vocoder per second of wall time |
 | ``robot_compute_median_ms``, ``robot_compute_p999_ms``, ``robot_compute_max_ms`` | the UR bridge's loop against the fake ur-rtde (virtual clock, no audio): compute time per 2 ms period, wall clock (read, control, speech, LC policy, log, ``speedL``) over 3 whole sessions (targets: median < 0.5 ms, p99.9 < 1.5 ms); preemption by other processes included |
@@ -192,6 +193,13 @@ def measure_batched() -> dict[str, float]:
     return batched()
 
 
+def measure_memory() -> dict[str, float]:
+    """Peak memory of a batch of 8 and of 128 sessions, and a session's share."""
+    from bench.memory import measure_memory as memory
+
+    return memory((8, 128))
+
+
 def measure_train(total: int = 16384) -> dict[str, float]:
     """PPO with the shipped config for ``total`` steps: env steps per second of learning."""
     import contextlib
@@ -338,6 +346,7 @@ SECTIONS: dict[str, Callable[[], dict[str, float]]] = {
     "etc": measure_etc,
     "env": measure_env,
     "batched": measure_batched,
+    "memory": measure_memory,
     "train": measure_train,
     "audio": measure_audio,
     "compare": measure_compare,

@@ -43,7 +43,6 @@ import argparse
 import functools
 import json
 import multiprocessing
-import os
 import shutil
 import sys
 import time
@@ -57,6 +56,7 @@ import numpy as np
 
 from eval.atomic import OutTaken, move_into_place
 from eval.metrics import METRIC_COLUMNS
+from langenv.kernels.cores import usable_cores
 
 __all__ = [
     "EPISODE_COLUMNS",
@@ -460,13 +460,6 @@ def _check_video() -> None:
     if proc.returncode != 0:
         lines = proc.stderr.strip().splitlines() or ["unknown error"]
         raise UsageError(f"--video: {lines[-1]}")
-
-
-def usable_cores() -> int:
-    """CPU cores this process may run on (its affinity where the OS tells it)."""
-    if hasattr(os, "sched_getaffinity"):
-        return max(1, len(os.sched_getaffinity(0)))
-    return max(1, os.cpu_count() or 1)
 
 
 def _users(args: CompareArgs) -> list[tuple[str, int, str | None]]:

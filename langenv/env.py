@@ -28,9 +28,11 @@ from langenv.robot.io import RobotIO
 from langenv.robot.io_arm import IOArm, MeasuredUser
 from langenv.robot.safety import SafetyLimits
 from langenv.speech.audio import ClipLibrary
+from langenv.speech.choice import duration_factor
 from langenv.speech.graph import PhraseGraph, graph_path
 from langenv.speech.hearing import Ear
 from langenv.speech.legs import LegPlan, leg_plan
+from langenv.speech.shared import shared_clips, shared_graph
 from langenv.speech.timeline import SpeechTimeline
 from langenv.task import reward
 from langenv.task.observation import T_SCALE, TREND_WINDOW, ObservationEncoder, observation_size
@@ -39,7 +41,6 @@ from langenv.users import CallableUser, Listener, ListeningUser, ReplayUser, Syn
 __all__ = ["LAW_CHUNK", "LangCtrlEnv", "LawSteps", "make_env"]
 
 PHYSICS_HZ = 500
-CHOICE_OCTAVES = 2.0  # target-duration action spans t_x * 2**(±2)
 
 
 class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
@@ -315,9 +316,9 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
                 raise ConfigError("render_mode needs the simulation: pass robot=None")
             arm = IOArm(robot, acceleration=robot_acceleration)
             self.user = MeasuredUser(arm)
-        self.clips = clips if clips is not None else ClipLibrary()
+        self.clips = clips if clips is not None else shared_clips()
         graph = phrase_graph if phrase_graph is not None else self.exercise.graph
-        self.graph = PhraseGraph.load(graph_path(graph), clips=self.clips)
+        self.graph = shared_graph(graph_path(graph), self.clips)  # one per process: read-only
         self.max_children = max(1, self.graph.max_children)
         if max_children is not None:  # one observation layout for envs of different graphs
             if isinstance(max_children, bool) or not isinstance(max_children, numbers.Integral):
@@ -450,7 +451,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         boundary (:meth:`_choose`) and the pause rule's target."""
         self._choice_u = values
         self._pause_factor = (
-            2.0 ** (CHOICE_OCTAVES * float(values[0])) if self.choice_mode == "target" else 1.0
+            duration_factor(float(values[0])) if self.choice_mode == "target" else 1.0
         )
 
     def run_ticks(
@@ -800,9 +801,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             return candidates[0]
         if self.choice_mode == "target":
             h = self._hz[self.graph.segment(candidates[0])]
-            target = h * 2.0 ** (CHOICE_OCTAVES * float(self._choice_u[0]))
-            mids = [0.5 * (self.graph.t_min(c) + self.graph.t_max(c)) for c in candidates]
-            return candidates[int(np.argmin([abs(target - m) for m in mids]))]
+            return self.graph.nearest(candidates, h * duration_factor(float(self._choice_u[0])))
         scores = self._choice_u[: len(candidates)]
         return candidates[int(np.argmax(scores))]
 

@@ -24,12 +24,19 @@ from typing import Any, Literal
 
 import numpy as np
 
-from langenv.control.pacing import PaceLaw, PaceLimits, action_from_command, command_from_action
+from langenv.control.pacing import (
+    AlignerGains,
+    PaceLaw,
+    PaceLimits,
+    action_from_command,
+    aligner_commands,
+    command_from_action,
+)
 from langenv.errors import ConfigError
 from langenv.exercise.spec import GRAPH_ROLES
+from langenv.speech.choice import choice_action
 from langenv.task import observation as ob
 from langenv.task.observation import Obs
-from policies.aligner import AlignerGains, audio_command, optimal_paces
 from policies.coach import (
     COACH_RULE,
     ChildIntents,
@@ -51,8 +58,6 @@ __all__ = [
 RATE_TAU = 0.04
 #: Lowest motion rate the terminal phase plans with (a stalled hand must not ask for a = 0).
 RATE_FLOOR = 0.3
-#: Octaves of the env's target-duration action per unit (``langenv.env``: target ``t_x 2^{2u}``).
-_CHOICE_OCTAVES = 2.0
 #: A rise of the observed ``t_x`` by more than this in one observation (s) is a new horizon: the
 #: speech of a script marked with legs (:mod:`langenv.speech.legs`) is aligned with the motion's
 #: time to the end of the current leg, which starts again at each leg.
@@ -99,8 +104,7 @@ def fill_choice(observation: ob.ObsValues, margin: float, horizon: float | None 
     paper = min(range(len(kids)), key=lambda i: (abs(t_x - kids[i][1]), i))
     if kids[best][1] == kids[paper][1]:
         return 0.0  # the paper's rule says it (or a child of the same middle length)
-    u = math.log2(max(kids[best][1], 1e-3) / t_x) / _CHOICE_OCTAVES
-    return min(1.0, max(-1.0, u))
+    return choice_action(max(kids[best][1], 1e-3) / t_x)
 
 
 def _valid_children(observation: ob.ObsValues) -> int:
@@ -367,11 +371,10 @@ class LanguageController:
         t_x = max(0.0, ob.seconds(values, Obs.T_X))
         t_a = max(0.0, ob.seconds(values, Obs.T_A))
         c = ob.fraction(values, Obs.COOPERATION)
-        p_star, a_star = optimal_paces(t_x, t_a)
-        a_cmd = audio_command(a_star, c, self.gains)
         motion_done = ob.flag(values, Obs.MOTION_DONE)
-        if self.k_em > 0.0 and not motion_done:
-            p_star -= min(self.em_clip, max(-self.em_clip, self.k_em * (t_a - t_x)))
+        p_star, a_cmd = aligner_commands(
+            t_x, t_a, c, self.gains, self.k_em, self.em_clip, not motion_done
+        )
         phase = self.phase(values)
         if phase == "terminal":
             p_star = 1.0
@@ -394,8 +397,7 @@ class LanguageController:
             return self._coach(values, u, t_x if plan is None else plan) if self.intents else u
         if self.pause_scale != 1.0 and ob.flag(values, Obs.IN_PAUSE):
             if _valid_children(values) >= 2:
-                u = math.log2(self.pause_scale) / _CHOICE_OCTAVES
-                return min(1.0, max(-1.0, u))
+                return choice_action(self.pause_scale)
         return 0.0
 
     def _coach(self, values: ob.ObsValues, u: float, plan: float) -> float:
@@ -403,9 +405,7 @@ class LanguageController:
         kids = self._reader.of(values) if self._reader is not None else None
         if kids is None:
             return u
-        got = coach_choice(
-            values, u, kids, self.rule, self.person_pace, plan, self.fill_margin, _CHOICE_OCTAVES
-        )
+        got = coach_choice(values, u, kids, self.rule, self.person_pace, plan, self.fill_margin)
         self.said.append((ob.elapsed(values), got.want, got.said))
         return got.u
 

@@ -45,6 +45,7 @@ from typing import Any
 import numpy as np
 
 from langenv.errors import ConfigError
+from langenv.speech.choice import choice_action, duration_factor
 from langenv.task import observation as ob
 from langenv.task.observation import Obs
 
@@ -244,7 +245,6 @@ def coach_choice(
     pace: float,
     plan: float,
     margin: float,
-    octaves: float,
 ) -> CoachChoice:
     """The choice action at a slot's end: the content rule's ``u_base`` unless a child that
     fits asks for the intent the rule wants (module docstring).
@@ -257,7 +257,6 @@ def coach_choice(
         pace: The person's own pace (:class:`PersonPace`).
         plan: The motion's time to go the content rule plans with (s).
         margin: The content rule's margin (s).
-        octaves: Octaves of the env's target duration per unit of the action.
     """
     t_x = ob.seconds(values, Obs.T_X)
     blocks = [ob.child(values, k) for k in range(len(intents))]
@@ -267,7 +266,7 @@ def coach_choice(
     want = rule.intent(c, trend, pace)
     if len(mids) < 2 or len(mids) != len(intents) or t_x <= 1e-3:
         return CoachChoice(u_base, want, None)
-    base = _chosen(mids, t_x * 2.0 ** (octaves * u_base))
+    base = _chosen(mids, t_x * duration_factor(u_base))
     fits = [
         k
         for k, t_min in enumerate(t_mins)
@@ -277,8 +276,8 @@ def coach_choice(
     if not asked or intents[base] == want:
         return CoachChoice(u_base, want, intents[base])
     best = max(asked, key=lambda k: (t_mins[k], -k))
-    u = min(1.0, max(-1.0, math.log2(max(mids[best], 1e-3) / t_x) / octaves))
-    if _chosen(mids, t_x * 2.0 ** (octaves * u)) != best:  # another child of the same middle
+    u = choice_action(max(mids[best], 1e-3) / t_x)
+    if _chosen(mids, t_x * duration_factor(u)) != best:  # another child of the same middle
         return CoachChoice(u_base, want, intents[base])  # comes first, or u cannot reach it
     return CoachChoice(u, want, want)
 

@@ -35,12 +35,16 @@ from typing import Any, Literal
 import numpy as np
 import yaml
 
-from langenv.control.pacing import PaceLimits, action_from_command, command_from_action
+from langenv.control.pacing import (
+    AlignerGains,
+    PaceLimits,
+    action_from_command,
+    command_from_action,
+)
 from langenv.errors import ConfigError, GraphChoicesError, ModelError, ObservationLayoutError
 from langenv.exercise.script import SpokenGraph, graph_label
 from langenv.task import observation as ob
 from langenv.task.observation import Obs
-from policies.aligner import AlignerGains
 from policies.analytic import LanguageController
 
 __all__ = [
@@ -86,7 +90,7 @@ def observation_layout(max_children: int) -> dict[str, Any]:
     names = [f.name for f in Obs] + children + list(FEATURES)
     scales = (
         f"T={ob.T_SCALE},PACE={ob.PACE_SCALE},SPEED={ob.SPEED_SCALE},ELAPSED={ob.ELAPSED_SCALE},"
-        f"TREND={ob.TREND_WINDOW},FINE={_FINE_SCALE},LOST={_LOST_SCALE},RATE={_RATE_TAU}"
+        f"TREND={ob.TREND_WINDOW},FINE={FINE_SCALE},LOST={LOST_SCALE},RATE={RATE_AVG_TAU}"
     )
     text = ",".join(names) + ";" + scales
     return {"size": len(names), "signature": hashlib.sha256(text.encode()).hexdigest()[:16]}
@@ -110,10 +114,15 @@ def child_inputs(old_children: int, new_children: int) -> tuple[int, int]:
     )
 
 
-_RATE_TAU = 1.0  # s, time constant of the motion-rate average
-_LOST_SCALE = 10.0  # s
-_FINE_SCALE = 1.0  # s
-_PRIOR_SCALE = 5.0  # s, distance scale of the scores prior
+#: Time constant (s) of the motion-rate feature's average (the features' one home; the
+#: compiled map :mod:`policies.residual_kernels` reads these too).
+RATE_AVG_TAU = 1.0
+#: Scale (s) of the time-lost feature.
+LOST_SCALE = 10.0
+#: Scale (s) of the fine misalignment features.
+FINE_SCALE = 1.0
+#: Distance scale (s) of the scores prior.
+PRIOR_SCALE = 5.0
 
 
 @dataclass(frozen=True)
@@ -307,7 +316,7 @@ class ResidualLC:
             dt = 1.0 / self.spec.decision_hz
         rate = (float(self._obs[Obs.T_X]) - float(new[Obs.T_X])) * ob.T_SCALE / dt - 1.0
         self._rate = min(1.0, max(-1.0, rate))
-        w = 1.0 - math.exp(-dt / _RATE_TAU)
+        w = 1.0 - math.exp(-dt / RATE_AVG_TAU)
         self._rate_avg += w * (self._rate - self._rate_avg)
         self._obs = new
         return self._augment()
@@ -326,11 +335,11 @@ class ResidualLC:
             [
                 lc[0],
                 lc[1],
-                (t_a / a - t_x / p) / _FINE_SCALE,
-                (t_a - t_x) / _FINE_SCALE,
+                (t_a / a - t_x / p) / FINE_SCALE,
+                (t_a - t_x) / FINE_SCALE,
                 self._rate,
                 self._rate_avg,
-                lost / _LOST_SCALE,
+                lost / LOST_SCALE,
                 self._last_r[0],
                 self._last_r[1],
             ],
@@ -390,7 +399,7 @@ class ResidualLC:
                     break
                 mid = 0.5 * (float(obs[base + 1]) + float(obs[base + 2])) * ob.T_SCALE
                 d = abs(t_x - mid)
-                prior = (_PRIOR_SCALE - d) / (_PRIOR_SCALE + d)
+                prior = (PRIOR_SCALE - d) / (PRIOR_SCALE + d)
                 score = 0.5 * (prior + spec.choice_scale * r[2 + k])
                 out[2 + k] = min(1.0, max(-1.0, score))
         return out

@@ -19,7 +19,12 @@ from pathlib import Path
 import numpy as np
 
 import langenv
-from langenv.control.pacing import COMMAND_MIN, PaceLimits
+from langenv.control.pacing import COMMAND_MIN, AlignerGains, PaceLimits
+from langenv.control.pacing_kernels import (
+    action_from_command,
+    aligner_commands,
+    command_from_action,
+)
 from langenv.kernels import SOURCES, clear_stale_cache, inline, jit
 from langenv.layout import Field, Layout
 from langenv.task.observation import (
@@ -30,15 +35,21 @@ from langenv.task.observation import (
     T_SCALE,
     Obs,
 )
-from policies.aligner import AlignerGains
-from policies.analytic import NEW_HORIZON
+from policies.analytic import NEW_HORIZON, RATE_FLOOR, RATE_TAU
+from policies.learned import FINE_SCALE, LOST_SCALE, PRIOR_SCALE, RATE_AVG_TAU
 
 __all__ = ["RESIDUAL_PARAMS", "RESIDUAL_STATE", "act", "observe", "residual_params"]
 
 _LANGENV = Path(langenv.__file__).resolve().parent
-clear_stale_cache(  # numba checks this file only; the kernels read langenv's declarations
+clear_stale_cache(  # numba checks this file only; the kernels read langenv's declarations and
+    # kernels and the constants of the Python references (analytic.py, learned.py)
     Path(__file__).resolve().parent,
-    ("residual_kernels.py", *(str(_LANGENV / name) for name in SOURCES)),
+    (
+        "residual_kernels.py",
+        "analytic.py",
+        "learned.py",
+        *(str(_LANGENV / name) for name in SOURCES),
+    ),
     ("residual_kernels.py",),
     stamp=".",
 )
@@ -87,12 +98,6 @@ RESIDUAL_PARAMS = Layout(
 # ``np.float64`` (what Python's ``float`` gives), so that arithmetic on them is float64's.
 _S = RESIDUAL_STATE.at
 _P = RESIDUAL_PARAMS.at
-_RATE_TAU = 1.0  # policies.learned._RATE_TAU
-_LOST_SCALE = 10.0
-_FINE_SCALE = 1.0
-_PRIOR_SCALE = 5.0
-_LC_RATE_TAU = 0.04  # policies.analytic.RATE_TAU
-_LC_RATE_FLOOR = 0.3  # policies.analytic.RATE_FLOOR
 _N_FEATURES = 9
 _TX, _TA, _P_, _A_ = int(Obs.T_X), int(Obs.T_A), int(Obs.P), int(Obs.A)
 _COOP, _MDONE, _SDONE, _ELAPSED = (
@@ -153,24 +158,6 @@ def _clip1(x: float) -> float:
 
 
 @inline
-def _action_from_command(cmd: float, upper: float) -> float:
-    """:func:`langenv.control.pacing.action_from_command`."""
-    if cmd >= 1.0:
-        u = (cmd - 1.0) / (upper - 1.0)
-    else:
-        u = (cmd - 1.0) / (1.0 - COMMAND_MIN)
-    return _clip1(u)
-
-
-@inline
-def _command_from_action(u: float, upper: float) -> float:
-    """:func:`langenv.control.pacing.command_from_action`."""
-    if u >= 0.0:
-        return 1.0 + (upper - 1.0) * u
-    return 1.0 + (1.0 - COMMAND_MIN) * u
-
-
-@inline
 def _phase(o: np.ndarray, terminal: float) -> int:
     """``LanguageController.phase``: 0 aligning, 1 terminal, 2 finishing, 3 over."""
     motion_done = o[_MDONE] > 0.0
@@ -204,7 +191,7 @@ def _base_act(o: np.ndarray, st: np.ndarray, prm: np.ndarray) -> None:
                 elif t_x > st[_S.lc_last_t_x] + NEW_HORIZON:
                     pass  # the next leg's horizon: not a rate (policies.analytic.NEW_HORIZON)
                 else:
-                    w = dt / (_LC_RATE_TAU + dt)
+                    w = dt / (RATE_TAU + dt)
                     st[_S.lc_rate] += w * ((st[_S.lc_last_t_x] - t_x) / dt - st[_S.lc_rate])
             if not skip:
                 st[_S.lc_has_last] = 1.0
@@ -213,32 +200,23 @@ def _base_act(o: np.ndarray, st: np.ndarray, prm: np.ndarray) -> None:
     t_x = _pmax0(_wide(o[_TX]) * T_SCALE)
     t_a = _pmax0(_wide(o[_TA]) * T_SCALE)
     c = 0.5 * (_wide(o[_COOP]) + 1.0)
-    if t_a == 0.0:
-        p_star, a_star = 1.0, 1.0
-    else:
-        s = t_x / t_a
-        den = s * s + 1.0
-        p_star, a_star = (s * s + s) / den, (s + 1.0) / den
-    a_cmd = a_star - prm[_P.k_ca] * (1.0 - c)
     motion_done = o[_MDONE] > 0.0
-    if prm[_P.k_em] > 0.0 and not motion_done:
-        clip = prm[_P.em_clip]
-        e = prm[_P.k_em] * (t_a - t_x)
-        e = e if e > -clip else -clip
-        p_star -= e if e < clip else clip
+    p_star, a_cmd = aligner_commands(
+        t_x, t_a, c, prm[_P.k_ca], prm[_P.k_em], prm[_P.em_clip], not motion_done
+    )
     phase = _phase(o, terminal)
     if phase == 1:
         p_star = 1.0
         rate = st[_S.lc_rate]
-        rate = rate if rate > _LC_RATE_FLOOR else _LC_RATE_FLOOR
+        rate = rate if rate > RATE_FLOOR else RATE_FLOOR
         a_cmd = t_a * rate / (t_x if t_x > 1e-6 else 1e-6)
     elif phase == 2:
         if motion_done:
             a_cmd = prm[_P.a_max]
         else:
             p_star = prm[_P.p_max]
-    st[_S.base_p] = np.float32(_action_from_command(p_star, prm[_P.p_max]))
-    st[_S.base_a] = np.float32(_action_from_command(a_cmd, prm[_P.a_max]))
+    st[_S.base_p] = np.float32(action_from_command(p_star, prm[_P.p_max], COMMAND_MIN))
+    st[_S.base_a] = np.float32(action_from_command(a_cmd, prm[_P.a_max], COMMAND_MIN))
 
 
 @jit
@@ -258,11 +236,11 @@ def _augment(o: np.ndarray, st: np.ndarray, prm: np.ndarray, out: np.ndarray) ->
     feats = (
         st[_S.base_p],
         st[_S.base_a],
-        (t_a / a - t_x / p) / _FINE_SCALE,
-        (t_a - t_x) / _FINE_SCALE,
+        (t_a / a - t_x / p) / FINE_SCALE,
+        (t_a - t_x) / FINE_SCALE,
         st[_S.rate],
         st[_S.rate_avg],
-        lost / _LOST_SCALE,
+        lost / LOST_SCALE,
         st[_S.last_r_p],
         st[_S.last_r_a],
     )
@@ -299,7 +277,7 @@ def observe(
                 dt = 1.0 / prm[_P.decision_hz]
             rate = (_wide(prev[_TX]) - _wide(o[_TX])) * T_SCALE / dt - 1.0
             st[_S.rate] = _clip1(rate)
-            w = 1.0 - math.exp(-dt / _RATE_TAU)
+            w = 1.0 - math.exp(-dt / RATE_AVG_TAU)
             st[_S.rate_avg] += w * (st[_S.rate] - st[_S.rate_avg])
         for j in range(o.shape[0]):
             prev[j] = o[j]
@@ -338,11 +316,12 @@ def act(
             r[0] = 0.0
         if prm[_P.audio_gain] == 0.0:
             r[1] = 0.0
-        p_cmd = _command_from_action(st[_S.base_p], prm[_P.p_max]) + prm[_P.pace_scale] * r[0]
-        a_cmd = _command_from_action(st[_S.base_a], prm[_P.a_max]) + prm[_P.audio_gain] * r[1]
+        p_max, a_max = prm[_P.p_max], prm[_P.a_max]
+        p_cmd = command_from_action(st[_S.base_p], p_max, COMMAND_MIN) + prm[_P.pace_scale] * r[0]
+        a_cmd = command_from_action(st[_S.base_a], a_max, COMMAND_MIN) + prm[_P.audio_gain] * r[1]
         row = out[i]
-        row[0] = np.float32(_action_from_command(p_cmd, prm[_P.p_max]))
-        row[1] = np.float32(_action_from_command(a_cmd, prm[_P.a_max]))
+        row[0] = np.float32(action_from_command(p_cmd, p_max, COMMAND_MIN))
+        row[1] = np.float32(action_from_command(a_cmd, a_max, COMMAND_MIN))
         st[_S.last_r_p] = r[0]
         st[_S.last_r_a] = r[1]
         if not scores:
@@ -355,6 +334,6 @@ def act(
                     break
                 mid = 0.5 * (_wide(o[base + 1]) + _wide(o[base + 2])) * T_SCALE
                 d = abs(t_x - mid)
-                prior = (_PRIOR_SCALE - d) / (_PRIOR_SCALE + d)
+                prior = (PRIOR_SCALE - d) / (PRIOR_SCALE + d)
                 score = 0.5 * (prior + prm[_P.choice_scale] * r[2 + c])
                 row[2 + c] = np.float32(_clip1(score))

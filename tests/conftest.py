@@ -105,7 +105,8 @@ def tiny_ppo_models(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, ...
     by ``train.ppo`` for one short rollout each with different seeds: distinct weights, the
     current observation layout, the three files ``PPOPolicy.load`` reads. Built, never stored, so
     no test depends on a binary made for an older observation."""
-    from train.ppo import TrainArgs, train
+    from train.config import TrainArgs
+    from train.ppo import train
 
     root = tmp_path_factory.mktemp("tiny_ppo")
     config = root / "tiny.yaml"

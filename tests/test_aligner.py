@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from langenv.control.pacing import AlignerGains, audio_command, optimal_paces
 from langenv.errors import ConfigError
-from policies.aligner import AlignerGains, audio_command, optimal_paces
 
 etc = st.floats(min_value=0.05, max_value=60.0, allow_nan=False)
 

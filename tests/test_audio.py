@@ -10,7 +10,7 @@ import soundfile as sf
 
 from langenv.errors import AudioError, ConfigError
 from langenv.speech.audio import ClipLibrary, default_cache_dir, trim_silence
-from langenv.speech.graph import Phrase
+from langenv.speech.phrase import Phrase
 
 DONE = "And you're done."
 

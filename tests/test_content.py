@@ -185,7 +185,8 @@ def test_the_choice_env_needs_ticks() -> None:
 def tiny_chooser(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A learned phrase chooser of configs/ppo_speech.yaml, trained in-process for two short
     rollouts on two envs with a periodic evaluation on two validation people."""
-    from train.ppo import TrainArgs, train
+    from train.config import TrainArgs
+    from train.ppo import train
 
     root = tmp_path_factory.mktemp("tiny_chooser")
     config = root / "tiny.yaml"

@@ -13,11 +13,10 @@ import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
 
 import langenv
-from langenv.control.pacing import PaceLimits
+from langenv.control.pacing import AlignerGains, PaceLimits, optimal_paces
 from langenv.env import LangCtrlEnv
 from langenv.errors import ActionError, ConfigError, PhraseGraphError
 from policies import load_policy
-from policies.aligner import AlignerGains, optimal_paces
 
 SESSIONS = Path(__file__).resolve().parents[2] / "shared" / "sessions"
 

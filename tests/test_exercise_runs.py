@@ -90,12 +90,12 @@ def test_train_ppo_takes_a_list_of_exercises(tmp_path: Path) -> None:
 
 
 def test_train_ppo_gives_env_i_exercise_i_mod_k() -> None:
-    from train.ppo import _exercise_kwargs
+    from train.factories import exercise_kwargs
 
-    kws = _exercise_kwargs({"decision_hz": 25, "exercise": ["external_rotation", "hand_to_mouth"]})
+    kws = exercise_kwargs({"decision_hz": 25, "exercise": ["external_rotation", "hand_to_mouth"]})
     assert [k["exercise"] for k in kws] == ["external_rotation", "hand_to_mouth"]
     assert all(k["decision_hz"] == 25 for k in kws)
-    assert _exercise_kwargs({"decision_hz": 25}) == [{"decision_hz": 25}]
+    assert exercise_kwargs({"decision_hz": 25}) == [{"decision_hz": 25}]
 
 
 def test_headless_rendering_needs_no_mujoco_gl_whatever_the_import_order() -> None:

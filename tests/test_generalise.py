@@ -23,7 +23,8 @@ RECIPE = ROOT / "configs" / "ppo_general.yaml"
 def tiny_general_model(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A learned aligner of the general recipe, trained in-process for two short rollouts on
     two envs (worlds drawn per episode) with a periodic evaluation on two validation users."""
-    from train.ppo import TrainArgs, train
+    from train.config import TrainArgs
+    from train.ppo import train
 
     root = tmp_path_factory.mktemp("tiny_general")
     config = root / "tiny.yaml"
@@ -57,7 +58,8 @@ def test_model_records_the_split_and_its_layout(tiny_general_model: Path) -> Non
 
 
 def test_worlds_and_an_exercise_list_are_refused(tmp_path: Path) -> None:
-    from train.ppo import TrainArgs, train
+    from train.config import TrainArgs
+    from train.ppo import train
 
     config = tmp_path / "bad.yaml"
     config.write_text(f"inherit: {RECIPE}\nLangCtrl-v0: {{env_kwargs: {{exercise: [a, b]}}}}\n")

@@ -14,7 +14,8 @@ from hypothesis import strategies as st
 
 from langenv.errors import PhraseGraphError
 from langenv.speech.audio import ClipLibrary
-from langenv.speech.graph import GRAPHS_DIR, Phrase, PhraseGraph, default_graph_path
+from langenv.speech.graph import GRAPHS_DIR, PhraseGraph, default_graph_path
+from langenv.speech.phrase import Phrase
 
 
 def write(tmp_path: Path, text: str, name: str = "g.yaml") -> Path:

@@ -12,7 +12,8 @@ from hypothesis import strategies as st
 from langenv.errors import PhraseGraphError
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.coverage import coverage, speech_lengths
-from langenv.speech.graph import MAX_FILLER, Phrase, PhraseGraph, default_graph_path
+from langenv.speech.graph import PhraseGraph, default_graph_path
+from langenv.speech.phrase import MAX_FILLER, Phrase
 from tests.compiled_graph import c_eta
 
 

@@ -95,7 +95,7 @@ def test_long_pauses_and_gaps_scaled_up_stay_within_the_longest_pause() -> None:
     """A pause or a repeat's gap whose minimum times the drawn scale passes 10 s (the longest
     pause) had its maximum clipped to 10 s but not its minimum: min > max, and vary_graph
     raised PhraseGraphError instead of returning a variant."""
-    from langenv.speech.graph import Phrase
+    from langenv.speech.phrase import Phrase
     from langenv.speech.repeat import Repeat
 
     phrases = [

@@ -13,8 +13,9 @@ from langenv.errors import PhraseGraphError, ScriptError
 from langenv.exercise.registry import SHIPPED_EXERCISES
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.author import graph_yaml, parse_script
-from langenv.speech.graph import GRAPHS_DIR, Phrase, PhraseGraph
+from langenv.speech.graph import GRAPHS_DIR, PhraseGraph
 from langenv.speech.intents import INTENTS, intent_problem
+from langenv.speech.phrase import Phrase
 from langenv.speech.repeat import Repeat
 from langenv.speech.variant import GraphVariation, vary_graph
 

@@ -14,12 +14,13 @@ from hypothesis import strategies as st
 
 from langenv.env import LangCtrlEnv
 from langenv.errors import ConfigError, PhraseGraphError
-from langenv.speech.graph import GRAPHS_DIR, Phrase, PhraseGraph
+from langenv.speech.graph import GRAPHS_DIR, PhraseGraph
 from langenv.speech.graph_kernels import eta as compiled_eta
 from langenv.speech.graph_kernels import fill as compiled_fill
 from langenv.speech.legs import LegPlan
 from langenv.speech.legs_kernels import horizon as compiled_horizon
 from langenv.speech.legs_kernels import motion_segment as compiled_motion_segment
+from langenv.speech.phrase import Phrase
 from langenv.speech.repeat import WAIT_MAX, WAIT_PLAN
 from policies.analytic import make_analytic
 

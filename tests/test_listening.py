@@ -14,8 +14,9 @@ from hypothesis import strategies as st
 
 import langenv
 from langenv.errors import ConfigError
-from langenv.speech.graph import Phrase, PhraseGraph
+from langenv.speech.graph import PhraseGraph
 from langenv.speech.hearing import Ear
+from langenv.speech.phrase import Phrase
 from langenv.speech.timeline import SpeechTimeline
 from langenv.speech.voice import SLOWEST
 from langenv.users import Listener, ListeningParams, ListeningUser, SyntheticUser

@@ -24,7 +24,6 @@ from langenv.control.admittance import AdmittanceParams, VariableAdmittance
 from langenv.control.cooperation import CooperationFilter
 from langenv.control.guide import GATE_REACH, Guide
 from langenv.control.motion_etc import FastETC, reference_etc
-from langenv.control.path_kernels import closest as compiled_closest
 from langenv.control.trajectory import (
     MAX_ARC_ANGLE,
     ArcSegment,
@@ -33,6 +32,7 @@ from langenv.control.trajectory import (
     default_exercise,
     split_arc,
 )
+from langenv.control.trajectory_kernels import closest as compiled_closest
 from langenv.control.virtual_loop import simulate_virtual
 from langenv.env import LangCtrlEnv
 from langenv.errors import ExerciseError

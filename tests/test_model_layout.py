@@ -83,7 +83,7 @@ def test_trained_model_records_code_version_and_layout(tiny_ppo_models: tuple[Pa
 
 
 def test_stale_metadata_records_the_source_version(capsys: pytest.CaptureFixture[str]) -> None:
-    from train.ppo import code_version
+    from train.provenance import code_version
 
     source = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["version"]
     out = code_version("0.0.1")

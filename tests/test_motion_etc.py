@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bench.etc_agreement import etc_agreement, random_pace, random_resistance
+from langenv.control import motion_etc
 from langenv.control.admittance import AdmittanceParams, VariableAdmittance
 from langenv.control.guide import Guide, GuideState
 from langenv.control.motion_etc import FastETC, reference_etc
@@ -165,44 +166,6 @@ def test_fast_etc_validation(guide: Guide, adm: VariableAdmittance) -> None:
         simulate_virtual(EX, P, dt=-1.0)
 
 
-def _ramp_end_one_halving_at_a_time(prm: np.ndarray, u0: float, w0: float) -> tuple[float, float]:
-    """``langenv.control.etc_kernels.ramp_end`` as first written: one bisection halving per step."""
-    from langenv.control import etc_kernels as ek
-
-    ui, tau, acc = (
-        float(prm[ek.ETC_PARAMS.at.u_inf]),
-        float(prm[ek.ETC_PARAMS.at.tau]),
-        float(prm[ek.ETC_PARAMS.at.acc]),
-    )
-
-    def g(t: float, s: float) -> float:
-        return s * (ui + (u0 - ui) * math.exp(-t / tau) - w0) - acc * t
-
-    gap = u0 - w0
-    slope0 = (ui - u0) / tau
-    if acc == math.inf or (-1e-12 < gap < 1e-12 and -acc <= slope0 <= acc):
-        return 0.0, 0.0
-    if abs(gap) >= 1e-12:
-        s = 1.0 if gap > 0.0 else -1.0
-    else:
-        s = 1.0 if slope0 > 0 else -1.0
-    hi = (abs(ui - w0) + abs(u0 - ui)) / acc + tau
-    lo = 0.0
-    if g(0.0, s) <= 0.0:
-        lo = (tau if tau < hi else hi) * 1e-3
-        while g(lo, s) <= 0.0 and lo < hi:
-            lo *= 2.0
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        if g(mid, s) > 0.0:
-            lo = mid
-        else:
-            hi = mid
-        if hi - lo < 1e-6:
-            break
-    return hi, s
-
-
 @settings(deadline=None, max_examples=300)
 @given(
     st.floats(-0.6, 0.6),
@@ -216,7 +179,7 @@ def test_ramp_end_two_halvings_a_round_is_the_plain_bisection(
 ) -> None:
     """The compiled ramp end (two halvings per round, evaluated side by side) returns the plain
     bisection's bracket end to the bit, the near-equal ``u0 = w0`` branch included."""
-    from langenv.control import etc_kernels as ek
+    from langenv.control import motion_etc_kernels as ek
 
     prm = ek.ETC_PARAMS.zeros()
     prm[ek.ETC_PARAMS.at.u_inf], prm[ek.ETC_PARAMS.at.tau], prm[ek.ETC_PARAMS.at.acc] = (
@@ -225,12 +188,12 @@ def test_ramp_end_two_halvings_a_round_is_the_plain_bisection(
         0.14,
     )
     for w in (w0, u0 + nudge):
-        assert ek.ramp_end(prm, u0, w) == _ramp_end_one_halving_at_a_time(prm, u0, w)
+        assert ek.ramp_end(prm, u0, w) == motion_etc.ramp_end(prm, u0, w)
 
 
 def test_ramp_end_stops_after_sixty_halvings_like_the_plain_bisection() -> None:
     """A bracket that never gets under 1 us (a huge one) ends after 60 halvings either way."""
-    from langenv.control import etc_kernels as ek
+    from langenv.control import motion_etc_kernels as ek
 
     prm = ek.ETC_PARAMS.zeros()
     prm[ek.ETC_PARAMS.at.u_inf], prm[ek.ETC_PARAMS.at.tau], prm[ek.ETC_PARAMS.at.acc] = (
@@ -238,4 +201,4 @@ def test_ramp_end_stops_after_sixty_halvings_like_the_plain_bisection() -> None:
         0.5,
         1e-12,
     )
-    assert ek.ramp_end(prm, 0.0, 1.0) == _ramp_end_one_halving_at_a_time(prm, 0.0, 1.0)
+    assert ek.ramp_end(prm, 0.0, 1.0) == motion_etc.ramp_end(prm, 0.0, 1.0)

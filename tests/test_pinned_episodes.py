@@ -42,9 +42,9 @@ import pytest
 
 import langenv
 from langenv.control.admittance import AdmittanceParams
+from langenv.control.pacing import AlignerGains
 from langenv.exercise import speak
 from policies import load_policy
-from policies.aligner import AlignerGains
 from train.wrappers import ResidualLCWrapper
 
 pytestmark = pytest.mark.portable

@@ -20,15 +20,10 @@ from langenv.errors import ConfigError
 from langenv.exercise import speak
 from policies.analytic import LanguageController
 from policies.learned import PPOPolicy, file_sha256, model_files
-from train.ppo import (
-    TrainArgs,
-    _policy_kwargs,
-    _schedule,
-    checkpoint_files,
-    load_config,
-    parse_args,
-    use_subprocesses,
-)
+from train.config import TrainArgs, _policy_kwargs, _schedule, load_config
+from train.factories import use_subprocesses
+from train.ppo import parse_args
+from train.resume import checkpoint_files
 
 REPO = Path(__file__).resolve().parents[1]
 CONFIG = REPO / "configs" / "ppo.yaml"
@@ -126,8 +121,8 @@ def test_periodic_evaluation_records_the_metrics_and_best_exports_it(
     smoke_run: SmokeRun, tmp_path: Path
 ) -> None:
     """evaluations.npz holds each user's |AM|, |EM| and |a-1|; --best exports that checkpoint."""
+    from train.callbacks import EVAL_METRICS
     from train.export import main as export_main
-    from train.ppo import EVAL_METRICS
 
     with np.load(smoke_run.out / "eval" / "evaluations.npz") as data:
         assert list(data["timesteps"]) == [2048]
@@ -183,10 +178,10 @@ def test_one_name_per_best_in_the_docs() -> None:
 def test_the_budget_is_rounded_up_to_whole_rollouts_and_said(asked: int, total: int) -> None:
     """PPO trains whole rollouts (n_steps x n_envs): a budget of 32 trains 1,024 steps, so the
     run's budget (its progress bar, its config, resume) is 1,024, and a line says why."""
-    from train.ppo import _resolve
+    from train.config import resolve
 
     config = REPO / "configs" / "ppo_speech.yaml"
-    run = _resolve(TrainArgs(config=config, total_timesteps=asked, n_envs=2))
+    run = resolve(TrainArgs(config=config, total_timesteps=asked, n_envs=2))
     assert run.total == total and run.asked == asked
     note = run.budget_note()
     if asked == total:
@@ -389,7 +384,7 @@ def test_config_inherits_and_overrides_key_by_key(tmp_path: Path) -> None:
 
 
 def test_recorded_paths_describe_no_machine(tmp_path: Path) -> None:
-    from train.ppo import recorded_args, recorded_path
+    from train.provenance import recorded_args, recorded_path
 
     assert recorded_path("runs/ppo") == "runs/ppo"
     assert recorded_path(Path.cwd() / "runs" / "ppo") == "runs/ppo"
@@ -413,11 +408,11 @@ def test_schedules_and_cli_overrides() -> None:
 def test_auto_vec_env_uses_subprocesses_only_with_a_core_to_spare(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    import train.ppo
+    import train.factories
 
     assert TrainArgs().vec_env == "auto"
     for cores, expected in ((2, False), (3, True), (16, True)):
-        monkeypatch.setattr(train.ppo, "_cpu_cores", lambda cores=cores: cores)
+        monkeypatch.setattr(train.factories, "usable_cores", lambda cores=cores: cores)
         assert use_subprocesses("auto", 2) is expected
         assert use_subprocesses("subproc", 2) and not use_subprocesses("dummy", 2)
         assert not use_subprocesses("auto", 1) and not use_subprocesses("subproc", 1)
@@ -428,11 +423,12 @@ def test_periodic_evaluation_meets_exactly_the_held_out_seeds() -> None:
     make_vec_env would seed the first reset at random, a different user in every run)."""
     import gymnasium as gym
 
-    from train.ppo import _make_envs, _resolve
+    from train.config import resolve
+    from train.factories import make_envs
 
     args, given = parse_args(["--config", str(CONFIG), "--n-eval-episodes", "3", "--n-envs", "1"])
-    run = _resolve(args, given)
-    env, eval_env = _make_envs(run)
+    run = resolve(args, given)
+    env, eval_env = make_envs(run)
     try:
         assert run.wrapper is not None
         got = []
@@ -452,18 +448,19 @@ def _fresh_model(seed: int, config: Path = CONFIG, normalize: bool = True) -> tu
     """An untrained PPO on the config's env (one in-process env), and its VecEnv."""
     from stable_baselines3 import PPO
 
-    from train.ppo import _make_envs, _ppo_kwargs, _resolve
+    from train.config import ppo_kwargs, resolve
+    from train.factories import make_envs
 
-    run = _resolve(TrainArgs(config=config, n_envs=1, vec_env="dummy", n_eval_episodes=0))
+    run = resolve(TrainArgs(config=config, n_envs=1, vec_env="dummy", n_eval_episodes=0))
     if not normalize:
         run.normalize = None
-    env, _ = _make_envs(run)
-    return PPO("MlpPolicy", env, seed=seed, device="cpu", **_ppo_kwargs(run)), env
+    env, _ = make_envs(run)
+    return PPO("MlpPolicy", env, seed=seed, device="cpu", **ppo_kwargs(run)), env
 
 
 def test_init_from_copies_weights_and_normalisation(tmp_path: Path) -> None:
     """--init-from: the new run starts with the source's network and statistics, nothing else."""
-    from train.ppo import _init_from
+    from train.resume import init_from_model
 
     src, src_env = _fresh_model(1)
     src_env.obs_rms.mean = np.random.default_rng(0).normal(size=src_env.obs_rms.mean.shape)
@@ -473,7 +470,7 @@ def test_init_from_copies_weights_and_normalisation(tmp_path: Path) -> None:
     # the fine-tune config (pace corrections off) has the same spaces, so the network fits
     dst, dst_env = _fresh_model(2, _finetune_config(tmp_path))
     before = {k: v.clone() for k, v in dst.policy.state_dict().items()}
-    digest = _init_from(dst, dst_env, tmp_path / "src")
+    digest = init_from_model(dst, dst_env, tmp_path / "src")
     for key, value in src.policy.state_dict().items():
         assert np.array_equal(dst.policy.state_dict()[key].numpy(), value.numpy()), key
     assert any(
@@ -489,12 +486,12 @@ def test_init_from_copies_weights_and_normalisation(tmp_path: Path) -> None:
     src.save(tmp_path / "run_2048_steps.zip")
     src_env.save(str(tmp_path / "run_vecnormalize_2048_steps.pkl"))
     dst2, dst2_env = _fresh_model(3)
-    _init_from(dst2, dst2_env, tmp_path / "run_2048_steps.zip")
+    init_from_model(dst2, dst2_env, tmp_path / "run_2048_steps.zip")
     np.testing.assert_array_equal(dst2_env.obs_rms.mean, src_env.obs_rms.mean)
 
 
 def test_init_from_rejects_what_does_not_fit(tmp_path: Path) -> None:
-    from train.ppo import _init_from, init_files
+    from train.resume import init_files, init_from_model
 
     with pytest.raises(FileNotFoundError, match=r"nope\.zip"):
         init_files(tmp_path / "nope")
@@ -502,24 +499,24 @@ def test_init_from_rejects_what_does_not_fit(tmp_path: Path) -> None:
     src.save(tmp_path / "src.zip")
     dst, dst_env = _fresh_model(2)
     with pytest.raises(FileNotFoundError, match=r"src_vecnormalize\.pkl"):
-        _init_from(dst, dst_env, tmp_path / "src.zip")  # weights without their statistics
+        init_from_model(dst, dst_env, tmp_path / "src.zip")  # weights without their statistics
     plain, plain_env = _fresh_model(2, normalize=False)
     src_env_path = tmp_path / "src_vecnormalize.pkl"
     _fresh_model(1)[1].save(str(src_env_path))
     with pytest.raises(ConfigError, match="has none"):
-        _init_from(plain, plain_env, tmp_path / "src.zip")
+        init_from_model(plain, plain_env, tmp_path / "src.zip")
     # unreadable files
     (tmp_path / "bad.zip").write_bytes(b"not a zip")
     with pytest.raises(ConfigError, match=r"bad\.zip"):
-        _init_from(dst, dst_env, tmp_path / "bad.zip")
+        init_from_model(dst, dst_env, tmp_path / "bad.zip")
     src_env_path.write_bytes(b"garbage")
     with pytest.raises(ConfigError, match=r"src_vecnormalize\.pkl"):
-        _init_from(dst, dst_env, tmp_path / "src.zip")
+        init_from_model(dst, dst_env, tmp_path / "src.zip")
     import pickle
 
     src_env_path.write_bytes(pickle.dumps({"obs_rms": 1}))
     with pytest.raises(ConfigError, match="not a VecNormalize"):
-        _init_from(dst, dst_env, tmp_path / "src.zip")
+        init_from_model(dst, dst_env, tmp_path / "src.zip")
     _fresh_model(1)[1].save(str(src_env_path))
     # another network shape (config with pi=[32])
     cfg = yaml.safe_load(CONFIG.read_text())
@@ -528,7 +525,7 @@ def test_init_from_rejects_what_does_not_fit(tmp_path: Path) -> None:
     small_cfg.write_text(yaml.safe_dump(cfg))
     small, small_env = _fresh_model(2, small_cfg)
     with pytest.raises(ConfigError, match="does not fit"):
-        _init_from(small, small_env, tmp_path / "src.zip")
+        init_from_model(small, small_env, tmp_path / "src.zip")
     # another observation space (scores choice mode: more children scores in the action)
     cfg = yaml.safe_load(CONFIG.read_text())
     cfg["LangCtrl-v0"]["env_kwargs"]["choice_mode"] = "scores"
@@ -539,7 +536,7 @@ def test_init_from_rejects_what_does_not_fit(tmp_path: Path) -> None:
     scores_cfg.write_text(yaml.safe_dump(cfg))
     other, other_env = _fresh_model(2, scores_cfg)
     with pytest.raises(ConfigError, match="space has shape"):
-        _init_from(other, other_env, tmp_path / "src.zip")
+        init_from_model(other, other_env, tmp_path / "src.zip")
 
 
 @pytest.mark.parametrize(
@@ -549,10 +546,10 @@ def test_init_from_rejects_what_does_not_fit(tmp_path: Path) -> None:
 )
 def test_every_shipped_config_resolves(config: Path) -> None:
     """Each training config parses: its train section, wrappers, schedules and network."""
-    from train.ppo import _ppo_kwargs, _resolve
+    from train.config import ppo_kwargs, resolve
 
-    run = _resolve(TrainArgs(config=config))
-    kwargs = _ppo_kwargs(run)
+    run = resolve(TrainArgs(config=config))
+    kwargs = ppo_kwargs(run)
     assert isinstance(kwargs["policy_kwargs"], dict)
     assert run.args.seed >= 1_000_000 and run.wrapper is not None
 
@@ -674,30 +671,30 @@ def test_ctrl_c_exits_130_with_one_line(tmp_path: Path) -> None:
 
 def test_resume_point_swap_and_sources(tmp_path: Path) -> None:
     """The resume point is replaced whole; a crash between the renames leaves the old one."""
-    from train.ppo import _resume_source, _save_resume_point, resume_files
+    from train.resume import resume_files, resume_source, save_resume_point
 
     ckpt = tmp_path / "checkpoints"
     with pytest.raises(FileNotFoundError, match="no checkpoint"):
-        _resume_source(ckpt, "m")
+        resume_source(ckpt, "m")
     model, _env = _fresh_model(1)
-    _save_resume_point(model, ckpt, "m")
+    save_resume_point(model, ckpt, "m")
     zip_path, pkl = resume_files(ckpt, "m")
     assert zip_path.is_file() and pkl.is_file()
-    assert _resume_source(ckpt, "m") == (zip_path, pkl, True)
-    _save_resume_point(model, ckpt, "m")  # again: replaced, nothing left over
+    assert resume_source(ckpt, "m") == (zip_path, pkl, True)
+    save_resume_point(model, ckpt, "m")  # again: replaced, nothing left over
     assert sorted(p.name for p in ckpt.iterdir()) == ["resume"]
     (ckpt / "resume").rename(ckpt / ".resume.old")  # killed between the two renames
-    assert _resume_source(ckpt, "m")[0] == ckpt / ".resume.old" / "m.zip"
+    assert resume_source(ckpt, "m")[0] == ckpt / ".resume.old" / "m.zip"
     shutil.rmtree(ckpt / ".resume.old")
     model.save(checkpoint_files(ckpt, "m", 4096)[0])
     _env.save(str(checkpoint_files(ckpt, "m", 4096)[1]))
-    assert _resume_source(ckpt, "m") == (*checkpoint_files(ckpt, "m", 4096), False)
+    assert resume_source(ckpt, "m") == (*checkpoint_files(ckpt, "m", 4096), False)
 
 
 def test_restore_history_keeps_what_the_resume_point_saw(tmp_path: Path) -> None:
     from stable_baselines3.common.callbacks import EvalCallback
 
-    from train.ppo import _restore_history
+    from train.callbacks import restore_history
 
     (tmp_path / "eval").mkdir()
     np.savez(
@@ -709,21 +706,21 @@ def test_restore_history_keeps_what_the_resume_point_saw(tmp_path: Path) -> None
     _model, env = _fresh_model(1)
     cb = EvalCallback(env, n_eval_episodes=2)
     best_cfg = tmp_path / "best.yaml"
-    assert _restore_history(cb, tmp_path / "eval", best_cfg, 4096) == 2
+    assert restore_history(cb, tmp_path / "eval", best_cfg, 4096) == 2
     assert cb.evaluations_timesteps == [2048, 4096]
     assert cb.best_mean_reward == pytest.approx(-0.6)
     best_cfg.write_text(yaml.safe_dump({"eval_mean_reward": -0.15}))  # best/ came from 6144
-    _restore_history(cb, tmp_path / "eval", best_cfg, 4096)
+    restore_history(cb, tmp_path / "eval", best_cfg, 4096)
     assert cb.best_mean_reward == pytest.approx(-0.15)
 
 
 def test_restore_history_keeps_the_recorded_metrics(tmp_path: Path) -> None:
-    from train.ppo import EVAL_METRICS, _MetricsEvalCallback, _restore_history
+    from train.callbacks import EVAL_METRICS, MetricsEvalCallback, restore_history
 
     run = _scored_run(tmp_path, [[0.1, 0.2], [0.3, 0.4]], [[0.5, 0.6], [0.7, 0.8]])
     _model, env = _fresh_model(1)
-    cb = _MetricsEvalCallback(env, n_eval_episodes=2)
-    assert _restore_history(cb, run / "eval", tmp_path / "none.yaml", 10) == 1
+    cb = MetricsEvalCallback(env, n_eval_episodes=2)
+    assert restore_history(cb, run / "eval", tmp_path / "none.yaml", 10) == 1
     assert cb.evaluations_metrics["abs_am"] == [[0.1, 0.2]]
     assert cb.evaluations_metrics["em_mean_abs"] == [[0.5, 0.6]]
     assert set(cb.evaluations_metrics) == set(EVAL_METRICS)
@@ -732,7 +729,7 @@ def test_restore_history_keeps_the_recorded_metrics(tmp_path: Path) -> None:
 def test_resume_of_a_run_recorded_before_the_metrics_keeps_saving(tmp_path: Path) -> None:
     """An evaluations.npz without the metrics (an older run): the restored rows are NaN per user,
     so the next evaluation's rows stack with them and the file is written again."""
-    from train.ppo import _MetricsEvalCallback, _restore_history
+    from train.callbacks import MetricsEvalCallback, restore_history
 
     (tmp_path / "eval").mkdir()
     np.savez(
@@ -742,8 +739,8 @@ def test_resume_of_a_run_recorded_before_the_metrics_keeps_saving(tmp_path: Path
         ep_lengths=[[10, 10], [10, 10]],
     )
     _model, env = _fresh_model(1)
-    cb = _MetricsEvalCallback(env, n_eval_episodes=2, log_path=str(tmp_path / "eval"))
-    assert _restore_history(cb, tmp_path / "eval", tmp_path / "none.yaml", 20) == 2
+    cb = MetricsEvalCallback(env, n_eval_episodes=2, log_path=str(tmp_path / "eval"))
+    assert restore_history(cb, tmp_path / "eval", tmp_path / "none.yaml", 20) == 2
     cb.evaluations_timesteps.append(30)
     cb.evaluations_results.append([-0.1, -0.2])
     cb.evaluations_length.append([10, 10])
@@ -880,12 +877,13 @@ def test_export_and_ensemble_never_replace_files_without_overwrite(
 
 def test_subprocess_and_in_process_envs_give_the_same_rollout() -> None:
     """--vec-env subproc and dummy hand PPO the same float32 observations and rewards."""
-    from train.ppo import _make_envs, _resolve
+    from train.config import resolve
+    from train.factories import make_envs
 
     got = {}
     for vec_env in ("dummy", "subproc"):
-        run = _resolve(TrainArgs(config=CONFIG, vec_env=vec_env, n_eval_episodes=0, n_envs=2))
-        env, _ = _make_envs(run)
+        run = resolve(TrainArgs(config=CONFIG, vec_env=vec_env, n_eval_episodes=0, n_envs=2))
+        env, _ = make_envs(run)
         venv, rng = env.venv, np.random.default_rng(0)
         steps = [(venv.reset(), np.zeros(2, np.float32))]
         for _ in range(40):

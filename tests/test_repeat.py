@@ -18,7 +18,8 @@ from langenv.errors import PhraseGraphError, ScriptError
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.author import parse_script
 from langenv.speech.coverage import speech_lengths
-from langenv.speech.graph import Phrase, PhraseGraph
+from langenv.speech.graph import PhraseGraph
+from langenv.speech.phrase import Phrase
 from langenv.speech.repeat import MAX_REPEAT, SEP, WAIT_PLAN, Repeat, is_gap
 from langenv.speech.timeline import SpeechTimeline
 from tests.compiled_graph import c_eta, c_fill

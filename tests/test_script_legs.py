@@ -16,7 +16,8 @@ from langenv.script_fit import MotionTimes, leg_fit_warnings, leg_warnings
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.author import author, graph_yaml, parse_script
 from langenv.speech.coverage import leg_lengths
-from langenv.speech.graph import GRAPHS_DIR, Phrase, PhraseGraph
+from langenv.speech.graph import GRAPHS_DIR, PhraseGraph
+from langenv.speech.phrase import Phrase
 
 LEGS = ("out", "back", "again")
 MARKED = """\

@@ -10,7 +10,8 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from langenv.errors import ActionError
-from langenv.speech.graph import Phrase, PhraseGraph
+from langenv.speech.graph import PhraseGraph
+from langenv.speech.phrase import Phrase
 from langenv.speech.timeline import SpeechTimeline, Utterance
 
 DT = 0.002

@@ -7,7 +7,8 @@ import pytest
 
 from langenv.errors import ActionError, ConfigError
 from langenv.speech.audio import ClipLibrary
-from langenv.speech.graph import Phrase, PhraseGraph
+from langenv.speech.graph import PhraseGraph
+from langenv.speech.phrase import Phrase
 from langenv.speech.render import plan_speech, render_history
 from langenv.speech.timeline import SpeechTimeline
 

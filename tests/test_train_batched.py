@@ -16,7 +16,8 @@ from langenv.errors import ConfigError
 from langenv.task.observation import Obs, observation_size
 from policies import residual_kernels as rk
 from policies.learned import FEATURES, ResidualLC, ResidualSpec
-from train.ppo import TrainArgs, _resolve, _wrapper_class, use_batched
+from train.config import TrainArgs, resolve, wrapper_chain
+from train.factories import use_batched
 from train.vec_env import make_batched_vec_env
 
 pytestmark = pytest.mark.xdist_group("batch")
@@ -84,7 +85,7 @@ def test_the_adapter_is_a_dummy_vec_env_of_the_same_envs(mode: str) -> None:
     n = 3
     kwargs = {"choice_mode": mode, "w_em": 0.0, "w_pace": 0.1, "w_am": 6.0}
     wrappers = _recipe_wrappers(mode)
-    chain = _wrapper_class([{k: v} for k, v in wrappers], CONFIG)
+    chain = wrapper_chain([{k: v} for k, v in wrappers], CONFIG)
     ref = make_vec_env(
         "LangCtrl-v0", n_envs=n, seed=1000, vec_env_cls=DummyVecEnv,
         env_kwargs={**kwargs, "max_episode_steps": 120}, wrapper_class=chain,
@@ -113,12 +114,59 @@ def test_the_adapter_is_a_dummy_vec_env_of_the_same_envs(mode: str) -> None:
     got.close()
 
 
+def test_the_wrapper_and_the_batch_shape_the_reward_alike(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``AlignmentReward`` on single envs and the batch, both with the one set of defaults
+    (:class:`train.shaping.AlignmentShaping`): the same shaped reward (float64, before SB3's
+    float32), bit for bit, at every step of episodes that end by themselves (the ``|AM|`` term
+    paid)."""
+    import gymnasium as gym
+
+    from train.shaping import AlignmentShaping
+    from train.vec_env import BatchedVecEnv
+    from train.wrappers import AlignmentReward
+
+    shaped: list[np.ndarray] = []
+    batch_shape = BatchedVecEnv._shape
+
+    def spy(self: BatchedVecEnv, *args: Any) -> np.ndarray:
+        out = batch_shape(self, *args)
+        shaped.append(out.copy())
+        return out
+
+    monkeypatch.setattr(BatchedVecEnv, "_shape", spy)
+    n, kwargs = 2, {"decision_hz": 25, "w_em": 0.0, "w_pace": 0.1, "w_am": 6.0}
+    wrapped = [("train.wrappers.AlignmentReward", {})]
+    got = make_batched_vec_env(n, {**kwargs, "max_episode_steps": 2000}, 1000, wrapped)
+    singles = [
+        AlignmentReward(gym.make("LangCtrl-v0", max_episode_steps=2000, **kwargs)) for _ in range(n)
+    ]
+    assert all(env.shaping == AlignmentShaping() for env in singles)
+    got.reset()
+    for i, env in enumerate(singles):
+        env.reset(seed=1000 + i)
+    action = np.zeros((n, *got.action_space.shape), np.float32)  # type: ignore[misc]
+    going, paid = [True] * n, 0
+    while any(going):
+        got.step(action)
+        for i, env in enumerate(singles):
+            if not going[i]:
+                continue
+            _, reward, term, trunc, info = env.step(action[i])
+            assert reward == shaped[-1][i], (len(shaped), i)
+            terms = (info["reward_em_base"], info["reward_adev"], info["reward_am_fine"])
+            assert all(t <= 0.0 for t in terms)
+            paid += term and info["reward_am_fine"] < 0.0
+            going[i] = not (term or trunc)
+    assert paid == n
+    got.close()
+
+
 def test_auto_is_batched_where_it_applies() -> None:
-    run = _resolve(TrainArgs(config=CONFIG, n_eval_episodes=0))
+    run = resolve(TrainArgs(config=CONFIG, n_eval_episodes=0))
     assert run.args.vec_env == "auto" and use_batched("auto", run)
     assert not use_batched("dummy", run) and not use_batched("subproc", run)
     general = CONFIG.parent / "ppo_general.yaml"
-    worlds = _resolve(TrainArgs(config=general, n_eval_episodes=0))
+    worlds = resolve(TrainArgs(config=general, n_eval_episodes=0))
     assert not use_batched("auto", worlds)
     with pytest.raises(ConfigError, match="worlds"):
         use_batched("batched", worlds)

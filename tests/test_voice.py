@@ -16,7 +16,8 @@ from eval.metrics import content_time, episode_metrics, voice_trace
 from langenv.errors import ConfigError, PhraseGraphError, ScriptError
 from langenv.speech.audio import ClipLibrary
 from langenv.speech.author import author, parse_script
-from langenv.speech.graph import Phrase, PhraseGraph
+from langenv.speech.graph import PhraseGraph
+from langenv.speech.phrase import Phrase
 from langenv.speech.render import render_history
 from langenv.speech.variant import GraphVariation, vary_graph
 from langenv.speech.voice import SLOWEST, NaturalVoice, check_voice, voice_rate

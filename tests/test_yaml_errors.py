@@ -31,7 +31,7 @@ def _sweep(path: Path) -> Any:
 
 
 def _config(path: Path) -> Any:
-    from train.ppo import load_config
+    from train.config import load_config
 
     return load_config(path, "LangCtrl-v0")
 

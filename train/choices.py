@@ -38,7 +38,7 @@ same for the same seeds. The draw is in the reset's ``info["listening"]`` (field
 
 The final step's ``info`` also holds the metrics themselves (``content_share``,
 ``voice_natural``, ``legs_in_step``, ``sm_max_abs``, ``em_mean_abs``, ``am``), which the
-periodic evaluation of :mod:`train.ppo` records.
+periodic evaluation of :mod:`train.ppo` records (:mod:`train.callbacks`).
 """
 
 from __future__ import annotations

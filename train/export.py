@@ -8,7 +8,7 @@ Run::
 copies ``RUN/checkpoints/NAME_<steps>_steps.zip`` and its ``NAME_vecnormalize_<steps>_steps.pkl``
 to ``OUT.zip`` and ``OUT_vecnormalize.pkl``, writes the run's config (``RUN/run_config.yaml``) as
 ``OUT_config.yaml`` with the checkpoint's step count and origin (relative to ``RUN``; the run's
-paths as :func:`train.ppo.recorded_path` records them), and loads the result once with
+paths as :func:`train.provenance.recorded_path` records them), and loads the result once with
 :meth:`policies.learned.PPOPolicy.load` so that a broken export fails here, not in an evaluation.
 Nothing is written when an input is missing, nor over an existing ``OUT.*`` without
 ``--overwrite``.
@@ -154,7 +154,8 @@ def export(args: ExportArgs) -> Path:
         ValueError: if the exported model does not load.
     """
     from policies.learned import PPOPolicy, model_files
-    from train.ppo import checkpoint_files, recorded_args
+    from train.provenance import recorded_args
+    from train.resume import checkpoint_files
 
     run_config = args.run / "run_config.yaml"
     if not run_config.is_file():
@@ -311,7 +312,7 @@ def eval_scores(run: Path) -> list[EvalScore]:
     """
     import numpy as np
 
-    from train.ppo import EVAL_METRICS
+    from train.callbacks import EVAL_METRICS
 
     path = run / "eval" / "evaluations.npz"
     if not path.is_file():
@@ -365,7 +366,7 @@ def base_score(run: Path) -> EvalScore | None:
     """The base's figures on the held-out users (``RUN/eval/base.npz``), or None."""
     import numpy as np
 
-    from train.ppo import BASE_FILE
+    from train.callbacks import BASE_FILE
 
     path = run / "eval" / BASE_FILE
     if not path.is_file():
@@ -393,7 +394,7 @@ def best_steps(run: Path, name: str) -> EvalScore:
         FileNotFoundError: no evaluations (see :func:`eval_scores`).
         ValueError: naming the run, if no evaluation has a checkpoint of its step count.
     """
-    from train.ppo import checkpoint_files
+    from train.resume import checkpoint_files
 
     eligible = [
         e

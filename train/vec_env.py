@@ -8,7 +8,8 @@ gives: float32 rewards, ``dones``, and per session an info dict holding, where a
 length, as SB3's ``Monitor`` records them) and the final info values. The config's wrappers act
 on the batch, the same arithmetic as the single env's (``tests/test_train_batched.py``):
 
-* ``train.wrappers.AlignmentReward``: the reward terms on the info arrays;
+* ``train.wrappers.AlignmentReward``: the reward terms on the info arrays (one
+  :class:`~train.shaping.AlignmentShaping` for both);
 * ``train.wrappers.ResidualLCWrapper``: the correction of the analytic base and the features, in
   compiled code (:mod:`policies.residual_kernels`, the twin of
   :class:`~policies.learned.ResidualLC`).
@@ -33,6 +34,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 from langenv.errors import ConfigError
 from policies import residual_kernels as rk
 from policies.learned import FEATURES, ResidualSpec
+from train.shaping import AlignmentShaping
 
 __all__ = ["BATCHED_WRAPPERS", "BatchedVecEnv", "make_batched_vec_env"]
 
@@ -76,7 +78,7 @@ class BatchedVecEnv(VecEnv):
             self._params = rk.residual_params(self.residual_spec, base.paces.limits)
             self._state = rk.RESIDUAL_STATE.zeros(n)
             self._last = np.zeros((n, venv.single_observation_space.shape[0]), np.float32)
-        self._reward = _alignment(reward) if reward is not None else None
+        self._reward = AlignmentShaping.from_kwargs(reward) if reward is not None else None
         self.render_mode = None
         super().__init__(n, obs_space, act_space)
         self._actions: np.ndarray | None = None
@@ -227,17 +229,12 @@ class BatchedVecEnv(VecEnv):
     def _shape(
         self, reward: np.ndarray, term: np.ndarray, info: dict[str, np.ndarray]
     ) -> np.ndarray:
-        """``AlignmentReward`` on the batch: the same terms, in the same order."""
-        w_em, w_adev, w_am_fine, am_scale = self._reward  # type: ignore[misc]
-        now = info["time"]
-        dt = now - self._time
-        going = ~(info["motion_done"] & info["speech_done"])
-        r_em = np.where(going, -w_em * np.abs(info["em"]) * dt, 0.0)
-        r_adev = np.where(info["speech_done"], 0.0, -w_adev * np.abs(info["a"] - 1.0) * dt)
-        r_am = np.zeros_like(reward)
-        am = info["am"]
-        for i in np.flatnonzero(term & ~np.isnan(am)).tolist():
-            r_am[i] = -w_am_fine * math.log1p(abs(float(am[i])) / am_scale)
+        """``AlignmentReward`` on the batch: its terms (:mod:`train.shaping`), in its order."""
+        assert self._reward is not None
+        r_em, r_adev, r_am = self._reward.terms(
+            info["time"] - self._time, info["em"], info["a"], info["motion_done"],
+            info["speech_done"], term, info["am"],
+        )  # fmt: skip
         return reward + r_em + r_adev + r_am
 
 
@@ -323,22 +320,6 @@ def _residual_spec(base: Any, kwargs: dict[str, Any]) -> ResidualSpec:
         gate_em=float(kw.get("gate_em", 0.0)),
         deadband=float(kw.get("deadband", 0.0)),
     )
-
-
-def _alignment(kwargs: dict[str, Any]) -> tuple[float, float, float, float]:
-    """``AlignmentReward``'s weights (its defaults), checked as it checks them."""
-    unknown = sorted(set(kwargs) - {"w_em", "w_adev", "w_am_fine", "am_scale"})
-    if unknown:
-        raise ConfigError(f"AlignmentReward: unknown argument(s) {', '.join(unknown)}")
-    w = {"w_em": 0.5, "w_adev": 0.5, "w_am_fine": 1.0, "am_scale": 0.02, **kwargs}
-    for name in ("w_em", "w_adev", "w_am_fine"):
-        if not (math.isfinite(w[name]) and w[name] >= 0.0):
-            raise ConfigError(f"AlignmentReward: {name} must be finite and >= 0, got {w[name]!r}")
-    if not (math.isfinite(w["am_scale"]) and w["am_scale"] > 0.0):
-        raise ConfigError(
-            f"AlignmentReward: am_scale must be finite and > 0, got {w['am_scale']!r}"
-        )
-    return float(w["w_em"]), float(w["w_adev"]), float(w["w_am_fine"]), float(w["am_scale"])
 
 
 def _pick(infos: dict[str, Any], final: dict[str, Any], key: str, done: np.ndarray) -> np.ndarray:

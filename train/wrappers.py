@@ -28,6 +28,7 @@ from gymnasium import spaces
 
 from langenv.errors import ConfigError
 from policies.learned import ResidualLC, ResidualSpec
+from train.shaping import AlignmentShaping
 
 __all__ = ["AlignmentReward", "ResidualLCWrapper", "SeedCycle"]
 
@@ -112,9 +113,9 @@ class ResidualLCWrapper(gym.ActionWrapper[np.ndarray, np.ndarray, np.ndarray]):
 
 
 class AlignmentReward(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
-    """Adds the evaluation's metrics to the reward (terms also reported in ``info``).
-
-    Per decision step of length ``dt`` (s), with ``info`` after the step:
+    """Adds the evaluation's metrics to the reward (terms also reported in ``info``): the terms of
+    :class:`train.shaping.AlignmentShaping` (the batched env adds the same), per decision step
+    of length ``dt`` (s), with ``info`` after the step:
 
     * ``reward_em_base = -w_em |t_a - t_x| dt`` while speech or motion goes on (EM at base pace, s);
     * ``reward_adev = -w_adev |a - 1| dt`` while speech goes on;
@@ -137,19 +138,13 @@ class AlignmentReward(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray
     def __init__(
         self,
         env: gym.Env[np.ndarray, np.ndarray],
-        w_em: float = 0.5,
-        w_adev: float = 0.5,
-        w_am_fine: float = 1.0,
-        am_scale: float = 0.02,
+        w_em: float = AlignmentShaping.w_em,
+        w_adev: float = AlignmentShaping.w_adev,
+        w_am_fine: float = AlignmentShaping.w_am_fine,
+        am_scale: float = AlignmentShaping.am_scale,
     ) -> None:
         super().__init__(env)
-        for name, w in (("w_em", w_em), ("w_adev", w_adev), ("w_am_fine", w_am_fine)):
-            if not (math.isfinite(w) and w >= 0.0):
-                raise ConfigError(f"AlignmentReward: {name} must be finite and >= 0, got {w!r}")
-        if not (math.isfinite(am_scale) and am_scale > 0.0):
-            raise ConfigError(f"AlignmentReward: am_scale must be finite and > 0, got {am_scale!r}")
-        self.w_em, self.w_adev = float(w_em), float(w_adev)
-        self.w_am_fine, self.am_scale = float(w_am_fine), float(am_scale)
+        self.shaping = AlignmentShaping(w_em, w_adev, w_am_fine, am_scale)
         self._time = 0.0
 
     def reset(
@@ -163,12 +158,12 @@ class AlignmentReward(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray
         obs, reward, terminated, truncated, info = self.env.step(action)
         now = float(info["time"])
         dt, self._time = now - self._time, now
-        going = not (info["motion_done"] and info["speech_done"])
-        r_em = -self.w_em * abs(float(info["em"])) * dt if going else 0.0
-        r_adev = 0.0 if info["speech_done"] else -self.w_adev * abs(float(info["a"]) - 1.0) * dt
-        r_am = 0.0
-        if terminated and info.get("am") is not None:
-            r_am = -self.w_am_fine * math.log1p(abs(float(info["am"])) / self.am_scale)
+        am = info.get("am")
+        terms = self.shaping.terms(
+            dt, float(info["em"]), float(info["a"]), info["motion_done"], info["speech_done"],
+            terminated, math.nan if am is None else float(am),
+        )  # fmt: skip
+        r_em, r_adev, r_am = (float(t) for t in terms)
         info.update(reward_em_base=r_em, reward_adev=r_adev, reward_am_fine=r_am)
         return obs, float(reward) + r_em + r_adev + r_am, terminated, truncated, info
 

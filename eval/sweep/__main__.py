@@ -45,7 +45,7 @@ MAX_BATCH = 16
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl sweep`` (``python -m eval.sweep``)."""
-    from eval.compare import usable_cores
+    from langenv.kernels.cores import usable_cores
 
     p = argparse.ArgumentParser(
         prog="langctrl sweep",

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import functools
 import math
 import os
 from collections.abc import Sequence
@@ -17,10 +16,13 @@ from gymnasium.vector.utils import batch_space
 from langenv import env_kernels as ek
 from langenv.batch import kernels as bk
 from langenv.control.pacing import COMMAND_MIN
-from langenv.env import CHOICE_OCTAVES, LangCtrlEnv
+from langenv.env import LangCtrlEnv
 from langenv.errors import ActionError, ConfigError
+from langenv.kernels.cores import usable_cores
 from langenv.kernels.views import address
-from langenv.speech.graph import PhraseGraph, graph_path
+from langenv.speech.choice import duration_factor
+from langenv.speech.graph import graph_path
+from langenv.speech.shared import shared_graph
 from langenv.task.observation import T_SCALE
 
 __all__ = ["PARALLEL_MODES", "LangCtrlVectorEnv", "make_vector_env"]
@@ -162,7 +164,7 @@ class LangCtrlVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         self.autoreset_mode = mode
         self.max_episode_steps = None if max_episode_steps is None else int(max_episode_steps)
         self.parallel = parallel
-        cores = _cpu_cores()
+        cores = usable_cores()
         self.threads = max(1, min(int(threads) if threads else cores, cores))
         self._pool = (
             ThreadPoolExecutor(self.threads - 1)
@@ -323,7 +325,7 @@ class LangCtrlVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         if target:
             col = act[:, 2].tolist()
             for i in np.flatnonzero(compiled).tolist():
-                pause[i] = 2.0 ** (CHOICE_OCTAVES * col[i])  # as LangCtrlEnv.take_choice
+                pause[i] = duration_factor(col[i])  # as LangCtrlEnv.take_choice
         bk.begin(self._sessions, ctl, act, pause, self._ticks, COMMAND_MIN)
         while True:
             self._run_round()
@@ -475,13 +477,6 @@ def make_vector_env(num_envs: int = 1, **kwargs: Any) -> LangCtrlVectorEnv:
 
 
 # ---------------------------------------------------------------------------------- helpers
-def _cpu_cores() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
-
-
 def _session_kwargs(
     n: int, env_kwargs: dict[str, Any], session_kwargs: Sequence[dict[str, Any]] | None
 ) -> list[dict[str, Any]]:
@@ -517,10 +512,9 @@ def _max_children(kwargs: dict[str, Any]) -> int:
     return _graph_children(str(graph_path(graph)))
 
 
-@functools.lru_cache(maxsize=64)
 def _graph_children(path: str) -> int:
-    """A graph file's largest out-degree (files read once per process: sessions share them)."""
-    return max(1, PhraseGraph.load(path).max_children)
+    """A graph file's largest out-degree (the graph the sessions share: :func:`shared_graph`)."""
+    return max(1, shared_graph(path).max_children)
 
 
 def _checked_actions(actions: Any, shape: tuple[int, ...]) -> np.ndarray:

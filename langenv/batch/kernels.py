@@ -22,7 +22,7 @@ import numba
 import numpy as np
 
 from langenv import env_kernels as ek
-from langenv.control.pacing_kernels import command
+from langenv.control.pacing_kernels import command_from_action as command
 from langenv.control.trajectory import SEGMENT
 from langenv.kernels import jit
 from langenv.kernels.views import f4_2, f8, f8_2, i8

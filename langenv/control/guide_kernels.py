@@ -16,8 +16,8 @@ import math
 import numpy as np
 
 from langenv.control.guide import GOVERNOR_SHARE, LEG, TURNED_COS2
-from langenv.control.path_kernels import closest, frame, locate, tool_angle, unit_tangent
 from langenv.control.trajectory import SEGMENT
+from langenv.control.trajectory_kernels import closest, frame, locate, tool_angle, unit_tangent
 from langenv.kernels import inline, kernel
 
 __all__ = ["leg_value", "speed_limit", "tangent", "update", "virtual_force"]

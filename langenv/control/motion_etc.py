@@ -21,6 +21,12 @@ state, assuming a fully cooperative user (``F_ext = 0``) at base pace (``p = 1``
   hand starts the next leg a little in, moving backwards): it is tabulated per leg by simulating
   the 1-D law of the next legs (vectorised), chained backwards from the last, whose rest is the
   braking time ``|w| / a``. A query costs one projection, one closed form and one interpolation.
+
+FastETC builds its tables and answers its queries in compiled code,
+:mod:`langenv.control.motion_etc_kernels`; the query's Python reference is here, under the same
+names on the same packed arrays (:func:`estimate_parts`, :func:`finish_parts`, :func:`finish`,
+:func:`to_switch`, :func:`ramp_end`, :func:`table2`, :func:`nominal_rest`), and the tests hold
+the twin to it (``tests/test_law_homes.py``).
 """
 
 from __future__ import annotations
@@ -31,15 +37,27 @@ from typing import Any
 import numpy as np
 
 from langenv.control import etc_cache
-from langenv.control import etc_kernels as etc_kernel
+from langenv.control import motion_etc_kernels as etc_kernel
 from langenv.control.admittance import VariableAdmittance
 from langenv.control.command import follow
-from langenv.control.etc_kernels import ETC_LEG, ETC_PARAMS
-from langenv.control.etc_kernels import simulate as simulate_law
 from langenv.control.guide import Guide, GuideState
+from langenv.control.motion_etc_kernels import ETC_LEG, ETC_PARAMS
+from langenv.control.motion_etc_kernels import simulate as simulate_law
+from langenv.control.trajectory import Trajectory
 from langenv.errors import ConfigError
 
-__all__ = ["DT", "FastETC", "reference_etc"]
+__all__ = [
+    "DT",
+    "FastETC",
+    "estimate_parts",
+    "finish",
+    "finish_parts",
+    "nominal_rest",
+    "ramp_end",
+    "reference_etc",
+    "table2",
+    "to_switch",
+]
 
 DT = 0.002
 """Control period (s)."""
@@ -138,8 +156,8 @@ class _Law:
         lateral: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
         t_max: float = 60.0,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`simulate_numpy`, compiled (:func:`langenv.control.etc_kernels.simulate`): the
-        same results."""
+        """:meth:`simulate_numpy`, compiled
+        (:func:`langenv.control.motion_etc_kernels.simulate`): the same results."""
         q, u, w, y, ul, wl = _leg_states(q, u, w, lateral)
         out = np.empty((4, q.size))
         gain = (1.0 - self.decay) * self.inv_d
@@ -306,7 +324,7 @@ class FastETC:
             _TABLES[key] = tables
         self.prm: np.ndarray = tables[0]
         """The law, the table grids and the legs, packed for
-        :func:`langenv.control.etc_kernels.estimate_parts` (read-only)."""
+        :func:`langenv.control.motion_etc_kernels.estimate_parts` (read-only)."""
         self.tab: np.ndarray = tables[1]
         """The tables, flat (read-only)."""
 
@@ -316,7 +334,7 @@ class FastETC:
         origin: tuple[float, ...],
         steps: tuple[float, ...],
     ) -> np.ndarray:
-        """``prm`` of :mod:`langenv.control.etc_kernels`: :data:`ETC_PARAMS`, then a row of
+        """``prm`` of :mod:`langenv.control.motion_etc_kernels`: :data:`ETC_PARAMS`, then a row of
         :data:`ETC_LEG` per leg."""
         law = self._law
         size = behind_shape[0] * behind_shape[1] * behind_shape[2]
@@ -415,15 +433,8 @@ class FastETC:
             ``(q, u, w)``: ``q`` (m) is negative past the leg's end and larger than the leg's
             length behind its start; ``u``, ``w`` (m/s) are negative when moving backwards.
         """
-        s = state.s
-        s_end = self._ends[state.leg]
-        seg, t = self._traj.locate(s, s >= s_end)
-        xd, b, _ = seg.frame(t)
-        x0, x1, x2 = x.tolist()
-        q = s_end - s - ((x0 - xd[0]) * b[0] + (x1 - xd[1]) * b[1] + (x2 - xd[2]) * b[2])
-        v0, v1, v2 = v_ref.tolist()
-        c0, c1, c2 = v_cmd.tolist()
-        return q, v0 * b[0] + v1 * b[1] + v2 * b[2], c0 * b[0] + c1 * b[1] + c2 * b[2]
+        return _along(self._traj, self._ends[state.leg], state.s, x.tolist(), v_ref.tolist(),
+                      v_cmd.tolist())  # fmt: skip
 
     def etc(
         self,
@@ -480,3 +491,189 @@ class FastETC:
     def nominal(self) -> float:
         """Estimated time of the whole exercise from rest at the start (s)."""
         return self._finish(0, self._lengths[0], 0.0, 0.0)
+
+
+# --- the query in Python: the reference of motion_etc_kernels' estimate_parts ------------------
+_P = ETC_PARAMS.at
+_L = ETC_LEG.at
+_LEG0 = ETC_PARAMS.size
+_NL = ETC_LEG.size
+
+
+def _along(
+    traj: Trajectory, s_end: float, s: float, x: list[float], v: list[float], c: list[float]
+) -> tuple[float, float, float]:
+    """``(q, u, w)``: the hand's distance left to ``s_end`` and the two speeds along the path."""
+    seg, t = traj.locate(s, s >= s_end)
+    xd, b, _ = seg.frame(t)
+    q = s_end - s - ((x[0] - xd[0]) * b[0] + (x[1] - xd[1]) * b[1] + (x[2] - xd[2]) * b[2])
+    return q, v[0] * b[0] + v[1] * b[1] + v[2] * b[2], c[0] * b[0] + c[1] * b[1] + c[2] * b[2]
+
+
+def table2(tab: np.ndarray, off: int, x0: float, dx: float, n: int, x: float, y: float) -> float:
+    """Bilinear lookup in the ``n`` x ``n`` table at ``tab[off:]`` (grid ``x0 + dx i`` on both
+    axes), clamped at its edges."""
+    fi = (x - x0) / dx
+    fj = (y - x0) / dx
+    hi = n - 1.000001
+    fi = 0.0 if fi < 0.0 else (hi if fi > hi else fi)
+    fj = 0.0 if fj < 0.0 else (hi if fj > hi else fj)
+    i, k = int(fi), int(fj)
+    a, b = fi - i, fj - k
+    r0 = off + i * n
+    r1 = r0 + n
+    t00, t01, t10, t11 = (float(tab[j]) for j in (r0 + k, r0 + k + 1, r1 + k, r1 + k + 1))
+    return (1.0 - a) * (t00 + b * (t01 - t00)) + a * (t10 + b * (t11 - t10))
+
+
+def _table3(tab: np.ndarray, off: int, prm: np.ndarray, x: float, y: float, z: float) -> float:
+    """Trilinear lookup in a behind-the-start table, clamped at its edges."""
+    shape = [int(prm[_P.behind_shape + d]) for d in range(3)]
+    f = [
+        min(max((v - float(prm[_P.behind_origin + d])) / float(prm[_P.behind_step + d]), 0.0),
+            shape[d] - 1.000001)
+        for d, v in enumerate((x, y, z))
+    ]  # fmt: skip
+    i, j, k = int(f[0]), int(f[1]), int(f[2])
+    a, b, c = f[0] - i, f[1] - j, f[2] - k
+    ny, nz = shape[1], shape[2]
+    base = off + (i * ny + j) * nz + k
+    out = 0.0
+    for di in range(2):
+        wa = 1.0 - a if di == 0 else a
+        for dj in range(2):
+            wb = 1.0 - b if dj == 0 else b
+            n = base + di * ny * nz + dj * nz
+            t0, t1 = float(tab[n]), float(tab[n + 1])
+            out += wa * wb * (t0 + c * (t1 - t0))
+    return out
+
+
+def ramp_end(prm: np.ndarray, u0: float, w0: float) -> tuple[float, float]:
+    """When the command ``w`` (from ``w0``, changing at the acceleration limit) catches up with
+    ``v_ref`` (from ``u0``, relaxing to the plateau): ``(time, direction)``; a bisection to
+    1 us."""
+    ui, tau, acc = float(prm[_P.u_inf]), float(prm[_P.tau]), float(prm[_P.acc])
+
+    def g(t: float, s: float) -> float:
+        return s * (ui + (u0 - ui) * math.exp(-t / tau) - w0) - acc * t
+
+    gap = u0 - w0
+    slope0 = (ui - u0) / tau
+    if acc == math.inf or (-1e-12 < gap < 1e-12 and -acc <= slope0 <= acc):
+        return 0.0, 0.0
+    if abs(gap) >= 1e-12:
+        s = 1.0 if gap > 0.0 else -1.0
+    else:
+        s = 1.0 if slope0 > 0 else -1.0
+    hi = (abs(ui - w0) + abs(u0 - ui)) / acc + tau
+    lo = 0.0
+    if g(0.0, s) <= 0.0:
+        lo = (tau if tau < hi else hi) * 1e-3
+        while g(lo, s) <= 0.0 and lo < hi:
+            lo *= 2.0
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if g(mid, s) > 0.0:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo < 1e-6:
+            break
+    return hi, s
+
+
+def _time_to_cover(prm: np.ndarray, dist: float, u0: float) -> float:
+    """Time for the admittance's exponential from ``u0`` to cover ``dist`` (Newton)."""
+    if dist <= 0.0:
+        return 0.0
+    ui, tau = float(prm[_P.u_inf]), float(prm[_P.tau])
+    a = (u0 - ui) * float(prm[_P.tau_d])
+    t = max((dist - a) / ui, 0.0)
+    for _ in range(30):
+        ex = math.exp(-t / tau)
+        g = ui * t + a * (1.0 - ex) - dist
+        dg = ui + a / tau * ex
+        if dg <= 0.0:
+            dg = ui
+        step = g / dg
+        t = max(t - step, 0.0)
+        if -1e-7 < step < 1e-7:
+            break
+    return t
+
+
+def to_switch(prm: np.ndarray, dist: float, u0: float, w0: float) -> tuple[float, float, float]:
+    """Time for a leg's motion from ``(u0, w0)`` to cover ``dist`` and ``(u, w)`` then."""
+    ui, tau, acc = float(prm[_P.u_inf]), float(prm[_P.tau]), float(prm[_P.acc])
+    t_c, s = ramp_end(prm, u0, w0)
+    if t_c > 0.0:
+        reach = w0 * t_c + 0.5 * s * acc * t_c * t_c
+        if reach >= dist:  # the switch comes during the ramp
+            root = math.sqrt(max(w0 * w0 + 2.0 * s * acc * dist, 0.0))
+            t = (-w0 + root) / acc if s > 0 else (w0 - root) / acc
+            return t, ui + (u0 - ui) * math.exp(-t / tau), w0 + s * acc * t
+        u0 = ui + (u0 - ui) * math.exp(-t_c / tau)
+        dist -= reach
+    t = _time_to_cover(prm, dist, u0)
+    u = ui + (u0 - ui) * math.exp(-t / tau)
+    return t_c + t, u, u
+
+
+def finish_parts(
+    prm: np.ndarray, tab: np.ndarray, k: int, q: float, u: float, w: float
+) -> tuple[float, float]:
+    """The time to finish the exercise from the 1-D state ``(q, u, w)`` on leg ``k`` in two
+    parts: to the leg's switch (behind its start: the table, then the closed form), and the
+    rest of the exercise after it (the rest table) (s)."""
+    t = 0.0
+    length = float(prm[_LEG0 + _NL * k + _L.length])
+    if q > length:
+        size = math.prod(int(prm[_P.behind_shape + d]) for d in range(3))
+        off = 3 * k * size
+        e = q - length
+        t, u, w = (_table3(tab, off + j * size, prm, e, u, w) for j in range(3))
+        q = length
+    dist = q - float(prm[_LEG0 + _NL * k + _L.switch])
+    if dist > 0.0:
+        tp, u, w = to_switch(prm, dist, u, w)
+        dt = float(prm[_P.dt])
+        t += math.ceil(tp / dt - 1e-9) * dt  # the switch comes on the next tick
+    nu = int(prm[_P.rest_n])
+    rest = int(prm[_P.rest_offset]) + k * nu * nu
+    return t, table2(tab, rest, float(prm[_P.rest_u0]), float(prm[_P.rest_du]), nu, u, w)
+
+
+def finish(prm: np.ndarray, tab: np.ndarray, k: int, q: float, u: float, w: float) -> float:
+    """Time to finish the exercise from the 1-D state ``(q, u, w)`` on leg ``k`` (s)."""
+    t, rest = finish_parts(prm, tab, k, q, u, w)
+    return t + rest
+
+
+def nominal_rest(prm: np.ndarray, tab: np.ndarray, k: int) -> float:
+    """The rest of the exercise after leg ``k``'s switch at the guided plateau speed (s)."""
+    nu = int(prm[_P.rest_n])
+    rest = int(prm[_P.rest_offset]) + k * nu * nu
+    ui = float(prm[_P.u_inf])
+    return table2(tab, rest, float(prm[_P.rest_u0]), float(prm[_P.rest_du]), nu, ui, ui)
+
+
+def estimate_parts(
+    prm: np.ndarray,
+    tab: np.ndarray,
+    traj: Trajectory,
+    leg: int,
+    s: float,
+    done: bool,
+    x: tuple[float, float, float],
+    v: tuple[float, float, float],
+    c: tuple[float, float, float],
+) -> tuple[float, float]:
+    """:meth:`FastETC.times`' two parts from the guide state ``(leg, s, done)``, the hand's
+    position ``x``, the admittance's velocity ``v`` and the command ``c`` (the twin takes the
+    trajectory packed, :attr:`FastETC.path`): once done the braking time ``|c| / a`` and 0."""
+    if done:
+        return math.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]) * float(prm[_P.inv_acc]), 0.0
+    s_end = float(prm[_LEG0 + _NL * leg + _L.end])
+    q, u, w = _along(traj, s_end, s, list(x), list(v), list(c))
+    return finish_parts(prm, tab, leg, q, u, w)

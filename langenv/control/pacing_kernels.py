@@ -1,10 +1,12 @@
 """The pace laws compiled (:mod:`langenv.control.pacing`): the actuator's first-order laws
 (:meth:`PaceActuator.step <langenv.control.pacing.PaceActuator.step>`), the action map
-(:func:`~langenv.control.pacing.command_from_action`,
-:func:`~langenv.control.pacing.action_from_command`) and
-the paper's aligner as a :class:`~langenv.control.pacing.PaceLaw` decides it every tick from the
-observation. The same operations in the same order (``tests/test_pace_law.py``,
-``tests/test_compiled_steps.py``)."""
+(:func:`command_from_action`, :func:`action_from_command`), the paper's aligner
+(:func:`optimal_paces`, :func:`audio_command`, :func:`misalignment_feedback`,
+:func:`aligner_commands`: the Python functions of the same names) and the aligner as a
+:class:`~langenv.control.pacing.PaceLaw` decides it every tick from the observation
+(:func:`law_commands`). The same operations in the same order (``tests/test_law_homes.py``,
+``tests/test_pace_law.py``, ``tests/test_compiled_steps.py``); other packages' kernels
+(:mod:`policies.residual_kernels`) call these instead of writing the law again."""
 
 from __future__ import annotations
 
@@ -12,7 +14,20 @@ import numpy as np
 
 from langenv.kernels import inline, kernel
 
-__all__ = ["action", "bounded", "command", "law_commands", "seconds_seen", "step", "stored"]
+__all__ = [
+    "action",
+    "action_from_command",
+    "aligner_commands",
+    "audio_command",
+    "bounded",
+    "command_from_action",
+    "law_commands",
+    "misalignment_feedback",
+    "optimal_paces",
+    "seconds_seen",
+    "step",
+    "stored",
+]
 
 
 @inline
@@ -61,22 +76,69 @@ def seconds_seen(t: float, t_scale: float) -> float:
     return x if x > 0.0 else 0.0
 
 
-@kernel
-def action(cmd: float, upper: float, c_min: float) -> float:
-    """:func:`~langenv.control.pacing.action_from_command`, rounded to float32 as the action
-    stores it."""
+@inline
+def action_from_command(cmd: float, upper: float, c_min: float) -> float:
+    """:func:`~langenv.control.pacing.action_from_command` (``c_min``: the command at ``u =
+    -1``, :data:`~langenv.control.pacing.COMMAND_MIN`)."""
     u = (cmd - 1.0) / (upper - 1.0) if cmd >= 1.0 else (cmd - 1.0) / (1.0 - c_min)
     u = u if u > -1.0 else -1.0
-    u = u if u < 1.0 else 1.0
-    return float(np.float32(u))
+    return u if u < 1.0 else 1.0
+
+
+@kernel
+def action(cmd: float, upper: float, c_min: float) -> float:
+    """:func:`action_from_command`, rounded to float32 as the action stores it."""
+    return float(np.float32(action_from_command(cmd, upper, c_min)))
 
 
 @inline
-def command(u: float, upper: float, c_min: float) -> float:
+def command_from_action(u: float, upper: float, c_min: float) -> float:
     """:func:`~langenv.control.pacing.command_from_action`."""
     if u >= 0.0:
         return 1.0 + (upper - 1.0) * u
     return 1.0 + (1.0 - c_min) * u
+
+
+@inline
+def optimal_paces(t_x: float, t_a: float) -> tuple[float, float]:
+    """:func:`~langenv.control.pacing.optimal_paces` (``t_x, t_a >= 0``, not checked)."""
+    if t_a == 0.0:
+        return 1.0, 1.0
+    s = t_x / t_a
+    den = s * s + 1.0
+    return (s * s + s) / den, (s + 1.0) / den
+
+
+@inline
+def audio_command(a_star: float, cooperation: float, k_ca: float) -> float:
+    """:func:`~langenv.control.pacing.audio_command` (``k_ca``: the gains' ``k_c / k_a``)."""
+    return a_star - k_ca * (1.0 - cooperation)
+
+
+@inline
+def misalignment_feedback(t_x: float, t_a: float, k_em: float, em_clip: float) -> float:
+    """:func:`~langenv.control.pacing.misalignment_feedback`."""
+    e = k_em * (t_a - t_x)
+    e = e if e > -em_clip else -em_clip
+    return e if e < em_clip else em_clip
+
+
+@inline
+def aligner_commands(
+    t_x: float,
+    t_a: float,
+    cooperation: float,
+    k_ca: float,
+    k_em: float,
+    em_clip: float,
+    motion_on: bool,
+) -> tuple[float, float]:
+    """:func:`~langenv.control.pacing.aligner_commands` (``k_ca``: the gains' ``k_c / k_a``)."""
+    p_star, a_star = optimal_paces(t_x, t_a)
+    a_cmd = audio_command(a_star, cooperation, k_ca)
+    if k_em > 0.0 and motion_on:
+        p_star -= misalignment_feedback(t_x, t_a, k_em, em_clip)
+    return p_star, a_cmd
 
 
 @kernel
@@ -101,17 +163,7 @@ def law_commands(
     t_x = seconds_seen(t_x, t_scale)
     t_a = seconds_seen(t_a, t_scale)
     c = 0.5 * (stored(2.0 * c - 1.0) + 1.0)
-    if t_a == 0.0:
-        p_star, a_star = 1.0, 1.0
-    else:
-        s = t_x / t_a
-        den = s * s + 1.0
-        p_star, a_star = (s * s + s) / den, (s + 1.0) / den
-    a_cmd = a_star - k_ca * (1.0 - c)
-    if k_em > 0.0 and motion_on:
-        e = k_em * (t_a - t_x)
-        e = e if e > -em_clip else -em_clip
-        p_star -= e if e < em_clip else em_clip
+    p_star, a_cmd = aligner_commands(t_x, t_a, c, k_ca, k_em, em_clip, motion_on)
     u_p = action(p_star, law_p_max, c_min)
     u_a = action(a_cmd, law_a_max, c_min)
-    return command(u_p, p_max, c_min), command(u_a, a_max, c_min)
+    return command_from_action(u_p, p_max, c_min), command_from_action(u_a, a_max, c_min)

@@ -75,7 +75,7 @@ SEGMENT = Layout(
     ),
 )
 """One row of a packed trajectory (:meth:`Trajectory.packed`): what the compiled path functions
-(:mod:`langenv.control.path_kernels`) read."""
+(:mod:`langenv.control.trajectory_kernels`) read."""
 
 
 def _as_vec3(value: ArrayLike, name: str) -> np.ndarray:

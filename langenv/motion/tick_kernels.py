@@ -8,7 +8,7 @@ the safety layer's: each in the module of its Python reference) and the guided a
 :data:`~langenv.control.guide.LEG`) and the joints' bounds (two per joint). Each law is a
 function beside its reference (:mod:`langenv.control.guide_kernels`,
 :mod:`~langenv.control.admittance_kernels`, :mod:`~langenv.control.cooperation_kernels`,
-:mod:`~langenv.control.command_kernels`, :mod:`~langenv.control.etc_kernels`,
+:mod:`~langenv.control.command_kernels`, :mod:`~langenv.control.motion_etc_kernels`,
 :mod:`langenv.robot.force_sensor_kernels`, :mod:`langenv.robot.arm_kernels`,
 :mod:`langenv.robot.safety_kernels`); this module only reads and writes ``ws`` by :data:`TICK`'s
 slots and calls them in the order of :meth:`GuidedArm._tick_python
@@ -29,9 +29,9 @@ from langenv.control.command import COMMAND_SETTINGS, COMMAND_STATE
 from langenv.control.command_kernels import cap_speed, follow
 from langenv.control.cooperation import COOPERATION_SETTINGS, COOPERATION_STATE
 from langenv.control.cooperation_kernels import update as cooperation_update
-from langenv.control.etc_kernels import estimate_parts
 from langenv.control.guide import GUIDE_SETTINGS, GUIDE_STATE, LEG
-from langenv.control.path_kernels import locate, point
+from langenv.control.motion_etc_kernels import estimate_parts
+from langenv.control.trajectory_kernels import locate, point
 from langenv.kernels import inline, kernel, mjc
 from langenv.kernels.blas import mul_mat_vec
 from langenv.kernels.pymath import dist3, hypot3

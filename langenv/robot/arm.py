@@ -40,6 +40,7 @@ inverse kinematics is :mod:`langenv.robot.ik`, the orientation-hold math
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Sequence
 from pathlib import Path
@@ -52,7 +53,7 @@ from numpy.typing import ArrayLike, NDArray
 from langenv import vec
 from langenv.errors import ActionError, ConfigError
 from langenv.layout import Field, Layout
-from langenv.robot.handles import ArmHandles, load_model
+from langenv.robot.handles import ArmHandles, shared_model
 from langenv.robot.ik import IK_ACCEPT, solve_ik
 from langenv.robot.rotation import rotation_error_matrix, rotation_vector
 from langenv.robot.safety import DEFAULT_MAX_SPEED, SafetyStop
@@ -155,8 +156,10 @@ class Arm:
             moved by ``F_ext`` alone: a fully compliant robot).
 
     Attributes:
-        model: the ``mujoco.MjModel`` (owned by this arm).
-        data: the ``mujoco.MjData``.
+        model: the ``mujoco.MjModel``, shared by every arm of the same file in the process
+            (:func:`~langenv.robot.handles.shared_model`; an arm with ``kv_scale != 1`` has a
+            copy): read it, write to a copy.
+        data: the ``mujoco.MjData``, this arm's own.
         dt: control and physics period (s), the model timestep.
         path: the MJCF file loaded.
         joint_names: names of the controlled joints.
@@ -190,7 +193,7 @@ class Arm:
         kv_scale: float = 1.0,
     ) -> None:
         self.path = Path(UR5_XML if model_path is None else model_path)
-        self.model = load_model(self.path)
+        self.model = shared_model(self.path)
         self.data = mujoco.MjData(self.model)
         self.dt = float(self.model.opt.timestep)
 
@@ -217,9 +220,11 @@ class Arm:
         self.actuator_names = h.actuator_names
         self.n_joints = h.n_joints
         self._home_key = h.home_key
-        # Velocity gains (kv_scale) of the actuators.
-        self.model.actuator_gainprm[h.act_ids, 0] *= kv_scale
-        self.model.actuator_biasprm[h.act_ids, 2] *= kv_scale
+        if kv_scale != 1.0:  # velocity gains of its own: the shared model is never written
+            self.model = copy.copy(self.model)
+            self.data = mujoco.MjData(self.model)
+            self.model.actuator_gainprm[h.act_ids, 0] *= kv_scale
+            self.model.actuator_biasprm[h.act_ids, 2] *= kv_scale
         self._inv_qdmax = 1.0 / _joint_speed_limits(max_joint_speed, h.n_joints)
 
         self._dofs = h.dofs

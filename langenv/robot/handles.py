@@ -9,6 +9,7 @@ the file in a :class:`~langenv.errors.ConfigError`.
 from __future__ import annotations
 
 import math
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,7 +20,7 @@ from numpy.typing import NDArray
 
 from langenv.errors import ConfigError
 
-__all__ = ["ArmHandles", "load_model"]
+__all__ = ["ArmHandles", "load_model", "shared_model"]
 
 _ONE_DOF = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 
@@ -42,6 +43,32 @@ def load_model(path: Path) -> mujoco.MjModel:
         return mujoco.MjModel.from_xml_path(str(path))
     except ValueError as exc:
         raise ConfigError(f"model_path {str(path)!r} is not a valid MJCF: {exc}") from exc
+
+
+_MODELS: dict[tuple[str, int, int], mujoco.MjModel] = {}
+_MODELS_LOCK = threading.Lock()
+
+
+def shared_model(path: Path) -> mujoco.MjModel:
+    """:func:`load_model`, once per file (its resolved path, time and size) in the process.
+
+    MuJoCo reads a model while it steps and never writes to it, each arm stepping its own
+    ``MjData``: every arm of a batch of sessions shares one model (its meshes are most of an
+    arm's memory). Write to a copy (``copy.copy(model)``), never to the shared one.
+
+    Raises:
+        ConfigError: as :func:`load_model`.
+    """
+    try:
+        st = path.stat()
+    except OSError:
+        return load_model(path)  # its error names the file
+    key = (str(path.resolve()), st.st_mtime_ns, st.st_size)
+    with _MODELS_LOCK:
+        model = _MODELS.get(key)
+        if model is None:
+            model = _MODELS[key] = load_model(path)
+    return model
 
 
 @dataclass(frozen=True, eq=False)

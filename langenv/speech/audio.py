@@ -27,6 +27,7 @@ import subprocess
 import sys
 import threading
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -47,7 +48,7 @@ __all__ = [
 
 
 class SpokenPhrase(Protocol):
-    """What a clip is made from (a :class:`~langenv.speech.graph.Phrase` is one)."""
+    """What a clip is made from (a :class:`~langenv.speech.phrase.Phrase` is one)."""
 
     @property
     def id(self) -> str:
@@ -351,6 +352,7 @@ class ClipLibrary:
             else None
         )
         self._memory: dict[tuple[Any, ...], np.ndarray] = {}
+        self._lengths: dict[tuple[Any, ...], int] = {}
         self._warned_cache = False
 
     def __repr__(self) -> str:
@@ -377,8 +379,27 @@ class ClipLibrary:
         return self.synthesize(phrase.text, phrase=phrase.id)
 
     def duration(self, phrase: SpokenPhrase) -> float:
-        """Length of the phrase's clip at pace 1 (s)."""
-        return self.clip(phrase).size / self.sr
+        """Length of the phrase's clip at pace 1 (s): :meth:`samples` over :attr:`sr`."""
+        return self.samples(phrase) / self.sr
+
+    def samples(self, phrase: SpokenPhrase) -> int:
+        """Length of the phrase's clip (samples at :attr:`sr`), measured without keeping its
+        audio: a graph needs its clips' lengths, and only what renders them needs their sound
+        (:meth:`clip` loads it there). A synthesised clip is measured from the disk cache
+        without reading its samples; one that the disk cannot keep (no disk cache, or one that
+        cannot be written) stays in memory, so that it is not synthesised twice.
+
+        Raises:
+            AudioError: as :meth:`clip`.
+        """
+        audio, text = phrase.audio, phrase.text
+        if audio is not None:
+            key, where = self._file_key(audio, phrase.id)
+            return self._samples(key, lambda: int(self._read_file(Path(audio), where).size))
+        if text is None:
+            raise AudioError(f"phrase {phrase.id!r} has neither text nor audio")
+        engine, tts = self._tts_ident(text, phrase.id)
+        return self._samples(tts, lambda: self._tts_samples(text, phrase.id, engine, tts))
 
     def load_file(self, path: str | Path, *, phrase: str | None = None) -> np.ndarray:
         """A recorded clip: any format libsndfile reads, mixed to mono, resampled to :attr:`sr`.
@@ -393,31 +414,11 @@ class ClipLibrary:
         Raises:
             AudioError: naming the file (and phrase), when it is missing, unreadable or silent.
         """
-        path = Path(path)
-        where = f"{path}" + (f" (phrase {phrase!r})" if phrase else "")
-        try:
-            st = path.stat()
-        except OSError as exc:
-            raise AudioError(f"{where}: cannot read audio file: {exc.strerror or exc}") from None
-        key = ("file", str(path.resolve()), st.st_mtime_ns, st.st_size)
+        key, where = self._file_key(path, phrase)
         cached = self._memory.get(key)
         if cached is not None:
             return cached
-        import soundfile as sf
-
-        try:
-            data, file_sr = sf.read(str(path), dtype="float32", always_2d=True)
-        except (RuntimeError, OSError, ValueError, TypeError) as exc:
-            raise AudioError(f"{where}: unreadable audio file: {exc}") from None
-        y = np.ascontiguousarray(data.mean(axis=1), dtype=np.float32)
-        if not np.all(np.isfinite(y)):
-            raise AudioError(f"{where}: audio file contains NaN or infinite samples")
-        y = self._resample(y, int(file_sr))
-        if self.trim_db is not None:
-            y = np.ascontiguousarray(trim_silence(y, self.sr, self.trim_db))
-        if y.size == 0 or not np.any(y):
-            raise AudioError(f"{where}: audio file is empty or silent")
-        return self._remember(key, y)
+        return self._remember(key, self._read_file(Path(path), where))
 
     def synthesize(self, text: str, *, phrase: str | None = None) -> np.ndarray:
         """``text`` spoken by eSpeak NG with this library's voice, rate and pitch.
@@ -432,26 +433,87 @@ class ClipLibrary:
         Raises:
             AudioError: when eSpeak NG cannot be loaded or produces no sound.
         """
-        if not isinstance(text, str) or not text.strip():
-            raise AudioError(f"phrase {phrase!r}: nothing to synthesise (empty text)")
-        engine = ESpeakEngine.get()
-        key = ("tts", self._tts_key(text, engine.version))
+        engine, key = self._tts_ident(text, phrase)
         cached = self._memory.get(key)
         if cached is not None:
             return cached
         y = self._read_cache(key[1])
         if y is None:
-            raw = engine.synthesize(text, self.voice, self.rate, self.pitch)
-            y = raw.astype(np.float32) / np.float32(32768.0)
-            y = np.ascontiguousarray(trim_silence(y, engine.sr, self.trim_db or 40.0))
-            y = self._resample(y, engine.sr)
-            if y.size == 0 or not np.any(y):
-                who = f"phrase {phrase!r}: " if phrase else ""
-                raise AudioError(f"{who}eSpeak NG produced no sound for {text!r}")
+            y = self._spoken(text, phrase, engine)
             self._write_cache(key[1], y)
         return self._remember(key, y)
 
     # ------------------------------------------------------------------ internals
+    def _samples(self, key: tuple[Any, ...], measure: Callable[[], int]) -> int:
+        """The length of clip ``key``: from memory, from the lengths measured, or ``measure()``
+        (remembered)."""
+        clip = self._memory.get(key)
+        if clip is not None:
+            return int(clip.size)
+        n = self._lengths.get(key)
+        if n is None:
+            n = self._lengths[key] = measure()
+        return n
+
+    def _file_key(self, path: str | Path, phrase: str | None) -> tuple[tuple[Any, ...], str]:
+        """A recorded clip's key (its file's path, time and size) and its name in errors."""
+        path = Path(path)
+        where = f"{path}" + (f" (phrase {phrase!r})" if phrase else "")
+        try:
+            st = path.stat()
+        except OSError as exc:
+            raise AudioError(f"{where}: cannot read audio file: {exc.strerror or exc}") from None
+        return ("file", str(path.resolve()), st.st_mtime_ns, st.st_size), where
+
+    def _read_file(self, path: Path, where: str) -> np.ndarray:
+        """A recorded clip read, mixed to mono, resampled and trimmed (not remembered)."""
+        import soundfile as sf
+
+        try:
+            data, file_sr = sf.read(str(path), dtype="float32", always_2d=True)
+        except (RuntimeError, OSError, ValueError, TypeError) as exc:
+            raise AudioError(f"{where}: unreadable audio file: {exc}") from None
+        y = np.ascontiguousarray(data.mean(axis=1), dtype=np.float32)
+        if not np.all(np.isfinite(y)):
+            raise AudioError(f"{where}: audio file contains NaN or infinite samples")
+        y = self._resample(y, int(file_sr))
+        if self.trim_db is not None:
+            y = np.ascontiguousarray(trim_silence(y, self.sr, self.trim_db))
+        if y.size == 0 or not np.any(y):
+            raise AudioError(f"{where}: audio file is empty or silent")
+        return y
+
+    def _tts_ident(self, text: str, phrase: str | None) -> tuple[ESpeakEngine, tuple[str, str]]:
+        """The engine and the key of ``text`` said with this library's settings."""
+        if not isinstance(text, str) or not text.strip():
+            raise AudioError(f"phrase {phrase!r}: nothing to synthesise (empty text)")
+        engine = ESpeakEngine.get()
+        return engine, ("tts", self._tts_key(text, engine.version))
+
+    def _spoken(self, text: str, phrase: str | None, engine: ESpeakEngine) -> np.ndarray:
+        """``text`` synthesised, trimmed and resampled (not cached)."""
+        raw = engine.synthesize(text, self.voice, self.rate, self.pitch)
+        y = raw.astype(np.float32) / np.float32(32768.0)
+        y = np.ascontiguousarray(trim_silence(y, engine.sr, self.trim_db or 40.0))
+        y = self._resample(y, engine.sr)
+        if y.size == 0 or not np.any(y):
+            who = f"phrase {phrase!r}: " if phrase else ""
+            raise AudioError(f"{who}eSpeak NG produced no sound for {text!r}")
+        return y
+
+    def _tts_samples(
+        self, text: str, phrase: str | None, engine: ESpeakEngine, key: tuple[str, str]
+    ) -> int:
+        """The length of ``text``'s clip: from its header in the disk cache, or synthesised
+        (and kept in memory when the disk cannot keep it)."""
+        cached = self._read_cache(key[1], mmap=True)
+        if cached is not None:
+            return int(cached.size)
+        y = self._spoken(text, phrase, engine)
+        if not self._write_cache(key[1], y):
+            self._remember(key, y)
+        return int(y.size)
+
     def _tts_key(self, text: str, version: str) -> str:
         ident = {
             "engine": "espeak-ng",
@@ -479,21 +541,23 @@ class ClipLibrary:
         self._memory[key] = y
         return y
 
-    def _read_cache(self, digest: str) -> np.ndarray | None:
+    def _read_cache(self, digest: str, *, mmap: bool = False) -> np.ndarray | None:
+        """A clip from the disk cache, or None; ``mmap``: mapped, its samples not read."""
         if self.cache_dir is None:
             return None
         path = self.cache_dir / f"{digest}.npy"
         try:
-            y = np.load(path, allow_pickle=False)
+            y = np.load(path, mmap_mode="r" if mmap else None, allow_pickle=False)
         except (OSError, ValueError):
             return None
         if y.ndim != 1 or y.dtype != np.float32 or y.size == 0:
             return None
         return y
 
-    def _write_cache(self, digest: str, y: np.ndarray) -> None:
+    def _write_cache(self, digest: str, y: np.ndarray) -> bool:
+        """``y`` into the disk cache; whether it is there."""
         if self.cache_dir is None:
-            return
+            return False
         try:
             self.cache_dir.mkdir(parents=True, exist_ok=True)
             fd, tmp = temp_file(self.cache_dir, suffix=".npy.part")
@@ -504,6 +568,7 @@ class ClipLibrary:
             except BaseException:
                 tmp.unlink(missing_ok=True)
                 raise
+            return True
         except OSError as exc:
             if not self._warned_cache:
                 warnings.warn(
@@ -513,3 +578,4 @@ class ClipLibrary:
                     stacklevel=3,
                 )
                 self._warned_cache = True
+            return False

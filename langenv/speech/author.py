@@ -66,8 +66,9 @@ import yaml
 from langenv.errors import PhraseGraphError, ScriptError
 from langenv.files import temp_file
 from langenv.speech.audio import ClipLibrary
-from langenv.speech.graph import _MAX_PAUSE, DEFAULT_PAUSE, PhraseGraph
+from langenv.speech.graph import PhraseGraph
 from langenv.speech.intents import INTENTS, intent_problem
+from langenv.speech.phrase import DEFAULT_PAUSE, MAX_PAUSE
 from langenv.speech.repeat import DEFAULT_GAP, MAX_REPEAT
 from langenv.speech.voice import VOICES
 
@@ -303,8 +304,8 @@ class _Line:
         hi = float(m.group(2)) if m.group(2) is not None else lo
         if lo > hi:
             raise self.error(col, f"pause bounds are reversed: {lo:g} > {hi:g}")
-        if hi > _MAX_PAUSE:
-            raise self.error(col, f"a pause lasts at most {_MAX_PAUSE:g} s, got {hi:g}")
+        if hi > MAX_PAUSE:
+            raise self.error(col, f"a pause lasts at most {MAX_PAUSE:g} s, got {hi:g}")
         return _Unit("pause", col, bounds=(lo, hi))
 
     def _fillers(self, col: int, inner: str) -> _Unit:
@@ -564,8 +565,8 @@ def _repeat(line: _Line, m: re.Match[str], text: str, made: list[str], b: _Build
     if found.group(2) is not None:
         lo = float(found.group(2))
         hi = float(found.group(3)) if found.group(3) is not None else lo
-        if lo > hi or hi > _MAX_PAUSE:
-            raise line.error(col, f"bad gap {lo:g}-{hi:g}: it needs MIN <= MAX <= {_MAX_PAUSE:g} s")
+        if lo > hi or hi > MAX_PAUSE:
+            raise line.error(col, f"bad gap {lo:g}-{hi:g}: it needs MIN <= MAX <= {MAX_PAUSE:g} s")
         gap = (lo, hi)
     last = [v for v in made if b.vertices[v].kind != "phrase"]
     if last or not made:
@@ -605,8 +606,8 @@ def _pause_seconds(line: _Line, text: str, col: int, parts: list[str]) -> float:
         value = float(parts[1]) if len(parts) == 2 else float("nan")
     except ValueError:
         value = float("nan")
-    if not 0.0 <= value <= _MAX_PAUSE:
-        raise line.error(col, f"@pause takes seconds in [0, {_MAX_PAUSE:g}], got {text.strip()!r}")
+    if not 0.0 <= value <= MAX_PAUSE:
+        raise line.error(col, f"@pause takes seconds in [0, {MAX_PAUSE:g}], got {text.strip()!r}")
     return value
 
 

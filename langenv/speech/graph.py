@@ -36,7 +36,6 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
@@ -45,39 +44,28 @@ import numpy as np
 
 from langenv.errors import AudioError, ConfigError, PhraseGraphError
 from langenv.speech.audio import ClipLibrary
-from langenv.speech.intents import intent_problem
-from langenv.speech.legs import add_gates, leg_problems, segment_of, unrolled_legs
+from langenv.speech.choice import nearest
+from langenv.speech.graph_checks import GraphParts, graph_problems, topological_order, vertex_table
+from langenv.speech.graph_file import read_graph_file
+from langenv.speech.legs import add_gates, segment_of, unrolled_legs
+from langenv.speech.phrase import DEFAULT_PAUSE, Phrase
 from langenv.speech.repeat import (
     SEP,
     WAIT_MAX,
     Repeat,
     expand,
     is_gap,
-    parse_repeats,
-    repeat_problems,
 )
-from langenv.speech.voice import VOICES, Voice
+from langenv.speech.voice import Voice
 
 __all__ = [
-    "DEFAULT_PAUSE",
     "GRAPHS_DIR",
-    "KINDS",
-    "MAX_FILLER",
     "SHIPPED_GRAPHS",
-    "Phrase",
     "PhraseGraph",
     "default_graph_path",
     "graph_path",
 ]
 
-DEFAULT_PAUSE = 1.0
-"""Silence after each clip at a = 1 (s) when a graph file gives no ``pause`` (SPEC §2)."""
-
-MAX_FILLER = 1.5
-"""Longest clip a filler may have at a = 1 (s): fillers are short words."""
-
-KINDS = ("phrase", "filler", "pause")
-"""The kinds of phrase-graph vertices."""
 
 GRAPHS_DIR = Path(__file__).resolve().parents[1] / "assets" / "graphs"
 """Directory of the phrase graphs shipped with the package."""
@@ -99,10 +87,6 @@ SHIPPED_GRAPHS: Mapping[str, Path] = MappingProxyType(
 )
 """The shipped phrase graphs of the default exercise, by name (the one place names resolve):
 ``default`` (also ``lc``, LC's graph), ``study`` (the study's LC graph), ``lc-noap`` and ``ac``."""
-
-_TOP_KEYS = frozenset({"start", "pause", "phrases", "voice", "repeats", "final_wait", "legs"})
-_PHRASE_KEYS = frozenset({"text", "audio", "next", "filler", "pause", "leg", "intent"})
-_MAX_PAUSE = 10.0
 
 
 def default_graph_path(name: str) -> Path:
@@ -126,87 +110,6 @@ def graph_path(spec: str | Path) -> Path:
     also accepted) or a YAML path."""
     name = str(spec).replace("_", "-")
     return SHIPPED_GRAPHS[name] if name in SHIPPED_GRAPHS else Path(spec)
-
-
-@dataclass(frozen=True)
-class Phrase:
-    """One vertex of a phrase graph: a phrase, a filler or a pause.
-
-    Attributes:
-        id: Unique name of the vertex in its graph.
-        text: What it says (used for TTS when ``audio`` is None, and for subtitles); None for a
-            pause.
-        audio: Recorded clip (absolute path, or relative to the working directory); None: TTS
-            (and always for a pause).
-        next: Ids of the vertices that may follow, in preference order for ties; empty: terminal.
-        kind: ``"phrase"``, ``"filler"`` (a short clip an edge may take or skip) or ``"pause"``.
-        bounds: A pause's ``(min, max)`` length of silence at a = 1 (s, ``0 <= min <= max <= 10``);
-            None for a phrase or filler.
-    """
-
-    id: str
-    text: str | None
-    audio: Path | None
-    next: tuple[str, ...] = ()
-    kind: str = "phrase"
-    bounds: tuple[float, float] | None = None
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.id, str) or not self.id:
-            raise PhraseGraphError(f"Phrase.id must be a non-empty str, got {self.id!r}")
-        if self.kind not in KINDS:
-            raise PhraseGraphError(
-                f"vertex {self.id!r}: kind must be one of {KINDS}, got {self.kind!r}"
-            )
-        if self.text is not None and (not isinstance(self.text, str) or not self.text.strip()):
-            raise PhraseGraphError(f"{self.kind} {self.id!r}: text must be a non-empty str or None")
-        if self.audio is not None and not isinstance(self.audio, Path):
-            object.__setattr__(self, "audio", Path(self.audio))
-        if self.kind == "pause":
-            if self.text is not None or self.audio is not None:
-                raise PhraseGraphError(f"pause {self.id!r}: a pause has no 'text' or 'audio'")
-            problem = _bounds_problem(self.bounds)
-            if problem:
-                raise PhraseGraphError(f"pause {self.id!r}: {problem}")
-            lo, hi = self.bounds  # type: ignore[misc]
-            object.__setattr__(self, "bounds", (float(lo), float(hi)))
-        else:
-            if self.bounds is not None:
-                raise PhraseGraphError(f"{self.kind} {self.id!r}: only a pause has bounds")
-            if self.text is None and self.audio is None:
-                what = "no audio: give 'text' (spoken by TTS) or 'audio'"
-                reason = what if self.kind == "filler" else "has neither 'text' nor 'audio'"
-                raise PhraseGraphError(f"{self.kind} {self.id!r}: {reason}")
-        nxt = (self.next,) if isinstance(self.next, str) else tuple(self.next)
-        if not all(isinstance(v, str) for v in nxt):
-            raise PhraseGraphError(f"{self.kind} {self.id!r}: next must be a list of vertex ids")
-        object.__setattr__(self, "next", nxt)
-
-    @property
-    def terminal(self) -> bool:
-        """True when nothing follows this vertex."""
-        return not self.next
-
-    @property
-    def is_pause(self) -> bool:
-        """True for a pause (silence of a chosen length)."""
-        return self.kind == "pause"
-
-
-def _bounds_problem(bounds: object) -> str:
-    """Why ``bounds`` are not a pause's ``[min, max]`` seconds ('' when they are)."""
-    if not isinstance(bounds, list | tuple) or len(bounds) != 2:
-        return f"'pause' must be [min, max] seconds of silence, got {bounds!r}"
-    lo, hi = bounds
-    if not (_is_number(lo) and _is_number(hi)):
-        return f"pause bounds must be numbers of seconds, got {list(bounds)!r}"
-    if lo < 0.0 or hi < 0.0:
-        return f"pause bounds must not be negative, got [{lo}, {hi}]"
-    if lo > hi:
-        return f"pause bounds are reversed: min {lo} > max {hi}"
-    if hi > _MAX_PAUSE:
-        return f"pause max must be at most {_MAX_PAUSE} s, got {hi}"
-    return ""
 
 
 class PhraseGraph:
@@ -267,63 +170,12 @@ class PhraseGraph:
     ) -> None:
         self.path: Path | None = None if path is None else Path(path)
         label = str(self.path) if self.path is not None else "<phrase graph>"
-        items = list(phrases.values()) if isinstance(phrases, Mapping) else list(phrases)
-        table: dict[str, Phrase] = {}
-        problems: list[str] = []
-        for ph in items:
-            if not isinstance(ph, Phrase):
-                raise PhraseGraphError(f"{label}: phrases must be Phrase objects, got {ph!r}")
-            if ph.id in table:
-                problems.append(f"{label}: {ph.kind} {ph.id!r}: defined twice")
-            table[ph.id] = ph
-        if isinstance(phrases, Mapping):
-            for key, ph in phrases.items():
-                if key != ph.id:
-                    problems.append(
-                        f"{label}: phrase {key!r}: stored under a different id {ph.id!r}"
-                    )
-        if not _is_number(pause) or not 0.0 <= float(pause) <= _MAX_PAUSE:
-            problems.append(
-                f"{label}: pause must be a number in [0, {_MAX_PAUSE}] s, got {pause!r}"
-            )
-        if voice not in VOICES:
-            problems.append(f"{label}: voice must be one of {list(VOICES)}, got {voice!r}")
-        problems += _structure_problems(label, table, start)
-        if not problems:
-            for pid, ph in table.items():
-                if ph.is_pause:
-                    continue
-                d = duration.get(pid)
-                if d is None:
-                    problems.append(f"{label}: {ph.kind} {pid!r}: no duration")
-                elif not _is_number(d) or not 0.0 < float(d) < math.inf:
-                    problems.append(
-                        f"{label}: {ph.kind} {pid!r}: duration must be > 0 s, got {d!r}"
-                    )
-                elif ph.kind == "filler" and float(d) > MAX_FILLER:
-                    problems.append(
-                        f"{label}: filler {pid!r}: its clip lasts {float(d):.2f} s; a filler is "
-                        f"at most {MAX_FILLER} s (make it a phrase)"
-                    )
+        table, found = vertex_table(label, phrases)
         reps = dict(repeats) if isinstance(repeats, Mapping) else {r.name: r for r in repeats}
-        if not all(isinstance(r, Repeat) for r in reps.values()):
-            problems.append(f"{label}: repeats must be Repeat objects, got {reps!r}")
-        elif not problems:
-            problems += [
-                f"{label}: {ph.kind} {pid!r}: ids may not contain {SEP!r} (LangCtrl names the "
-                "vertices it adds with it)"
-                for pid, ph in table.items()
-                if SEP in pid
-            ]
-            problems += repeat_problems(label, table, reps)
-        if not isinstance(final_wait, bool):
-            problems.append(f"{label}: final_wait must be true or false, got {final_wait!r}")
         legs = tuple(legs)
-        own_legs = dict(leg_of or {})
-        if not problems:
-            problems += leg_problems(label, table, legs, own_legs)
-        own_intents = dict(intents or {})
-        problems += _intent_problems(label, table, own_intents)
+        own_legs, own_intents = dict(leg_of or {}), dict(intents or {})
+        parts = GraphParts(pause, voice, reps, final_wait, legs, own_legs, own_intents)
+        problems = graph_problems(label, table, start, duration, parts, found)
         if problems:
             raise PhraseGraphError("\n".join(problems))
 
@@ -371,7 +223,7 @@ class PhraseGraph:
             return None
         rep_legs = {r.name: own[r.phrases[0]] for r in reps.values()}
         leg = unrolled_legs(table, own, rep_legs)
-        seg = segment_of(table, self.legs, leg, _topological_order(table))
+        seg = segment_of(table, self.legs, leg, topological_order(table))
         names = tuple(n for n in self.legs if any(leg[u] == n and not table[u].is_pause
                                                   for u in table))  # fmt: skip
         self.segment_names = names
@@ -384,7 +236,7 @@ class PhraseGraph:
 
     def _build_tables(self, table: Mapping[str, Phrase]) -> None:
         """The order, slots, ``t_min``/``t_max`` and the choice rule's mids of the vertices."""
-        self.order: tuple[str, ...] = _topological_order(table)
+        self.order: tuple[str, ...] = topological_order(table)
         """Vertex ids in topological order (every vertex before the vertices that follow it)."""
         self._children = {pid: ph.next for pid, ph in table.items()}
         self._plan: dict[str, tuple[float, float]] = {}
@@ -464,36 +316,9 @@ class PhraseGraph:
                 another, a filler clip longer than ``MAX_FILLER``, a missing or unreadable
                 audio file.
         """
-        path = Path(path)
-        try:
-            source = path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
-            reason = getattr(exc, "strerror", None) or exc
-            raise PhraseGraphError(f"{path}: cannot read phrase graph: {reason}") from None
-        import yaml
-
-        from langenv.validation import yaml_text
-
-        try:
-            data = yaml.safe_load(yaml_text(source, path))
-        except yaml.YAMLError as exc:
-            raise PhraseGraphError(f"{path}: invalid YAML: {exc}") from None
-        start, pause, voice, phrases = _parse(path, data)
-        assert isinstance(data, dict)
-        repeats, problems = parse_repeats(path, data.get("repeats"))
-        legs, leg_of = _parse_legs(path, data, problems)
-        intents = _parse_intents(path, data, problems)
-        final_wait = data.get("final_wait", False)
-        if not isinstance(final_wait, bool):
-            problems.append(f"{path}: 'final_wait' must be true or false, got {final_wait!r}")
-        if problems:
-            raise PhraseGraphError("\n".join(problems))
-        problems = _structure_problems(str(path), phrases, start)
-        if not problems:
-            problems = _unreachable_problems(str(path), phrases, start)
-        if problems:
-            raise PhraseGraphError("\n".join(problems))
-
+        found = read_graph_file(path)
+        path, phrases, parts = found.path, found.phrases, found.parts
+        problems: list[str] = []
         if clips is None:
             clips = ClipLibrary()
         durations: dict[str, float] = {}
@@ -511,16 +336,16 @@ class PhraseGraph:
             raise PhraseGraphError("\n".join(problems))
         return cls(
             phrases,
-            start,
+            found.start,
             durations,
-            pause=pause,
-            voice=voice,
+            pause=float(parts.pause),  # type: ignore[arg-type]
+            voice=str(parts.voice),
             path=path,
-            repeats=repeats,
-            final_wait=final_wait,
-            legs=legs,
-            leg_of=leg_of,
-            intents=intents,
+            repeats=parts.repeats,
+            final_wait=bool(parts.final_wait),
+            legs=parts.legs,
+            leg_of=parts.leg_of,
+            intents=parts.intents,
         )
 
     def with_voice(self, voice: str) -> PhraseGraph:
@@ -682,7 +507,13 @@ class PhraseGraph:
         kids = self.children(u)
         if not kids:
             raise PhraseGraphError(f"{self._label}: phrase {u!r} is terminal: nothing to choose")
-        return _nearest(kids, self._mid, t_x)
+        return nearest(kids, self._mid, t_x)
+
+    def nearest(self, kids: Sequence[str], x: float) -> str:
+        """The choice rule among ``kids`` (phrases of this graph, non-empty): the first whose
+        middle length ``(t_min + t_max)/2`` is nearest ``x`` (s) (:meth:`choose` with ``x``
+        for ``t_x``; :func:`langenv.speech.choice.nearest`)."""
+        return nearest(kids, self._mid, x)
 
     def eta(
         self,
@@ -723,7 +554,7 @@ class PhraseGraph:
                 break
             if j != cur:  # entering a segment: the motion's time to its end, less the speech so far
                 cur, left = j, hz[j] - total
-            v = _nearest(kids, mid, left)
+            v = nearest(kids, mid, left)
             length = slot[v] if lo[v] == hi[v] else self._fill(v, left)
             total += length
             left -= length
@@ -775,7 +606,7 @@ class PhraseGraph:
         rest = 0.0
         kids = children[v]
         while kids:
-            w = _nearest(kids, mid, y)
+            w = nearest(kids, mid, y)
             rest += slot[w]
             y -= slot[w]
             kids = children[w]
@@ -910,348 +741,3 @@ class PhraseGraph:
             best = pick(table[v] for v in kids)
             path.append(next(v for v in kids if table[v] == best))
         return tuple(path)
-
-
-def _nearest(kids: tuple[str, ...], mid: Mapping[str, float], x: float) -> str:
-    """The paper's choice: the first of ``kids`` (non-empty) whose ``mid`` is nearest ``x``
-    (mirrored, comparison for comparison, by :func:`langenv.speech.graph_kernels.nearest`)."""
-    best = kids[0]
-    best_err = abs(x - mid[best])
-    for v in kids[1:]:
-        err = abs(x - mid[v])
-        if err < best_err:
-            best, best_err = v, err
-    return best
-
-
-def _is_number(x: object) -> bool:
-    return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
-
-
-def _parse(path: Path, data: object) -> tuple[str, float, str, dict[str, Phrase]]:
-    """Check the YAML document's shape; build the phrases (all problems at once)."""
-    if not isinstance(data, dict):
-        kind = "empty" if data is None else f"a {type(data).__name__}"
-        raise PhraseGraphError(
-            f"{path}: a phrase graph must be a mapping with 'start' and "
-            f"'phrases', the file is {kind}"
-        )
-    problems: list[str] = []
-    unknown = sorted(str(k) for k in data if k not in _TOP_KEYS)
-    if unknown:
-        problems.append(f"{path}: unknown key(s) {unknown}; allowed: {sorted(_TOP_KEYS)}")
-    start = data.get("start")
-    if not isinstance(start, str) or not start:
-        problems.append(f"{path}: 'start' must be a phrase id, got {start!r}")
-    pause = data.get("pause", DEFAULT_PAUSE)
-    if not _is_number(pause) or not 0.0 <= float(pause) <= _MAX_PAUSE:
-        problems.append(
-            f"{path}: 'pause' must be a number of seconds in [0, {_MAX_PAUSE}], got {pause!r}"
-        )
-    voice = data.get("voice", "stretch")
-    if voice not in VOICES:
-        problems.append(f"{path}: 'voice' must be one of {list(VOICES)}, got {voice!r}")
-    raw = data.get("phrases")
-    phrases: dict[str, Phrase] = {}
-    if not isinstance(raw, dict) or not raw:
-        problems.append(f"{path}: 'phrases' must be a non-empty mapping of phrase id -> phrase")
-        raw = {}
-    for pid, spec in raw.items():
-        if not isinstance(pid, str) or not pid:
-            problems.append(f"{path}: phrase id {pid!r} must be a non-empty string (quote it)")
-            continue
-        ph, found = _parse_vertex(path, pid, spec)
-        problems += found
-        if ph is not None:
-            phrases[pid] = ph
-    if problems:
-        raise PhraseGraphError("\n".join(problems))
-    assert isinstance(start, str)
-    return start, float(pause), str(voice), phrases
-
-
-def _parse_legs(
-    path: Path, data: dict[str, Any], problems: list[str]
-) -> tuple[tuple[str, ...], dict[str, str]]:
-    """The file's ``legs`` and each vertex's ``leg`` (problems appended, naming the file)."""
-    raw = data.get("legs", [])
-    if not isinstance(raw, list) or not all(isinstance(x, str) and x for x in raw):
-        problems.append(f"{path}: 'legs' must be a list of leg names, got {raw!r}")
-        raw = []
-    leg_of: dict[str, str] = {}
-    for pid, spec in (data.get("phrases") or {}).items():
-        if isinstance(spec, dict) and "leg" in spec:
-            leg = spec["leg"]
-            if not isinstance(leg, str) or not leg:
-                problems.append(f"{path}: vertex {pid!r}: 'leg' must be a leg name, got {leg!r}")
-                continue
-            leg_of[str(pid)] = leg
-    return tuple(raw), leg_of
-
-
-def _parse_intents(path: Path, data: dict[str, Any], problems: list[str]) -> dict[str, str]:
-    """Each vertex's ``intent`` (problems appended, naming the file and the vertex)."""
-    intents: dict[str, str] = {}
-    for pid, spec in (data.get("phrases") or {}).items():
-        if isinstance(spec, dict) and "intent" in spec:
-            found = intent_problem(spec["intent"])
-            if found:
-                problems.append(f"{path}: vertex {pid!r}: {found}")
-                continue
-            intents[str(pid)] = spec["intent"]
-    return intents
-
-
-def _intent_problems(
-    label: str, table: Mapping[str, Phrase], intents: Mapping[str, str]
-) -> list[str]:
-    """An intent on a vertex the graph lacks, on a filler or pause, or not in the vocabulary."""
-    problems = []
-    for pid, name in intents.items():
-        ph = table.get(pid)
-        if ph is None:
-            problems.append(f"{label}: intent of {pid!r}: the graph has no such vertex")
-        elif ph.kind != "phrase":
-            problems.append(
-                f"{label}: {ph.kind} {pid!r}: only a phrase carries an intent, got {name!r}"
-            )
-        elif intent_problem(name):
-            problems.append(f"{label}: phrase {pid!r}: {intent_problem(name)}")
-    return problems
-
-
-def _parse_vertex(path: Path, pid: str, spec: object) -> tuple[Phrase | None, list[str]]:
-    """One vertex of the YAML (phrase, filler or pause) and the problems found in it."""
-    if not isinstance(spec, dict):
-        return None, [
-            f"{path}: phrase {pid!r}: must be a mapping with 'text' and/or 'audio' (or 'pause') "
-            "and 'next'"
-        ]
-    is_pause = "pause" in spec
-    filler = spec.get("filler", False)
-    kind = "pause" if is_pause else ("filler" if filler is True else "phrase")
-    where = f"{path}: {kind} {pid!r}"
-    problems: list[str] = []
-    bad = sorted(str(k) for k in spec if k not in _PHRASE_KEYS)
-    if bad:
-        problems.append(f"{where}: unknown key(s) {bad}; allowed: {sorted(_PHRASE_KEYS)}")
-    if not isinstance(filler, bool):
-        problems.append(f"{where}: 'filler' must be true or false, got {filler!r}")
-    text = spec.get("text")
-    audio = spec.get("audio")
-    bounds = None
-    if is_pause:
-        for key in ("text", "audio", "filler"):
-            if key in spec:
-                problems.append(f"{where}: a pause is silence: it has no {key!r}")
-        found = _bounds_problem(spec["pause"])
-        if found:
-            problems.append(f"{where}: {found}")
-        else:
-            bounds = (float(spec["pause"][0]), float(spec["pause"][1]))
-    else:
-        if text is not None and (not isinstance(text, str) or not text.strip()):
-            problems.append(f"{where}: 'text' must be a non-empty string, got {text!r}")
-        if audio is not None and (not isinstance(audio, str) or not audio.strip()):
-            problems.append(f"{where}: 'audio' must be a file path, got {audio!r}")
-        if text is None and audio is None:
-            problems.append(
-                f"{where}: no audio: give 'text' (spoken by TTS) or 'audio'"
-                if kind == "filler"
-                else f"{where}: has neither 'text' nor 'audio'"
-            )
-    if "next" not in spec:
-        problems.append(f"{where}: missing 'next' (write next: [] for a final phrase)")
-    nxt = spec.get("next")
-    nxt = [] if nxt is None else [nxt] if isinstance(nxt, str) else nxt
-    if not isinstance(nxt, list) or not all(isinstance(v, str) and v for v in nxt):
-        problems.append(f"{where}: 'next' must be a list of phrase ids, got {spec.get('next')!r}")
-    if problems:
-        return None, problems
-    audio_path = None if audio is None else (path.parent / Path(audio).expanduser())
-    return (
-        Phrase(
-            id=pid,
-            text=None if is_pause else text,
-            audio=None if is_pause else audio_path,
-            next=tuple(nxt),
-            kind=kind,
-            bounds=bounds,
-        ),
-        [],
-    )
-
-
-def _structure_problems(label: str, phrases: Mapping[str, Phrase], start: object) -> list[str]:
-    """Unknown ids, duplicate edges, cycles, dead ends and misplaced pauses, one message per
-    problem."""
-    problems: list[str] = []
-    if not phrases:
-        return [f"{label}: the graph has no phrases"]
-    if not isinstance(start, str) or start not in phrases:
-        problems.append(f"{label}: start phrase {start!r} is not a phrase of this graph")
-    for pid, ph in phrases.items():
-        seen: set[str] = set()
-        for v in ph.next:
-            if v not in phrases:
-                problems.append(
-                    f"{label}: phrase {pid!r}: next {v!r} is not a phrase of this graph"
-                )
-            if v in seen:
-                problems.append(f"{label}: phrase {pid!r}: next lists {v!r} twice")
-            seen.add(v)
-    if problems:
-        return problems
-    # cycles: strongly connected components with more than one phrase, or a self-loop
-    for comp in _strongly_connected(phrases):
-        if len(comp) > 1 or comp[0] in phrases[comp[0]].next:
-            cycle = _a_cycle(phrases, set(comp))
-            problems.append(
-                f"{label}: {phrases[cycle[0]].kind} {cycle[0]!r}: on a cycle "
-                f"{' -> '.join(repr(c) for c in cycle)}"
-                + (
-                    f" (phrases on cycles here: {sorted(comp)})"
-                    if len(comp) > len(cycle) - 1
-                    else ""
-                )
-            )
-    # dead ends: phrases from which no terminal can be reached
-    parents: dict[str, list[str]] = {pid: [] for pid in phrases}
-    for pid, ph in phrases.items():
-        for v in ph.next:
-            parents[v].append(pid)
-    alive = {pid for pid, ph in phrases.items() if not ph.next}
-    stack = list(alive)
-    while stack:
-        for w in parents[stack.pop()]:
-            if w not in alive:
-                alive.add(w)
-                stack.append(w)
-    for pid in phrases:
-        if pid not in alive:
-            problems.append(
-                f"{label}: {phrases[pid].kind} {pid!r}: dead end, no final phrase can be reached"
-            )
-    assert isinstance(start, str)
-    problems += _pause_problems(label, phrases, start)
-    return problems
-
-
-def _unreachable_problems(label: str, phrases: Mapping[str, Phrase], start: str) -> list[str]:
-    """Vertices that no speech from ``start`` says (an error in a graph file)."""
-    problems: list[str] = []
-    seen = {start}
-    stack = [start]
-    while stack:
-        for v in phrases[stack.pop()].next:
-            if v not in seen:
-                seen.add(v)
-                stack.append(v)
-    for pid, ph in phrases.items():
-        if pid not in seen:
-            problems.append(
-                f"{label}: {ph.kind} {pid!r}: unreachable, no speech from {start!r} says it"
-            )
-    return problems
-
-
-def _pause_problems(label: str, phrases: Mapping[str, Phrase], start: str) -> list[str]:
-    """Pauses where silence cannot be: at the start, at the end, right after another pause."""
-    problems: list[str] = []
-    for pid, ph in phrases.items():
-        if not ph.is_pause:
-            continue
-        if pid == start:
-            problems.append(f"{label}: pause {pid!r}: the speech cannot start with a pause")
-        if not ph.next:
-            problems.append(
-                f"{label}: pause {pid!r}: the speech cannot end with a pause (it ends with its "
-                "last word)"
-            )
-        for v in ph.next:
-            if phrases[v].is_pause:
-                problems.append(
-                    f"{label}: pause {v!r}: follows pause {pid!r}; merge the two into one"
-                )
-    return problems
-
-
-def _strongly_connected(phrases: Mapping[str, Phrase]) -> list[list[str]]:
-    """Tarjan's algorithm, iterative (graphs can be deep)."""
-    index: dict[str, int] = {}
-    low: dict[str, int] = {}
-    on_stack: set[str] = set()
-    stack: list[str] = []
-    comps: list[list[str]] = []
-    counter = 0
-    for root in phrases:
-        if root in index:
-            continue
-        work: list[tuple[str, int]] = [(root, 0)]
-        while work:
-            v, i = work.pop()
-            if i == 0:
-                index[v] = low[v] = counter
-                counter += 1
-                stack.append(v)
-                on_stack.add(v)
-            kids = phrases[v].next
-            recurse = False
-            while i < len(kids):
-                w = kids[i]
-                i += 1
-                if w not in index:
-                    work.append((v, i))
-                    work.append((w, 0))
-                    recurse = True
-                    break
-                if w in on_stack:
-                    low[v] = min(low[v], index[w])
-            if recurse:
-                continue
-            if low[v] == index[v]:
-                comp = []
-                while True:
-                    w = stack.pop()
-                    on_stack.discard(w)
-                    comp.append(w)
-                    if w == v:
-                        break
-                comps.append(comp)
-            if work:
-                parent = work[-1][0]
-                low[parent] = min(low[parent], low[v])
-    return comps
-
-
-def _a_cycle(phrases: Mapping[str, Phrase], comp: set[str]) -> list[str]:
-    """One concrete cycle inside a strongly connected component, first phrase repeated last."""
-    u = min(comp)
-    walk = [u]
-    pos = {u: 0}
-    while True:
-        v = next(w for w in phrases[walk[-1]].next if w in comp)
-        if v in pos:
-            return [*walk[pos[v] :], v]
-        pos[v] = len(walk)
-        walk.append(v)
-
-
-def _topological_order(phrases: Mapping[str, Phrase]) -> tuple[str, ...]:
-    """Kahn's algorithm (the graph is known to be acyclic), stable in definition order."""
-    indeg = dict.fromkeys(phrases, 0)
-    for ph in phrases.values():
-        for v in ph.next:
-            indeg[v] += 1
-    ready = [pid for pid in phrases if indeg[pid] == 0]
-    order: list[str] = []
-    i = 0
-    while i < len(ready):
-        u = ready[i]
-        i += 1
-        order.append(u)
-        for v in phrases[u].next:
-            indeg[v] -= 1
-            if indeg[v] == 0:
-                ready.append(v)
-    return tuple(order)

@@ -1,7 +1,8 @@
-"""The phrase graph's rules compiled (:class:`~langenv.speech.graph.PhraseGraph`): the paper's
-choice (``_nearest``), the pause rule (:meth:`~langenv.speech.graph.PhraseGraph.pause_length`)
-and the speech ETC ``t_a`` (:meth:`~langenv.speech.graph.PhraseGraph.eta`), each planned to
-the end of a segment (:mod:`langenv.speech.legs`).
+"""The phrase graph's rules compiled (:class:`~langenv.speech.graph.PhraseGraph`), choosing
+with the paper's rule (:func:`langenv.speech.choice_kernels.nearest`): the pause rule
+(:meth:`~langenv.speech.graph.PhraseGraph.pause_length`) and the speech ETC ``t_a``
+(:meth:`~langenv.speech.graph.PhraseGraph.eta`), each planned to the end of a segment
+(:mod:`langenv.speech.legs`).
 
 The graph as arrays (:meth:`PhraseGraph.packed <langenv.speech.graph.PhraseGraph.packed>`):
 ``mid`` (n: each vertex's ``(t_min + t_max) / 2``), ``slot`` (n, 3: the nominal slot, its
@@ -15,24 +16,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from langenv.kernels import inline, kernel
+from langenv.kernels import kernel
+from langenv.speech.choice_kernels import nearest
 from langenv.speech.legs_kernels import gate, horizon, segment
 
-__all__ = ["eta", "fill", "nearest"]
-
-
-@inline
-def nearest(lo: int, hi: int, kids: np.ndarray, mid: np.ndarray, x: float) -> int:
-    """The paper's choice among ``kids[lo:hi]`` (non-empty): the first whose ``mid`` is nearest
-    ``x`` (``langenv.speech.graph._nearest``, comparison for comparison)."""
-    best = kids[lo]
-    best_err = abs(x - mid[best])
-    for j in range(lo + 1, hi):
-        v = kids[j]
-        err = abs(x - mid[v])
-        if err < best_err:
-            best, best_err = v, err
-    return int(best)
+__all__ = ["eta", "fill"]
 
 
 @kernel

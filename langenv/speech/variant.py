@@ -4,7 +4,7 @@ A learned aligner trained on one script learns that script's lengths. :func:`var
 variant of a graph from a seeded generator, for training across worlds:
 
 * **TTS rate**: every clip lasts ``1 / rate`` of its length, ``rate`` uniform in ``tts_rate``
-  (a faster or slower voice; fillers stay within :data:`~langenv.speech.graph.MAX_FILLER`);
+  (a faster or slower voice; fillers stay within :data:`~langenv.speech.phrase.MAX_FILLER`);
 * **pauses**: every pause vertex's bounds and the silence after each clip are scaled by one
   factor uniform in ``pause_scale`` (capped at 10 s, the graphs' limit);
 * **wordings dropped**: each alternative of a choice (a child of a vertex with two or more) is
@@ -28,7 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from langenv.errors import ConfigError, PhraseGraphError
-from langenv.speech.graph import _MAX_PAUSE, MAX_FILLER, Phrase, PhraseGraph
+from langenv.speech.graph import PhraseGraph
+from langenv.speech.phrase import MAX_FILLER, MAX_PAUSE, Phrase
 from langenv.speech.repeat import Repeat
 from langenv.validation import dataclass_from_dict
 
@@ -118,7 +119,7 @@ def vary_graph(
 def _scaled(bounds: tuple[float, float], scale: float) -> tuple[float, float]:
     """A pause's (or gap's) bounds times ``scale``, both at most the longest pause."""
     lo, hi = bounds
-    return min(lo * scale, _MAX_PAUSE), min(hi * scale, _MAX_PAUSE)
+    return min(lo * scale, MAX_PAUSE), min(hi * scale, MAX_PAUSE)
 
 
 def _variant(
@@ -170,7 +171,7 @@ def _variant(
         final,
         graph.start,
         {u: d for u, d in durations.items() if u in live},
-        pause=min(graph.pause * scale, _MAX_PAUSE),
+        pause=min(graph.pause * scale, MAX_PAUSE),
         voice=graph.voice,
         repeats=repeats,
         final_wait=graph.final_wait,

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from langenv.errors import ConfigError
-from langenv.users.base import against_motion, sample_table, sample_table_array
+from langenv.users.base import against_motion, float_view, sample_table, sample_table_array
 from langenv.users.synthetic import SyntheticUser, SyntheticUserParams
 from langenv.validation import dataclass_from_dict
 
@@ -188,7 +188,7 @@ class PerturbedUser(SyntheticUser):
         applied = np.clip(applied, -cap, cap)
         applied.setflags(write=False)
         self.f_applied = applied
-        self._table = applied.tolist()
+        self._table = float_view(applied)
 
     def magnitude(self, t: float) -> float:
         """Force (N) against the motion at ``t`` (s); negative: along it."""

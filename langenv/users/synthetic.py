@@ -41,6 +41,7 @@ from langenv.errors import ConfigError
 from langenv.users.base import (
     DEFAULT_DEADBAND,
     against_motion,
+    float_view,
     sample_table,
     sample_table_array,
 )
@@ -230,6 +231,8 @@ class SyntheticUserParams:
         unknown = sorted(set(overrides) - names)
         if unknown:
             raise ConfigError(f"SyntheticUserParams has no field(s) {', '.join(unknown)}")
+        if not overrides:  # frozen: every person of the calibrated population shares it
+            return _calibrated()
         return dataclasses.replace(_calibrated(), **overrides)  # type: ignore[arg-type]
 
     def to_dict(self) -> dict[str, object]:
@@ -357,11 +360,23 @@ class SyntheticUser:
         self.episodes: tuple[Episode, ...] = ()
         self.level = 1.0
         n = math.floor(params.horizon / params.resolution + 1e-9) + 1
-        self.grid = np.arange(n, dtype=np.float64) * params.resolution
-        """Tabulation times (m,), s."""
-        self.f_applied = np.zeros(n)
-        """Force magnitude the person applies (m,), N, at :attr:`grid` (after :meth:`reset`)."""
-        self._table: list[float] = self.f_applied.tolist()
+        self.grid, self.f_applied = _grid(n, params.resolution)
+        """:attr:`grid`: tabulation times (m,), s; :attr:`f_applied`: force magnitude the person
+        applies (m,), N, at :attr:`grid` (zeros until :meth:`reset`). Read-only: the grid and
+        the zeros are shared by every person of the same grid."""
+        self._table = float_view(self.f_applied)
+
+    def __getstate__(self) -> dict[str, object]:
+        """Pickled without :attr:`_table` (a view of :attr:`f_applied`)."""
+        state = dict(self.__dict__)
+        del state["_table"]
+        return state
+
+    def __setstate__(self, state: dict[str, object]) -> None:
+        self.__dict__.update(state)
+        self.grid.setflags(write=False)  # unpickled arrays are writeable copies
+        self.f_applied.setflags(write=False)
+        self._table = float_view(self.f_applied)
 
     def _draw_episodes(self, rng: np.random.Generator) -> tuple[Episode, ...]:
         p = self.params
@@ -443,7 +458,7 @@ class SyntheticUser:
         applied[on] = np.minimum(envelope[on] * factor, p.max_excess) + p.deadband
         applied.setflags(write=False)
         self.f_applied = applied
-        self._table = applied.tolist()
+        self._table = float_view(applied)
 
     def _ou_noise(self, rng: np.random.Generator, n: int) -> np.ndarray:
         """Unit-variance Ornstein–Uhlenbeck samples (n,) at :attr:`grid` (exact discretisation)."""
@@ -471,6 +486,17 @@ class SyntheticUser:
 
     def __repr__(self) -> str:
         return f"SyntheticUser({len(self.episodes)} episodes)"
+
+
+@lru_cache(maxsize=8)
+def _grid(n: int, resolution: float) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` tabulation times every ``resolution`` s and ``n`` zeros, read-only: one pair per
+    process for every person of that grid."""
+    grid = np.arange(n, dtype=np.float64) * resolution
+    zeros = np.zeros(n)
+    grid.setflags(write=False)
+    zeros.setflags(write=False)
+    return grid, zeros
 
 
 def ar1_filter(x: np.ndarray, a: float) -> np.ndarray:

@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from langenv.control.path_kernels import frame, locate
+from langenv.control.trajectory_kernels import frame, locate
 from langenv.kernels import kernel
 from langenv.layout import Field, Layout
 
