@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 
 from langenv.errors import ConfigError
-from langenv.speech.choice import choice_action, duration_factor
+from langenv.speech.choice import choice_action, duration_factor, nearest
 from langenv.task import observation as ob
 from langenv.task.observation import Obs
 
@@ -283,5 +283,7 @@ def coach_choice(
 
 
 def _chosen(mids: list[float], target: float) -> int:
-    """The child the env says for a target duration: the nearest middle, the first on a tie."""
-    return min(range(len(mids)), key=lambda k: (abs(target - mids[k]), k))
+    """The child the env says for a target duration (:func:`langenv.speech.choice.nearest`:
+    the nearest middle, the first on a tie), by its index."""
+    keys = [str(k) for k in range(len(mids))]
+    return int(nearest(keys, dict(zip(keys, mids, strict=True)), target))
