@@ -154,6 +154,9 @@ class EpisodeLog:
         leg_names: The names of the motion's legs, in order (the exercise's); empty when unknown.
         spoken_legs: The legs the phrase graph has words for (a phrase vertex marked with the
             leg), in script order; empty for an unmarked graph.
+        path_deviation: The hand's distance from its closest point on the exercise's path at
+            each sample (``info["path_deviation"]``, m), shape ``(n,)``, float64, ``>= 0``; None
+            when not recorded (logs of langctrl 0.6 and before).
 
     Raises:
         ConfigError: (a ``ValueError``) naming the field, if a trace has the wrong shape, differing
@@ -185,6 +188,7 @@ class EpisodeLog:
     leg: np.ndarray | None = None
     leg_names: tuple[str, ...] = ()
     spoken_legs: tuple[str, ...] = ()
+    path_deviation: np.ndarray | None = None
 
     _scalars: ClassVar[tuple[str, ...]] = ("t_motion", "t_speech", "ret")
 
@@ -197,6 +201,7 @@ class EpisodeLog:
         self._check_flag_traces(n)
         self._check_scene_traces(n)
         self._check_legs(n)
+        self._check_deviation(n)
         if not isinstance(self.phrase_graph, str):
             raise ConfigError(
                 f"EpisodeLog.phrase_graph must be a str, got {type(self.phrase_graph).__name__}"
@@ -320,6 +325,20 @@ class EpisodeLog:
         arr.setflags(write=False)
         object.__setattr__(self, "leg", arr)
 
+    def _check_deviation(self, n: int) -> None:
+        if self.path_deviation is None:
+            return
+        try:
+            arr = np.array(self.path_deviation, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ConfigError("EpisodeLog.path_deviation must be numeric") from None
+        if arr.shape != (n,):
+            raise ConfigError(f"EpisodeLog.path_deviation must have shape ({n},), got {arr.shape}")
+        if not (np.all(np.isfinite(arr)) and np.all(arr >= 0.0)):
+            raise ConfigError("EpisodeLog.path_deviation must be finite and >= 0 m")
+        arr.setflags(write=False)
+        object.__setattr__(self, "path_deviation", arr)
+
     @property
     def has_scene(self) -> bool:
         """Whether the log holds the joint positions and forces that replay the scene."""
@@ -368,7 +387,7 @@ class EpisodeLog:
             payload[name] = getattr(self, name)
         payload["phrase_graph"] = np.array(self.phrase_graph)
         payload["voice"] = np.array(self.voice)
-        for name in (*SCENE_TRACES, "path", "leg"):
+        for name in (*SCENE_TRACES, "path", "leg", "path_deviation"):
             if getattr(self, name) is not None:
                 payload[name] = getattr(self, name)
         fd, tmp = temp_file(path.parent, prefix=f".{path.name}.", suffix=".tmp")
@@ -445,6 +464,9 @@ class EpisodeLog:
                     phrase_graph=graph,
                     voice=voice,
                     leg=data["leg"] if "leg" in data.files else None,
+                    path_deviation=(
+                        data["path_deviation"] if "path_deviation" in data.files else None
+                    ),
                     leg_names=leg_names,
                     spoken_legs=spoken,
                 )
@@ -474,8 +496,8 @@ class EpisodeRecorder:
     Feed it the env's ``info`` dict after ``reset`` and after every ``step`` (keys ``time`` or
     ``t``, ``cooperation``, ``hand_speed``, ``p``, ``a``, ``t_x``, ``t_a``, ``em``,
     ``motion_done``, ``speech_done``, optionally ``phrase``, ``in_pause``, ``t_motion``,
-    ``t_speech``, and the motion's ``leg`` and the scene keys ``qpos`` and ``f_user``, in every
-    sample or in none).
+    ``t_speech``, and the motion's ``leg``, the hand's ``path_deviation`` and the scene keys
+    ``qpos`` and ``f_user``, in every sample or in none).
     Unless :meth:`build` is given the exact utterances (preferred: the speech
     timeline's ``utterances()``), they are read off the ``phrase`` key: each run of consecutive
     samples with the same non-empty phrase id, not ``in_pause``, is one utterance, from the time of
@@ -493,6 +515,7 @@ class EpisodeRecorder:
     _phrases: list[str | None] = field(default_factory=list, init=False, repr=False)
     _scene: dict[str, list[np.ndarray]] = field(default_factory=dict, init=False, repr=False)
     _legs: list[int] = field(default_factory=list, init=False, repr=False)
+    _deviation: list[float] = field(default_factory=list, init=False, repr=False)
     _last: dict[str, Any] = field(default_factory=dict, init=False, repr=False)
 
     def append(self, info: Mapping[str, Any]) -> None:
@@ -512,6 +535,8 @@ class EpisodeRecorder:
                 self._scene.setdefault(name, []).append(np.array(info[name], np.float32))
         if "leg" in info:
             self._legs.append(int(info["leg"]))
+        if "path_deviation" in info:
+            self._deviation.append(float(info["path_deviation"]))
         phrase = None if info.get("in_pause") else info.get("phrase")
         self._phrases.append(str(phrase) if phrase else None)
         self._last = dict(info)
@@ -547,6 +572,8 @@ class EpisodeRecorder:
             self._scene.setdefault(name, []).extend(rows)
         if "leg" in info:
             self._legs.extend(np.asarray(info["leg"]).astype(np.int64).tolist())
+        if "path_deviation" in info:
+            self._deviation.extend(np.asarray(info["path_deviation"], np.float64).tolist())
         said = None if in_pause else phrase
         self._phrases.extend([str(said) if said else None] * n)
         self._last.update((key, float(c[-1])) for key, c in zip(keys, columns, strict=True))
@@ -617,11 +644,12 @@ class EpisodeRecorder:
             said = self._phrase_runs(t, texts)
         if leg_of:
             said = [replace(u, leg=leg_of.get(u.phrase) or "") for u in said]
-        if self._legs and len(self._legs) != len(self):
-            raise ConfigError(
-                f"EpisodeRecorder.build: info had key 'leg' in {len(self._legs)} of "
-                f"{len(self)} samples (give it in every sample or in none)"
-            )
+        for key, values in (("leg", self._legs), ("path_deviation", self._deviation)):
+            if values and len(values) != len(self):
+                raise ConfigError(
+                    f"EpisodeRecorder.build: info had key {key!r} in {len(values)} of "
+                    f"{len(self)} samples (give it in every sample or in none)"
+                )
 
         def end_time(given: float | None, key: str, flag: str) -> float:
             if given is not None:
@@ -660,6 +688,7 @@ class EpisodeRecorder:
             leg=np.array(self._legs, np.int64) if self._legs else None,
             leg_names=tuple(leg_names),
             spoken_legs=tuple(spoken_legs),
+            path_deviation=np.array(self._deviation) if self._deviation else None,
         )
 
     def _phrase_runs(self, t: np.ndarray, texts: Mapping[str, str]) -> list[Utterance]:

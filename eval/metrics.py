@@ -39,6 +39,12 @@ column             window       definition
                                 graph
 ``legs_in_step``   --           share (0-1) of those legs whose words start within 1 s of the leg
                                 (words never said: not in step); NaN for an unmarked graph
+``path_error``     ``motion``   mean path error (m): the hand's distance from its closest point
+                                on the exercise's path (``info["path_deviation"]``, what the
+                                safety monitor watches); NaN when the log lacks the trace
+``effort``         ``motion``   the person's effort (N): mean ``|F|`` of the force the person
+                                applies to the handle (the log's ``f_user``), Tejwani et al.'s
+                                (2026) push force; NaN when the log lacks the force
 =================  ===========  ===========================================================
 
 Cooperation is averaged over the motion only because after the motion ends the hand rests and
@@ -134,6 +140,10 @@ METRICS: dict[str, MetricSpec] = {
     "legs_in_step": MetricSpec(
         "legs in step", "%", 1, "share of legs whose words start within 1 s of the leg", False
     ),
+    "path_error": MetricSpec(
+        "path error", "m", 4, "mean distance of the hand from the path while moving", True
+    ),
+    "effort": MetricSpec("effort", "N", 2, "mean |force| the person applies while moving", True),
 }
 """Specification of every numeric metric, in column order."""
 
@@ -144,10 +154,20 @@ METRIC_COLUMNS: tuple[str, ...] = ("policy", "user", *NUMERIC_METRICS)
 """All columns of a session row (``sessions.csv``), in order."""
 
 OPTIONAL_METRICS: frozenset[str] = frozenset(
-    {"pause_share", "filler_share", "voice_natural", "content_share", "sm_max_abs", "legs_in_step"}
+    {
+        "pause_share",
+        "filler_share",
+        "voice_natural",
+        "content_share",
+        "sm_max_abs",
+        "legs_in_step",
+        "path_error",
+        "effort",
+    }
 )
 """Metrics that tables of older runs lack (langctrl 0.4 and before; ``voice_natural`` and
-``content_share``: 0.5; ``sm_max_abs`` and ``legs_in_step``: after 0.5.0): read as NaN."""
+``content_share``: 0.5; ``sm_max_abs`` and ``legs_in_step``: after 0.5.0; ``path_error`` and
+``effort``: after 0.6): read as NaN."""
 
 
 def time_weights(t: np.ndarray) -> np.ndarray:
@@ -361,6 +381,16 @@ def episode_metrics(log: EpisodeLog) -> dict[str, float | str]:
         "return": log.ret,
         "content_share": _content_share(log, waiting),
         **leg_metrics(log),
+        "path_error": (
+            time_mean(log.path_deviation, t, motion)
+            if log.path_deviation is not None
+            else float("nan")
+        ),
+        "effort": (
+            time_mean(np.linalg.norm(log.f_user, axis=1), t, motion)
+            if log.f_user is not None
+            else float("nan")
+        ),
     }
     return row
 

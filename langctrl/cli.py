@@ -56,6 +56,9 @@ COMMANDS: MappingProxyType[str, Command] = MappingProxyType(
         "fidelity": Command(
             "langctrl.jobs.fidelity", "the simulation against the recorded sessions"
         ),
+        "coach-grid": Command(
+            "langctrl.jobs.coach_grid", "coaches across a listening person's assumptions"
+        ),
         "train": Command("langctrl.jobs.train", "train the learned aligner (SB3 PPO)"),
         "sweep": Command(
             "langctrl.jobs.sweep", "run a sweep of sessions from a YAML file, resumably"

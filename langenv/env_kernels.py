@@ -92,7 +92,7 @@ LAW = Layout(
 
 ROW_FIELDS = (
     "time", "cooperation", "hand_speed", "p", "a", "t_x", "t_a", "em", "motion_done",
-    "speech_done", "leg",
+    "speech_done", "leg", "path_deviation",
 )  # fmt: skip
 """The info values :func:`run_law` records after each step, in its rows' first columns (then the
 joint positions and the person's force)."""
@@ -267,6 +267,7 @@ def run_law(
         row[8] = 0.0 if math.isnan(ws[_T.t_end]) else 1.0
         row[9] = 1.0 if es[_E.phrase] < 0.0 else 0.0
         row[10] = ws[_T.leg]
+        row[11] = ws[_T.path_deviation]
         for j in range(n_q):
             row[_N_ROW + j] = qpos[j]
         for j in range(3):

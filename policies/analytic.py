@@ -10,7 +10,8 @@ Variants (not in the paper): ``lc-em`` (misalignment feedback on ``p``), ``lc-en
 phase), ``lc-em-end`` (both: the base of the learned aligner up to issue 27) and ``lc-fill``,
 whose phrase choice aims at *content*: the longest wording that still lets the speech end with
 the motion (:func:`fill_choice`), instead of the paper's middle of the range; ``lc-fill-end`` is
-``lc-fill`` with ``lc-end``'s terminal phase.
+``lc-fill`` with ``lc-end``'s terminal phase; ``lc-coach`` (:mod:`policies.coach`) is
+``lc-fill-end`` choosing among the wordings that fit by what they ask of a person who listens.
 """
 
 from __future__ import annotations
@@ -36,6 +37,14 @@ from langenv.exercise.spec import GRAPH_ROLES
 from langenv.speech.choice import choice_action
 from langenv.task import observation as ob
 from langenv.task.observation import Obs
+from policies.coach import (
+    COACH_RULE,
+    ChildIntents,
+    CoachRule,
+    PersonPace,
+    coach_choice,
+    load_intents,
+)
 
 __all__ = [
     "ANALYTIC",
@@ -170,6 +179,14 @@ class LanguageController:
             pause vertex with a choice after it (> 0; 1: the rule's own). Below 1 the pauses
             are shortened towards their minimum so that words fill the time instead; the wait
             before the last phrase (one child) is left to the rule. Not 1: no ``pace_law()``.
+        intents: Whether the content rule's choice moves to the child that asks what ``rule``
+            wants (``lc-coach``, :mod:`policies.coach`; with ``"fill"`` only). The policy then
+            reads the graph it speaks (:meth:`use_graph`) and keeps the person's pace.
+        rule: The therapist's rule (used with ``intents``).
+
+    Attributes:
+        said: With ``intents``: ``(time, intent wanted, intent said)`` of each choice since the
+            reset (said None: the child asks nothing).
     """
 
     name: str = "lc"
@@ -186,6 +203,11 @@ class LanguageController:
     fill_margin: float = 1.0
     fill_anticipate: float = 0.0
     pause_scale: float = 1.0
+    intents: bool = False
+    rule: CoachRule = field(default_factory=CoachRule)
+    said: list[tuple[float, str, str | None]] = field(default_factory=list, init=False)
+    _reader: ChildIntents | None = field(default=None, init=False, repr=False)
+    _person: PersonPace | None = field(default=None, init=False, repr=False)
     _last: tuple[float, float] | None = field(default=None, init=False, repr=False)
     _rate: float = field(default=1.0, init=False, repr=False)
     _t_x0: float | None = field(default=None, init=False, repr=False)
@@ -222,6 +244,12 @@ class LanguageController:
             raise ConfigError(
                 f"LanguageController.fill_margin must be finite, got {self.fill_margin!r}"
             )
+        if self.intents and self.choice != "fill":
+            raise ConfigError("LanguageController.intents needs choice='fill' (the content rule)")
+        if not isinstance(self.rule, CoachRule):
+            raise ConfigError(f"LanguageController.rule must be a CoachRule, got {self.rule!r}")
+        if self.intents:
+            self._person = PersonPace(self.rule.pace_tau, NEW_HORIZON)
 
     def reset(self) -> None:
         """Forget the motion-rate estimate (used only by the terminal phase)."""
@@ -231,6 +259,28 @@ class LanguageController:
         self._used = 0.0
         self._leg_t0 = 0.0
         self._prev_t_x = None
+        if self._person is not None:
+            self._person.reset()
+        self.said = []
+
+    def use_graph(self, spoken: Any) -> None:
+        """With ``intents``: read the intents of the graph the env will speak (``spoken.ref``,
+        :class:`~langenv.exercise.script.SpokenGraph`; :func:`langenv.exercise.script.speak`
+        calls it). Without: nothing."""
+        if self.intents:
+            self._reader = load_intents(spoken.ref)
+
+    def use_phrase_graph(self, graph: Any) -> None:
+        """With ``intents``: read the intents of ``graph`` (a
+        :class:`~langenv.speech.graph.PhraseGraph`, the env's own)."""
+        if self.intents:
+            self._reader = ChildIntents(graph)
+
+    @property
+    def person_pace(self) -> float:
+        """With ``intents``: the person's own pace (:class:`~policies.coach.PersonPace`); 1
+        without."""
+        return self._person.value if self._person is not None else 1.0
 
     @property
     def motion_rate(self) -> float:
@@ -291,6 +341,8 @@ class LanguageController:
         """Pace commands from the ETCs and cooperation; the paper's phrase rule (or the content
         rule, ``choice="fill"``)."""
         values = np.asarray(observation).tolist()  # the same values as floats: cheaper to read
+        if self._person is not None:
+            self._person.update(values)
         p_star, a_cmd = self._commands(values)
         action = np.zeros(self.action_dim, np.float32)
         action[0] = action_from_command(p_star, self.limits.p_max)
@@ -340,11 +392,22 @@ class LanguageController:
         now = ob.elapsed(values)
         self.track(t_x, now)
         if self._slot_ends(values, a_cmd):
-            return fill_choice(values, self.fill_margin, self._fill_horizon(t_x, now))
+            plan = self._fill_horizon(t_x, now)
+            u = fill_choice(values, self.fill_margin, plan)
+            return self._coach(values, u, t_x if plan is None else plan) if self.intents else u
         if self.pause_scale != 1.0 and ob.flag(values, Obs.IN_PAUSE):
             if _valid_children(values) >= 2:
                 return choice_action(self.pause_scale)
         return 0.0
+
+    def _coach(self, values: ob.ObsValues, u: float, plan: float) -> float:
+        """The content rule's ``u`` moved by the therapist's rule (:func:`coach_choice`)."""
+        kids = self._reader.of(values) if self._reader is not None else None
+        if kids is None:
+            return u
+        got = coach_choice(values, u, kids, self.rule, self.person_pace, plan, self.fill_margin)
+        self.said.append((ob.elapsed(values), got.want, got.said))
+        return got.u
 
     def track(self, t_x: float, now: float) -> None:
         """Follow the motion's horizon through one observation (its ``T_X`` and ``ELAPSED``, as
@@ -467,6 +530,21 @@ ANALYTIC: Mapping[str, tuple[str, Callable[[int | None], Analytic]]] = MappingPr
             "lc-fill with lc-end's 1 s terminal phase",
             _fill("lc-fill-end", terminal=FILL_TERMINAL),
         ),
+        "lc-coach": (
+            "lc-fill-end choosing among the fitting wordings by what they ask of the person "
+            "(a therapist's rule: relax, encourage, faster, slower, guide)",
+            _lc(
+                "lc-coach",
+                choice="fill",
+                fill_margin=FILL_MARGIN,
+                fill_anticipate=FILL_ANTICIPATE,
+                pause_scale=FILL_PAUSE_SCALE,
+                gains=AlignerGains(k_c=FILL_K_C),
+                terminal=FILL_TERMINAL,
+                intents=True,
+                rule=COACH_RULE,
+            ),
+        ),
     }
 )
 """The analytic policies by name: ``(what it is, factory(decision_hz))``; the one place their
@@ -478,8 +556,7 @@ def make_analytic(name: str, decision_hz: int | None = None) -> Analytic:
     """Build an analytic policy of :data:`ANALYTIC` by name.
 
     Args:
-        name: The controller (``"ac"``, ``"lc-noap"``, ``"lc"``, ``"lc-em"``, ``"lc-end"``,
-            ``"lc-em-end"``, ``"lc-fill"``, ``"lc-fill-end"``).
+        name: The controller: a key of :data:`ANALYTIC`.
         decision_hz: Decision rate; default 500 for the aligners (exactly the paper's loop) and 25
             for AC (its commands are constant, so the rate does not change what it does).
 

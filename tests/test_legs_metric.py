@@ -157,10 +157,12 @@ def test_sm_follows_its_definition(
     ] == pytest.approx(m["sm_max_abs"], abs=1e-6)
 
 
-def test_the_session_row_ends_with_the_leg_metrics() -> None:
+def test_the_session_row_ends_with_the_leg_metrics_then_the_person_s() -> None:
+    """Metrics are added at the end (the bootstrap of summary.md draws in column order): the leg
+    metrics, then the path error and the effort (issue 46)."""
     row = episode_metrics(_log(said=(_say("out", 0.0), _say("back", 3.5), _say("again", 6.2))))
-    assert list(row) == list(METRIC_COLUMNS) and METRIC_COLUMNS[-2:] == (
-        "sm_max_abs", "legs_in_step"
+    assert list(row) == list(METRIC_COLUMNS) and METRIC_COLUMNS[-4:] == (
+        "sm_max_abs", "legs_in_step", "path_error", "effort"
     )  # fmt: skip
     assert row["sm_max_abs"] == pytest.approx(0.5) and row["legs_in_step"] == 1.0
 

@@ -60,6 +60,9 @@ def synthetic_rows(
                     # legs: LC speaks a marked graph, the baselines one wording (no legs)
                     "sm_max_abs": 0.25 * (k % 3) if p == "lc" else math.nan,
                     "legs_in_step": 1.0 - 0.5 * (k % 2) if p == "lc" else math.nan,
+                    # not drawn from rng: the draws of the columns above stay as they were
+                    "path_error": 0.002 + 0.0001 * k,
+                    "effort": 4.0 + 0.5 * k,
                 }
             )
     return rows

@@ -23,9 +23,18 @@ Reward, once, when the episode ends (weights are keyword arguments; each term in
   within 1 s of the motion entering the leg (:mod:`langenv.speech.in_step`, the metric of
   :mod:`eval.legs`, from the env's ``info["leg"]`` at every tick and the timeline's utterances
   with the graph's legs; 0 for an unmarked graph or an exercise of one leg);
+* ``reward_length = -w_length * t_end``: the session's length (s), the later of the motion's
+  and the speech's end (0 by default; the learned coach's recipe weighs it);
 * the alignment terms: ``reward_am = -w_am |AM| - w_am_fine ln(1 + |AM| / am_scale)``,
   ``reward_am_far = -w_am_far`` when ``|AM| > 1 s``, ``reward_em = -w_em`` mean ``|EM|``;
   a protective stop or a cut-off episode pays ``-w_stop`` instead of the alignment terms.
+
+**People who listen** (``listening``, the learned coach): each episode's person is a
+:class:`~langenv.users.ListeningUser` whose :class:`~langenv.users.ListeningParams` are drawn
+uniformly within ranges (``"assumptions"``: each swept assumption's documented range,
+:data:`langenv.users.listening.SOURCES`, the other fields at their defaults; or a mapping of
+field to ``[lo, hi]``), from a generator seeded by the reset's seed, so a run's people are the
+same for the same seeds. The draw is in the reset's ``info["listening"]`` (field: value).
 
 The final step's ``info`` also holds the metrics themselves (``content_share``,
 ``voice_natural``, ``legs_in_step``, ``sm_max_abs``, ``em_mean_abs``, ``am``), which the
@@ -35,6 +44,8 @@ periodic evaluation of :mod:`train.ppo` records (:mod:`train.callbacks`).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -49,12 +60,50 @@ from langenv.task import observation as ob
 from policies.analytic import FILL_ANTICIPATE, FILL_K_C, FILL_MARGIN, FILL_PAUSE_SCALE
 from policies.learned import ResidualLC, ResidualSpec
 
-__all__ = ["EPISODE_S", "ChoicePoints", "session_legs", "session_speech"]
+__all__ = ["EPISODE_S", "ChoicePoints", "listening_ranges", "session_legs", "session_speech"]
 
 EPISODE_S = 60.0
 """Longest episode (s of simulated time), as ``langctrl compare`` runs one."""
 _NATURAL = 0.1  # the voice counts as natural within this of its natural rate
 _EPS = 1e-9
+
+
+def listening_ranges(
+    spec: str | Mapping[str, Sequence[float]] | None,
+) -> dict[str, tuple[float, float]] | None:
+    """``ChoicePoints``' ``listening`` as field -> ``(lo, hi)`` (module docstring).
+
+    Raises:
+        ConfigError: naming the field, for an unknown word or field, a range that is not two
+            numbers ``lo <= hi``, or ends :class:`~langenv.users.ListeningParams` refuses.
+    """
+    if spec is None:
+        return None
+    from langenv.users import ListeningParams
+    from langenv.users.listening import SOURCES
+
+    if spec == "assumptions":
+        return {k: s.range for k, s in SOURCES.items() if s.kind == "assumption"}
+    if not isinstance(spec, Mapping):
+        raise ConfigError(
+            f"ChoicePoints: listening must be 'assumptions' or a mapping, got {spec!r}"
+        )
+    out: dict[str, tuple[float, float]] = {}
+    for name, pair in spec.items():
+        if name not in SOURCES:
+            raise ConfigError(
+                f"ChoicePoints: listening: unknown field {name!r}; known: {', '.join(SOURCES)}"
+            )
+        try:
+            lo, hi = (float(v) for v in pair)
+        except (TypeError, ValueError):
+            raise ConfigError(f"ChoicePoints: listening.{name} must be [lo, hi]") from None
+        if not lo <= hi:
+            raise ConfigError(f"ChoicePoints: listening.{name} needs lo <= hi, got {lo}, {hi}")
+        out[name] = (lo, hi)
+    for ends in ({k: v[0] for k, v in out.items()}, {k: v[1] for k, v in out.items()}):
+        ListeningParams(**ends)  # both ends are people it accepts
+    return out
 
 
 def session_speech(
@@ -139,6 +188,8 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
         w_em: Weight of the mean ``|EM|`` (1/s).
         w_stop: Penalty for a protective stop or a cut-off episode, instead of the alignment
             terms.
+        w_length: Weight of the session's length (1/s).
+        listening: The people who listen (module docstring); None: the env's own people.
 
     Raises:
         ConfigError: if the env does not step one tick at a time, or for a bad setting.
@@ -166,6 +217,8 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
         w_am_far: float = 5.0,
         w_em: float = 1.0,
         w_stop: float = 10.0,
+        w_length: float = 0.0,
+        listening: str | Mapping[str, Sequence[float]] | None = None,
     ) -> None:
         super().__init__(env)
         inner: Any = env.unwrapped
@@ -183,6 +236,7 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
             "w_am_far": w_am_far,
             "w_em": w_em,
             "w_stop": w_stop,
+            "w_length": w_length,
         }
         for name, value in weights.items():
             if not (math.isfinite(value) and value >= 0.0):
@@ -213,6 +267,8 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
         self.observation_space = spaces.Box(-1.0, 1.0, (n_obs,), np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (self.residual_spec.action_dim,), np.float32)
         self._limit = round(EPISODE_S * 500)
+        self.listening = listening_ranges(listening)
+        self._people = np.random.default_rng()
         self._reset_trace()
 
     # ------------------------------------------------------------------ the episode
@@ -254,11 +310,20 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
+        drawn = self._listener(seed)
+        if drawn is not None:
+            inner: Any = self.env.unwrapped
+            if hasattr(inner, "current"):  # a WorldEnv resets each episode with its .user
+                inner.user = drawn
+            else:
+                options = {**(options or {}), "user": drawn}
         obs, info = self.env.reset(seed=seed, options=options)
         self._reset_trace()
         self._record(info)
         aug = self.core.start(obs)
         obs, reward, info = self._advance(obs, info, False)
+        if drawn is not None:
+            info = {**info, "listening": asdict(drawn.listening)}
         if self._done:  # over before any choice: the next step only returns the reward
             self._final = (reward, info)
             return aug.astype(np.float32), info
@@ -281,6 +346,17 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
         if not self._done:
             return out, reward, False, False, info
         return out, reward, bool(info["terminated"]), not info["terminated"], info
+
+    def _listener(self, seed: int | None) -> Any:
+        """The episode's listening person (None without ``listening``)."""
+        if self.listening is None:
+            return None
+        from langenv.users import ListeningParams, ListeningUser
+
+        if seed is not None:
+            self._people = np.random.default_rng([seed, 46])
+        values = {k: float(self._people.uniform(lo, hi)) for k, (lo, hi) in self.listening.items()}
+        return ListeningUser(ListeningParams(**values))
 
     def _advance(
         self, obs: np.ndarray, info: dict[str, Any], terminated: bool
@@ -359,6 +435,7 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
             "reward_voice": wt["w_voice"] * (voice if math.isfinite(voice) else 0.0),
             "reward_legs": wt["w_legs"] * (in_legs if math.isfinite(in_legs) else 0.0),
             "reward_em": -wt["w_em"] * em_mean,
+            "reward_length": -wt["w_length"] * max(t_motion, float(plant.t_speech or t[-1])),
         }
         am = info.get("am")
         if terminated and am is not None:

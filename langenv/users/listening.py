@@ -288,6 +288,10 @@ class ListeningUser(SyntheticUser):
         heard: ``(time, intent, complied)`` of each wording heard since the reset.
     """
 
+    kind = "listening"
+    """What a world's table calls this person (:class:`~langenv.worlds.WorldEnv`'s
+    ``perturbation``: none is drawn)."""
+
     perceives: bool
     """Whether the person needs the speech's lead (``follow != 0``): the env computes it then."""
 
