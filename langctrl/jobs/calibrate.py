@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -36,15 +35,13 @@ def _floats(text: str) -> list[float]:
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl calibrate`` (``python -m langctrl.jobs.calibrate``)."""
-    parser = argparse.ArgumentParser(
-        prog="langctrl calibrate",
-        description="Calibrate the synthetic users against recorded sessions, and write the "
-        "shipped parameters. Also run as python -m langctrl.jobs.calibrate.",
-        parents=[
-            options.people(48, per="candidate"),
-            options.seed(1000, of="the first calibration user (>= 1000: calibration seeds)"),
-            options.workers(),
-        ],
+    parser = options.job_parser(
+        "calibrate",
+        "Calibrate the synthetic users against recorded sessions, and write the shipped "
+        "parameters.",
+        options.people(48, per="candidate"),
+        options.seed(1000, of="the first calibration user (>= 1000: calibration seeds)"),
+        options.workers(),
     )
     parser.add_argument(
         "--sessions",
@@ -91,8 +88,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         sessions = load_sessions(args.sessions, "*.csv")
         direct, episodes = fit_params(sessions)
     except (SessionDataError, ConfigError) as exc:
-        print(f"langctrl calibrate: error: {exc}", file=sys.stderr)
-        return 2
+        return options.fail("calibrate", exc)
     print(f"{len(sessions)} sessions, {len(episodes)} resistance episodes")
     print(f"direct fit: {round_params(direct)}")
     print(f"closed loop ({args.users} users, seeds {args.seed}-{args.seed + args.users - 1}):")

@@ -30,7 +30,6 @@ Policies are found by name through the ``langctrl.policies`` entry points
 from __future__ import annotations
 
 import argparse
-import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -45,15 +44,12 @@ def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl play`` (``python -m langctrl.jobs.play``)."""
     from langenv.live.registry import registered_policies
 
-    p = argparse.ArgumentParser(
-        prog="langctrl play",
-        description="Run LangCtrl live: you drag the handle, the robot talks you through it. Also "
-        "run as python -m langctrl.jobs.play.",
-        parents=[
-            options.exercise("anything moves"),
-            options.seed(of="the first session"),
-            options.overwrite("an existing --audio-out, --trace-out or --log-out file"),
-        ],
+    p = options.job_parser(
+        "play",
+        "Run LangCtrl live: you drag the handle, the robot talks you through it.",
+        options.exercise("anything moves"),
+        options.seed(of="the first session"),
+        options.overwrite("an existing --audio-out, --trace-out or --log-out file"),
     )
     p.add_argument(
         "--policy",
@@ -320,16 +316,7 @@ def _write_trace(path: Path, rows: list[tuple[Any, ...]]) -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the exit code (2 for a clear error, no traceback)."""
     ns = parse_args(argv)
-    try:
-        line = run(ns)
-    except LangEnvError as exc:
-        print(f"langctrl play: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("langctrl play: stopped", file=sys.stderr)
-        return 130
-    print(line)
-    return 0
+    return options.run_job("play", lambda: run(ns), (LangEnvError,), interruptible=True)
 
 
 if __name__ == "__main__":

@@ -23,7 +23,6 @@ or the session ended on a stop, 2 a usage or connection error (no traceback).
 from __future__ import annotations
 
 import argparse
-import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -38,14 +37,11 @@ def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl robot`` (``python -m langctrl.jobs.robot``)."""
     from langenv.live.registry import registered_policies
 
-    p = argparse.ArgumentParser(
-        prog="langctrl robot",
-        description="Run LangCtrl on a UR (or URSim) through ur-rtde: connect, check, then one "
-        "guided session. Also run as python -m langctrl.jobs.robot.",
-        parents=[
-            options.exercise("anything connects or moves"),
-            options.overwrite("an existing --log-out or --audio-out file"),
-        ],
+    p = options.job_parser(
+        "robot",
+        "Run LangCtrl on a UR (or URSim) through ur-rtde: connect, check, then one guided session.",
+        options.exercise("anything connects or moves"),
+        options.overwrite("an existing --log-out or --audio-out file"),
     )
     p.add_argument(
         "--host",
@@ -206,11 +202,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return run(ns)
     except LangEnvError as exc:
-        print(f"langctrl robot: error: {exc}", file=sys.stderr)
-        return 2
+        return options.fail("robot", exc)
     except KeyboardInterrupt:
-        print("langctrl robot: stopped", file=sys.stderr)
-        return 130
+        return options.stopped("robot")
 
 
 if __name__ == "__main__":
