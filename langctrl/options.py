@@ -24,6 +24,8 @@ from pathlib import Path
 
 __all__ = [
     "COMMON_OPTIONS",
+    "check_outputs",
+    "device",
     "exercise",
     "fail",
     "fail_lines",
@@ -34,9 +36,11 @@ __all__ = [
     "out_file",
     "overwrite",
     "people",
+    "policy",
     "positive_int",
     "run_job",
     "seed",
+    "sessions",
     "stopped",
     "users",
     "users_spec",
@@ -265,6 +269,56 @@ def out_file(
         help=f"{what} to write ({'required' if default is None else 'default: ' + default})",
     )
     return p
+
+
+def policy() -> argparse.ArgumentParser:
+    """``--policy NAME``: the policy that runs the session, by its registered name."""
+    from langenv.live.registry import registered_policies
+
+    p = _parent()
+    p.add_argument(
+        "--policy",
+        default="lc",
+        metavar="NAME",
+        help=f"policy by name: {', '.join(registered_policies())} (ppo:PATH: a learned model) "
+        "(default: %(default)s)",
+    )
+    return p
+
+
+def device() -> argparse.ArgumentParser:
+    """``--device``: the sound card a live session speaks through."""
+    p = _parent()
+    p.add_argument(
+        "--device", default=None, help="sound card, by name or index (default: the system's)"
+    )
+    return p
+
+
+def sessions(holds: str) -> argparse.ArgumentParser:
+    """``--sessions DIR``: the directory of the recorded sessions, which ``holds`` what the job
+    reads (required)."""
+    p = _parent()
+    p.add_argument(
+        "--sessions",
+        type=Path,
+        required=True,
+        metavar="DIR",
+        help=f"directory of the recorded {holds} (required)",
+    )
+    return p
+
+
+def check_outputs(
+    parser: argparse.ArgumentParser, overwrite: bool, files: dict[str, Path | None]
+) -> None:
+    """Refuse (``parser.error``) an output file of ``files`` (option -> path, None: not given)
+    whose directory is missing, or that exists without ``overwrite``."""
+    for flag, path in files.items():
+        if path is not None and not path.parent.is_dir():
+            parser.error(f"{flag}: no directory {path.parent}")
+        if path is not None and path.exists() and not overwrite:
+            parser.error(f"{flag} {path}: exists; give --overwrite to replace it")
 
 
 def overwrite(what: str) -> argparse.ArgumentParser:

@@ -12,7 +12,6 @@ from __future__ import annotations
 import argparse
 import math
 from collections.abc import Sequence
-from pathlib import Path
 
 from eval.calibrate import closed_loop_fit, fit_params, round_params, write_params
 from langctrl import options
@@ -39,16 +38,10 @@ def build_parser() -> argparse.ArgumentParser:
         "calibrate",
         "Calibrate the synthetic users against recorded sessions, and write the shipped "
         "parameters.",
+        options.sessions("session CSVs"),
         options.people(48, per="candidate"),
         options.seed(1000, of="the first calibration user (>= 1000: calibration seeds)"),
         options.workers(),
-    )
-    parser.add_argument(
-        "--sessions",
-        type=Path,
-        required=True,
-        metavar="DIR",
-        help="directory of the recorded session CSVs (required)",
     )
     parser.add_argument(
         "--duration",

@@ -33,15 +33,9 @@ def build_parser() -> argparse.ArgumentParser:
             "recordings'",
         ),
         options.listening(),
+        options.sessions("session CSVs: *_ac.csv, *_lcnoap.csv, *_lc.csv"),
         options.seed(),
         options.workers(),
-    )
-    p.add_argument(
-        "--sessions",
-        type=Path,
-        required=True,
-        metavar="DIR",
-        help="directory of the recorded session CSVs: *_ac.csv, *_lcnoap.csv, *_lc.csv (required)",
     )
     return p
 

@@ -28,16 +28,10 @@ def build_parser() -> argparse.ArgumentParser:
         options.out_dir(
             "listening.json, listening.md, listening.png", default=Path("out/listening")
         ),
+        options.sessions("sessions; its *_ac.csv are read"),
         options.people(48, per="run"),
         options.seed(3000, of="the first simulated person, and of the bootstrap"),
         options.workers(),
-    )
-    p.add_argument(
-        "--sessions",
-        type=Path,
-        required=True,
-        metavar="DIR",
-        help="directory of the recorded sessions; its *_ac.csv are read (required)",
     )
     p.add_argument(
         "--boot",
