@@ -454,7 +454,7 @@ def run_coach_grid(ns: argparse.Namespace) -> int:
         split, points, specs, config = _prepare(ns)
         _check_out(ns, config)
     except (ConfigError, ModelError, FileNotFoundError, KeyError) as exc:
-        print(f"langctrl coach-grid: error: {exc}", file=sys.stderr)
+        print(f"langctrl coach-grid: error: {exc}", file=sys.stderr)  # as langctrl.options.fail
         return 2
     if ns.role == "test":
         print("langctrl coach-grid: this is a look at the TEST exercises and people: record it "

@@ -25,6 +25,8 @@ from typing import Any
 
 import numpy as np
 
+from eval.markdown import markdown_table
+
 __all__ = [
     "HEADLINE_AM",
     "POLICIES",
@@ -133,35 +135,58 @@ def headline_row(run_dir: Path, name: str) -> dict[str, Any]:
 
 def headline_table(rows: list[dict[str, Any]]) -> str:
     """The headline rows as a Markdown table (legs in step: n/a for a script without marks)."""
-    lines = [
-        "| exercise | LC sessions | max abs(AM) (s) | within 1 s | pauses (mean) | voice natural "
-        "(mean) | legs in step |",
-        "|---|---|---|---|---|---|---|",
+    header = [
+        "exercise",
+        "LC sessions",
+        "max abs(AM) (s)",
+        "within 1 s",
+        "pauses (mean)",
+        "voice natural (mean)",
+        "legs in step",
     ]
-    for r in rows:
-        legs = f"{r['legs_in_step']}/{r['legs']}" if r.get("legs") else "n/a"
-        lines.append(
-            f"| {r['exercise']} | {r['sessions']} | {r['max_am']:.2f} | {r['within']}/"
-            f"{r['sessions']} | {100 * r['silence']:.1f} % | {100 * r['voice']:.1f} % | {legs} |"
-        )
-    return "\n".join(lines)
+    cells = [
+        [
+            str(r["exercise"]),
+            str(r["sessions"]),
+            f"{r['max_am']:.2f}",
+            f"{r['within']}/{r['sessions']}",
+            f"{100 * r['silence']:.1f} %",
+            f"{100 * r['voice']:.1f} %",
+            f"{r['legs_in_step']}/{r['legs']}" if r.get("legs") else "n/a",
+        ]
+        for r in rows
+    ]
+    return "\n".join(markdown_table(header, cells))
 
 
 def table(rows: list[dict[str, Any]]) -> str:
     """The rows as a Markdown table."""
-    lines = [
-        "| exercise | controller | motion time (s) | median abs(AM) (s) | median mean abs(EM) (s) "
-        "| share abs(a - 1) <= 0.1 | voice natural | protective stops | max path deviation (mm) |",
-        "|---|---|---|---|---|---|---|---|---|",
+    header = [
+        "exercise",
+        "controller",
+        "motion time (s)",
+        "median abs(AM) (s)",
+        "median mean abs(EM) (s)",
+        "share abs(a - 1) <= 0.1",
+        "voice natural",
+        "protective stops",
+        "max path deviation (mm)",
     ]
-    for r in rows:
-        lines.append(
-            f"| {r['exercise']} | {r['policy']} | {r['t_motion']:.2f} | {r['abs_am']:.2f} | "
-            f"{r['em']:.2f} | {100 * r['a_share']:.0f} % | {100 * r['voice_share']:.0f} % | "
-            f"{r['stops']} | "
-            f"{1000 * r['deviation']:.0f} |"
-        )
-    return "\n".join(lines)
+    cells = [
+        [
+            str(r["exercise"]),
+            str(r["policy"]),
+            f"{r['t_motion']:.2f}",
+            f"{r['abs_am']:.2f}",
+            f"{r['em']:.2f}",
+            f"{100 * r['a_share']:.0f} %",
+            f"{100 * r['voice_share']:.0f} %",
+            str(r["stops"]),
+            f"{1000 * r['deviation']:.0f}",
+        ]
+        for r in rows
+    ]
+    return "\n".join(markdown_table(header, cells))
 
 
 def verdict(rows: list[dict[str, Any]]) -> list[str]:

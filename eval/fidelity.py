@@ -44,6 +44,8 @@ from typing import Any
 
 import numpy as np
 
+from eval.markdown import markdown_table
+
 __all__ = [
     "CONTROLLERS",
     "COOP_BINS",
@@ -455,9 +457,7 @@ def synthetic_traces(
 
 # ------------------------------------------------------------------------------------ outputs
 def _md_table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
-    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    out += ["| " + " | ".join(r) + " |" for r in rows]
-    return [*out, ""]
+    return [*markdown_table(header, rows), ""]
 
 
 def render_markdown(

@@ -56,6 +56,7 @@ from typing import Any
 
 import numpy as np
 
+from eval.markdown import markdown_table
 from eval.stats import Stat
 
 __all__ = [
@@ -293,7 +294,7 @@ def overview_markdown(rows: list[dict[str, Any]], policies: Sequence[str]) -> st
         "median \\|AM\\| (s)",
         "protective stops",
     ]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    body = []
     for p in policies:
         mine = [r for r in rows if r["policy"] == p]
 
@@ -311,8 +312,8 @@ def overview_markdown(rows: list[dict[str, Any]], policies: Sequence[str]) -> st
             f"{np.nanmedian(col('abs_am')):.2f}",
             str(int(col("protective_stop").sum())),
         ]
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
+        body.append(cells)
+    return "\n".join(markdown_table(head, body)) + "\n"
 
 
 def bars_markdown(found: Sequence[Bar]) -> str:
@@ -328,7 +329,7 @@ def bars_markdown(found: Sequence[Bar]) -> str:
         "legs in step (learned / base)",
         "verdict",
     ]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    body = []
     for b in found:
         failed = [k for k, ok in b.checks.items() if not ok]
         cells = [
@@ -342,8 +343,8 @@ def bars_markdown(found: Sequence[Bar]) -> str:
             " / ".join("n/a" if math.isnan(x) else f"{x:.3f}" for x in b.legs),
             "PASS" if not failed else "FAIL: " + ", ".join(k.replace("|", "\\|") for k in failed),
         ]
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
+        body.append(cells)
+    return "\n".join(markdown_table(head, body)) + "\n"
 
 
 def _diff(
@@ -376,12 +377,18 @@ def markdown(comparisons: Sequence[Comparison], learned: str, analytic: Sequence
         lines += [f"### {label} ({better} is better)", ""]
         head = ["exercise", "n", *analytic, learned, "best analytic", f"{learned} - best [95 % CI]"]
         head.append(f"{learned} - {REFERENCE} [95 % CI]")
-        lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-        for c in mine:
-            cells = [c.group, str(c.n), *(_value(c.values[p]) for p in [*analytic, learned])]
-            cells += [c.best, _ci(c.vs_best), _ci(c.vs_reference)]
-            lines.append("| " + " | ".join(cells) + " |")
-        lines.append("")
+        body = [
+            [
+                c.group,
+                str(c.n),
+                *(_value(c.values[p]) for p in [*analytic, learned]),
+                c.best,
+                _ci(c.vs_best),
+                _ci(c.vs_reference),
+            ]
+            for c in mine
+        ]
+        lines += [*markdown_table(head, body), ""]
     return "\n".join(lines)
 
 

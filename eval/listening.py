@@ -47,6 +47,8 @@ from typing import Any
 
 import numpy as np
 
+from eval.markdown import markdown_table
+
 __all__ = [
     "FOLLOW_GRID",
     "LAGS",
@@ -291,23 +293,28 @@ def _figure(out: Path, res: dict[str, Any]) -> None:
 
 
 def _markdown(res: dict[str, Any]) -> str:
-    lines = ["| response | lag (s) | recorded [95 % CI] | synthetic | listening at the fit |"]
-    lines.append("|---|---|---|---|---|")
-    for r in RESPONSES:
-        for i, tau in enumerate(LAGS):
-            lo, hi = res["recorded_ci"][r][i]
-            lines.append(
-                f"| {r} | {tau:g} | {res['recorded'][r][i]:+.2f} [{lo:+.2f}, {hi:+.2f}] | "
-                f"{res['null'][r][i]:+.2f} | {res['at_fit'][r][i]:+.2f} |"
-            )
+    header = ["response", "lag (s)", "recorded [95 % CI]", "synthetic", "listening at the fit"]
+    body = [
+        [
+            r,
+            f"{tau:g}",
+            "{:+.2f} [{:+.2f}, {:+.2f}]".format(res["recorded"][r][i], *res["recorded_ci"][r][i]),
+            f"{res['null'][r][i]:+.2f}",
+            f"{res['at_fit'][r][i]:+.2f}",
+        ]
+        for r in RESPONSES
+        for i, tau in enumerate(LAGS)
+    ]
     lo, hi = res["follow_ci"]
-    lines += [
+    lines = [
+        *markdown_table(header, body),
         "",
         f"follow = {res['follow']:+.2f} N/s [95 % CI {lo:+.2f}, {hi:+.2f}]",
         "",
-        "| follow (N/s) | " + " | ".join(f"{g:+g}" for g in res["grid"]) + " |",
-        "|---|" + "---|" * len(res["grid"]),
-        "| AC motion time, median (s) | " + " | ".join(f"{x:.2f}" for x in res["ac_length"]) + " |",
+        *markdown_table(
+            ["follow (N/s)", *(f"{g:+g}" for g in res["grid"])],
+            [["AC motion time, median (s)", *(f"{x:.2f}" for x in res["ac_length"])]],
+        ),
         "",
         f"AC motion time: recorded median {res['ac_length_recorded']:.2f} s, synthetic "
         f"{res['ac_length_null']:.2f} s",

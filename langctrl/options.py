@@ -1,32 +1,47 @@
 """The options the jobs share, each defined once: its name, its help, its type and check, where
 its default comes from.
 
-A job's parser takes them as parents (``argparse.ArgumentParser(parents=[workers(), ...])``):
+A job's parser takes them as parents (``job_parser(name, description, workers(), ...)``):
 each function returns a small parser (``add_help=False``) holding one option, so that a job
 takes exactly the shared options it needs. The arguments of a function say only what differs
 from job to job (a seed's default, what an output file is); the help text around them, the
 type and the check are the same everywhere. ``tests/test_architecture.py`` checks that no other
 module adds these options.
 
-    p = argparse.ArgumentParser(prog="langctrl fidelity", parents=[workers(), seed()])
+    p = job_parser("fidelity", "Replay recorded sessions ...", workers(), seed())
+
+:func:`job_parser` opens every job's parser (its name, where else it runs); :func:`fail`,
+:func:`fail_lines`, :func:`stopped` and :func:`run_job` end every job the same way
+(``langctrl NAME: error: ...`` on stderr and exit status 2; 130 on Ctrl-C).
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
+from collections.abc import Callable
 from pathlib import Path
 
 __all__ = [
     "COMMON_OPTIONS",
+    "check_outputs",
+    "device",
     "exercise",
+    "fail",
+    "fail_lines",
+    "job_parser",
     "listening",
     "non_negative_int",
     "out_dir",
     "out_file",
     "overwrite",
     "people",
+    "policy",
     "positive_int",
+    "run_job",
     "seed",
+    "sessions",
+    "stopped",
     "users",
     "users_spec",
     "workers",
@@ -38,6 +53,64 @@ COMMON_OPTIONS = ("--workers", "--seed", "--users", "--listening", "--out", "--o
 
 def _parent() -> argparse.ArgumentParser:
     return argparse.ArgumentParser(add_help=False)
+
+
+def job_parser(
+    name: str,
+    description: str,
+    *parents: argparse.ArgumentParser,
+    more: str = "",
+    epilog: str | None = None,
+) -> argparse.ArgumentParser:
+    """The parser of ``langctrl NAME``: ``description``, then where else the job runs
+    (``python -m langctrl.jobs.MODULE``), then ``more``; it takes ``parents``' options."""
+    text = f"{description} Also run as python -m langctrl.jobs.{name.replace('-', '_')}."
+    return argparse.ArgumentParser(
+        prog=f"langctrl {name}",
+        description=f"{text} {more}" if more else text,
+        epilog=epilog,
+        parents=list(parents),
+    )
+
+
+def fail(name: str, error: object, status: int = 2) -> int:
+    """Say ``langctrl NAME: error: ERROR`` on stderr; returns the exit status, ``status``."""
+    print(f"langctrl {name}: error: {error}", file=sys.stderr)
+    return status
+
+
+def fail_lines(error: object, status: int = 1) -> int:
+    """Say each line of ``error`` as ``error: LINE`` on stderr (a refusal that lists its
+    problems); returns the exit status, ``status``."""
+    for line in str(error).splitlines():
+        print(f"error: {line}", file=sys.stderr)
+    return status
+
+
+def stopped(name: str) -> int:
+    """Say ``langctrl NAME: stopped`` on stderr (a Ctrl-C); returns the exit status, 130."""
+    print(f"langctrl {name}: stopped", file=sys.stderr)
+    return 130
+
+
+def run_job(
+    name: str,
+    work: Callable[[], object],
+    errors: tuple[type[Exception], ...],
+    interruptible: bool = False,
+) -> int:
+    """Run ``work`` and print what it returns (exit status 0); one of ``errors`` is said by
+    :func:`fail` (2), and with ``interruptible`` a Ctrl-C by :func:`stopped` (130)."""
+    try:
+        result = work()
+    except errors as exc:
+        return fail(name, exc)
+    except KeyboardInterrupt:
+        if not interruptible:
+            raise
+        return stopped(name)
+    print(result)
+    return 0
 
 
 def positive_int(text: str) -> int:
@@ -196,6 +269,56 @@ def out_file(
         help=f"{what} to write ({'required' if default is None else 'default: ' + default})",
     )
     return p
+
+
+def policy() -> argparse.ArgumentParser:
+    """``--policy NAME``: the policy that runs the session, by its registered name."""
+    from langenv.live.registry import registered_policies
+
+    p = _parent()
+    p.add_argument(
+        "--policy",
+        default="lc",
+        metavar="NAME",
+        help=f"policy by name: {', '.join(registered_policies())} (ppo:PATH: a learned model) "
+        "(default: %(default)s)",
+    )
+    return p
+
+
+def device() -> argparse.ArgumentParser:
+    """``--device``: the sound card a live session speaks through."""
+    p = _parent()
+    p.add_argument(
+        "--device", default=None, help="sound card, by name or index (default: the system's)"
+    )
+    return p
+
+
+def sessions(holds: str) -> argparse.ArgumentParser:
+    """``--sessions DIR``: the directory of the recorded sessions, which ``holds`` what the job
+    reads (required)."""
+    p = _parent()
+    p.add_argument(
+        "--sessions",
+        type=Path,
+        required=True,
+        metavar="DIR",
+        help=f"directory of the recorded {holds} (required)",
+    )
+    return p
+
+
+def check_outputs(
+    parser: argparse.ArgumentParser, overwrite: bool, files: dict[str, Path | None]
+) -> None:
+    """Refuse (``parser.error``) an output file of ``files`` (option -> path, None: not given)
+    whose directory is missing, or that exists without ``overwrite``."""
+    for flag, path in files.items():
+        if path is not None and not path.parent.is_dir():
+            parser.error(f"{flag}: no directory {path.parent}")
+        if path is not None and path.exists() and not overwrite:
+            parser.error(f"{flag} {path}: exists; give --overwrite to replace it")
 
 
 def overwrite(what: str) -> argparse.ArgumentParser:

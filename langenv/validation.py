@@ -27,6 +27,7 @@ __all__ = [
     "child_blocks",
     "dataclass_from_dict",
     "finite_positive",
+    "frozen_vector",
     "non_negative",
     "pixels",
     "session_length",
@@ -108,6 +109,15 @@ def as_vector(
     if not np.all(np.isfinite(arr)):
         raise error(f"{name} must be finite, got {arr.tolist()}")
     return np.ascontiguousarray(arr)
+
+
+def frozen_vector(
+    value: ArrayLike, name: str, error: type[Exception], n: int | None = None
+) -> NDArray[np.float64]:
+    """:func:`as_vector`, as a read-only copy of its own (a frozen dataclass's field)."""
+    arr = np.array(as_vector(value, name, error, n))
+    arr.setflags(write=False)
+    return arr
 
 
 def as_vec3(value: ArrayLike, name: str, error: type[Exception]) -> NDArray[np.float64]:

@@ -30,6 +30,8 @@ from pathlib import Path
 import grimp
 import pytest
 
+from langenv.speech.graph_checks import strongly_connected
+
 PACKAGES = ("langenv", "policies", "train", "eval", "bench", "langctrl")
 
 #: langenv's parts in layers, lowest first: a part may import only parts of the layers below its
@@ -68,38 +70,8 @@ def _graph() -> grimp.ImportGraph:
 
 def import_cycles(graph: grimp.ImportGraph) -> list[list[str]]:
     """The graph's strongly connected components of more than one module (Tarjan), sorted."""
-    index: dict[str, int] = {}
-    low: dict[str, int] = {}
-    stack: list[str] = []
-    on_stack: set[str] = set()
-    found: list[list[str]] = []
-    counter = itertools.count()
-
-    def visit(v: str) -> None:
-        index[v] = low[v] = next(counter)
-        stack.append(v)
-        on_stack.add(v)
-        for w in sorted(graph.find_modules_directly_imported_by(v)):
-            if w not in index:
-                visit(w)
-                low[v] = min(low[v], low[w])
-            elif w in on_stack:
-                low[v] = min(low[v], index[w])
-        if low[v] == index[v]:
-            component = []
-            while True:
-                w = stack.pop()
-                on_stack.discard(w)
-                component.append(w)
-                if w == v:
-                    break
-            if len(component) > 1:
-                found.append(sorted(component))
-
-    for module in sorted(graph.modules):
-        if module not in index:
-            visit(module)
-    return sorted(found)
+    imports = {m: sorted(graph.find_modules_directly_imported_by(m)) for m in sorted(graph.modules)}
+    return sorted(sorted(c) for c in strongly_connected(imports) if len(c) > 1)
 
 
 def package_imports(graph: grimp.ImportGraph) -> Counter[tuple[str, str]]:

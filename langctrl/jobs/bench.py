@@ -11,16 +11,17 @@ import sys
 from collections.abc import Sequence
 
 from bench.figures import SECTIONS
+from langctrl import options
 
 __all__ = ["build_parser", "main"]
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl bench`` (``python -m langctrl.jobs.bench``)."""
-    parser = argparse.ArgumentParser(
-        prog="langctrl bench",
-        description="Speed and accuracy figures of LangCtrl, measured in one run (each figure: "
-        "bench/figures.py's docstring). Also run as python -m langctrl.jobs.bench.",
+    parser = options.job_parser(
+        "bench",
+        "Speed and accuracy figures of LangCtrl, measured in one run (each figure: "
+        "bench/figures.py's docstring).",
     )
     parser.add_argument(
         "--json", action="store_true", help="print one JSON object instead of a table"

@@ -7,16 +7,17 @@ import argparse
 from collections.abc import Sequence
 
 from bench.audio import measure_audio_rtf
+from langctrl import options
 
 __all__ = ["build_parser", "main"]
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl bench-audio`` (``python -m langctrl.jobs.bench_audio``)."""
-    p = argparse.ArgumentParser(
-        prog="langctrl bench-audio",
-        description="Throughput of the variable-rate phase vocoder: seconds of speech rendered "
-        "per second of wall time. Also run as python -m langctrl.jobs.bench_audio.",
+    p = options.job_parser(
+        "bench-audio",
+        "Throughput of the variable-rate phase vocoder: seconds of speech rendered per second of "
+        "wall time.",
     )
     p.add_argument(
         "--seconds", type=float, default=20.0, help="audio rendered, s (default: %(default)s)"

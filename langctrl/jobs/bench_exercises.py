@@ -8,6 +8,7 @@ import json
 from collections.abc import Sequence
 
 from bench.exercises import measure_checks, measure_tick
+from langctrl import options
 
 __all__ = ["build_parser", "main"]
 
@@ -15,10 +16,9 @@ __all__ = ["build_parser", "main"]
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl bench-exercises`` (``python -m
     langctrl.jobs.bench_exercises``)."""
-    p = argparse.ArgumentParser(
-        prog="langctrl bench-exercises",
-        description="What an exercise costs to load, check and follow. Also run as python -m "
-        "langctrl.jobs.bench_exercises.",
+    p = options.job_parser(
+        "bench-exercises",
+        "What an exercise costs to load, check and follow.",
     )
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     return p

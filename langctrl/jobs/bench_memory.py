@@ -9,16 +9,17 @@ import sys
 from collections.abc import Sequence
 
 from bench.memory import heap_growth, machine, measure_memory, one_batch
+from langctrl import options
 
 __all__ = ["build_parser", "main"]
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl bench-memory`` (``python -m langctrl.jobs.bench_memory``)."""
-    p = argparse.ArgumentParser(
-        prog="langctrl bench-memory",
-        description="Peak memory of a batch of N sessions, each size in a fresh process, and "
-        "what a session adds. Also run as python -m langctrl.jobs.bench_memory.",
+    p = options.job_parser(
+        "bench-memory",
+        "Peak memory of a batch of N sessions, each size in a fresh process, and what a session "
+        "adds.",
     )
     p.add_argument(
         "--sessions", default="8,128", help="sizes, comma-separated (default: %(default)s)"

@@ -21,11 +21,10 @@ __all__ = ["build_parser", "main"]
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl bench-safety`` (``python -m langctrl.jobs.bench_safety``)."""
-    p = argparse.ArgumentParser(
-        prog="langctrl bench-safety",
-        description="Fuzz the safety layer with adversarial users and print the figures (one "
-        "JSON object). Also run as python -m langctrl.jobs.bench_safety.",
-        parents=[options.seed(of="the first episode (episode i: SEED + i)")],
+    p = options.job_parser(
+        "bench-safety",
+        "Fuzz the safety layer with adversarial users and print the figures (one JSON object).",
+        options.seed(of="the first episode (episode i: SEED + i)"),
     )
     p.add_argument(
         "--episodes",

@@ -11,9 +11,7 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 from collections.abc import Sequence
-from pathlib import Path
 
 from eval.calibrate import closed_loop_fit, fit_params, round_params, write_params
 from langctrl import options
@@ -36,22 +34,14 @@ def _floats(text: str) -> list[float]:
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl calibrate`` (``python -m langctrl.jobs.calibrate``)."""
-    parser = argparse.ArgumentParser(
-        prog="langctrl calibrate",
-        description="Calibrate the synthetic users against recorded sessions, and write the "
-        "shipped parameters. Also run as python -m langctrl.jobs.calibrate.",
-        parents=[
-            options.people(48, per="candidate"),
-            options.seed(1000, of="the first calibration user (>= 1000: calibration seeds)"),
-            options.workers(),
-        ],
-    )
-    parser.add_argument(
-        "--sessions",
-        type=Path,
-        required=True,
-        metavar="DIR",
-        help="directory of the recorded session CSVs (required)",
+    parser = options.job_parser(
+        "calibrate",
+        "Calibrate the synthetic users against recorded sessions, and write the shipped "
+        "parameters.",
+        options.sessions("session CSVs"),
+        options.people(48, per="candidate"),
+        options.seed(1000, of="the first calibration user (>= 1000: calibration seeds)"),
+        options.workers(),
     )
     parser.add_argument(
         "--duration",
@@ -91,8 +81,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         sessions = load_sessions(args.sessions, "*.csv")
         direct, episodes = fit_params(sessions)
     except (SessionDataError, ConfigError) as exc:
-        print(f"langctrl calibrate: error: {exc}", file=sys.stderr)
-        return 2
+        return options.fail("calibrate", exc)
     print(f"{len(sessions)} sessions, {len(episodes)} resistance episodes")
     print(f"direct fit: {round_params(direct)}")
     print(f"closed loop ({args.users} users, seeds {args.seed}-{args.seed + args.users - 1}):")

@@ -22,17 +22,15 @@ __all__ = ["build_parser", "main", "parse_args"]
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl coach-grid`` (``python -m langctrl.jobs.coach_grid``)."""
-    p = argparse.ArgumentParser(
-        prog="langctrl coach-grid",
-        description="Coaches across a listening person's assumptions: every policy at every "
-        "point of the grid, paired. Also run as python -m langctrl.jobs.coach_grid.",
-        parents=[
-            options.people(24, per="exercise (the role's user seeds)"),
-            options.workers(),
-            options.seed(of="the bootstrap"),
-            options.out_dir("sessions.csv, grid.csv, grid.md, grid.png, config.json, points/"),
-            options.overwrite("files in a non-empty --out (its points are run again)"),
-        ],
+    p = options.job_parser(
+        "coach-grid",
+        "Coaches across a listening person's assumptions: every policy at every point of the "
+        "grid, paired.",
+        options.people(24, per="exercise (the role's user seeds)"),
+        options.workers(),
+        options.seed(of="the bootstrap"),
+        options.out_dir("sessions.csv, grid.csv, grid.md, grid.png, config.json, points/"),
+        options.overwrite("files in a non-empty --out (its points are run again)"),
     )
     p.add_argument(
         "--grid",

@@ -12,7 +12,6 @@ usage (nothing written).
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -28,21 +27,17 @@ def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl compare`` (``python -m langctrl.jobs.compare``)."""
     from langenv.live.registry import registered_policies
 
-    p = argparse.ArgumentParser(
-        prog="langctrl compare",
-        description="Compare aligners (AC, LC-noAP, LC, learned) on simulated or recorded users: "
-        "the study's evaluation. Also run as python -m langctrl.jobs.compare.",
-        parents=[
-            options.users(None, unless="synthetic:12 unless --sessions is given"),
-            options.listening(),
-            options.seed(of="the first synthetic user (user i: SEED + i) and of the bootstrap"),
-            options.out_dir("sessions.csv, summary.md, summary.png, sessions/, config.json"),
-            options.overwrite(
-                "the outputs of an earlier run in a non-empty --out (other files stay)"
-            ),
-            options.workers(),
-            options.exercise(),
-        ],
+    p = options.job_parser(
+        "compare",
+        "Compare aligners (AC, LC-noAP, LC, learned) on simulated or recorded users: the study's "
+        "evaluation.",
+        options.users(None, unless="synthetic:12 unless --sessions is given"),
+        options.listening(),
+        options.seed(of="the first synthetic user (user i: SEED + i) and of the bootstrap"),
+        options.out_dir("sessions.csv, summary.md, summary.png, sessions/, config.json"),
+        options.overwrite("the outputs of an earlier run in a non-empty --out (other files stay)"),
+        options.workers(),
+        options.exercise(),
     )
     p.add_argument(
         "--policies",
@@ -148,11 +143,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         out, labels, n = run_compare(args)
     except UsageError as exc:
-        print(f"langctrl compare: error: {exc}", file=sys.stderr)
-        return 2
+        return options.fail("compare", exc)
     except OutTaken as exc:
-        print(f"langctrl compare: error: {exc}", file=sys.stderr)
-        return 1
+        return options.fail("compare", exc, 1)
     print_verdict(out, labels, args)
     print(f"wrote {out} ({n} episodes in {time.perf_counter() - t0:.1f} s)")
     return 0

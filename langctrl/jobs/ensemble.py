@@ -11,7 +11,6 @@ Exit status 0 (the manifest's path printed), 2 on bad usage, an existing manifes
 from __future__ import annotations
 
 import argparse
-import sys
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -23,14 +22,11 @@ __all__ = ["build_parser", "main", "parse_args"]
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl ensemble`` (``python -m langctrl.jobs.ensemble``)."""
-    p = argparse.ArgumentParser(
-        prog="langctrl ensemble",
-        description="Write an ensemble manifest: several exported PPO models acting as one "
-        "(ppo:OUT.yaml). Also run as python -m langctrl.jobs.ensemble.",
-        parents=[
-            options.out_file("the manifest (.yaml)"),
-            options.overwrite("an existing manifest"),
-        ],
+    p = options.job_parser(
+        "ensemble",
+        "Write an ensemble manifest: several exported PPO models acting as one (ppo:OUT.yaml).",
+        options.out_file("the manifest (.yaml)"),
+        options.overwrite("an existing manifest"),
     )
     p.add_argument(
         "models",
@@ -54,13 +50,9 @@ def parse_args(argv: Sequence[str] | None = None) -> EnsembleArgs:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``langctrl ensemble``; returns the exit status."""
     args = parse_args(argv)
-    try:
-        path = ensemble(args)
-    except (FileNotFoundError, FileExistsError, ValueError) as exc:
-        print(f"langctrl ensemble: error: {exc}", file=sys.stderr)
-        return 2
-    print(path)
-    return 0
+    return options.run_job(
+        "ensemble", lambda: ensemble(args), (FileNotFoundError, FileExistsError, ValueError)
+    )
 
 
 if __name__ == "__main__":

@@ -27,10 +27,9 @@ __all__ = ["build_parser", "main"]
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl exercise`` (``python -m langctrl.jobs.exercise``)."""
-    p = argparse.ArgumentParser(
-        prog="langctrl exercise",
-        description="List, check and draw LangCtrl therapy exercises (exercise YAML files). Also "
-        "run as python -m langctrl.jobs.exercise.",
+    p = options.job_parser(
+        "exercise",
+        "List, check and draw LangCtrl therapy exercises (exercise YAML files).",
         epilog="NAME is a shipped exercise (" + ", ".join(SHIPPED_EXERCISES) + ") and FILE an "
         "exercise YAML (format: langenv/exercise/spec.py, docs/exercises.md).",
     )
@@ -73,9 +72,7 @@ def _check(specs: Sequence[str]) -> int:
         try:
             report = check_exercise(resolve_exercise(spec))
         except ExerciseError as exc:
-            status = 1
-            for line in str(exc).splitlines():
-                print(f"error: {line}", file=sys.stderr)
+            status = options.fail_lines(exc)
             n = len(exc.problems)
             print(f"{spec}: REFUSED ({n} problem{'' if n == 1 else 's'})", file=sys.stderr)
             continue
@@ -113,8 +110,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         for spec in names if args.command != "list" else []:
             exercise_path(spec)  # an unknown name or a missing file is a usage error
     except ConfigError as exc:
-        print(f"langctrl exercise: error: {exc}", file=sys.stderr)
-        return 2
+        return options.fail("exercise", exc)
     try:
         if args.command == "list":
             return _list()
@@ -122,9 +118,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _check(args.exercises)
         return _render(args.exercise, args.out, args.width, args.height)
     except (LangEnvError, OSError) as exc:
-        for line in str(exc).splitlines():
-            print(f"error: {line}", file=sys.stderr)
-        return 1
+        return options.fail_lines(exc)
 
 
 if __name__ == "__main__":

@@ -33,17 +33,15 @@ def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl exercises`` (``python -m langctrl.jobs.exercises``)."""
     from langenv.exercise import SHIPPED_EXERCISES
 
-    p = argparse.ArgumentParser(
-        prog="langctrl exercises",
-        description="Every shipped exercise under AC, LC-noAP and LC, one langctrl compare run "
-        "each, and the table of their medians. Also run as python -m langctrl.jobs.exercises.",
-        parents=[
-            options.users("synthetic:48"),
-            options.listening(),
-            options.seed(),
-            options.workers(),
-            options.out_dir("one langctrl compare run per exercise in DIR/NAME"),
-        ],
+    p = options.job_parser(
+        "exercises",
+        "Every shipped exercise under AC, LC-noAP and LC, one langctrl compare run each, and the "
+        "table of their medians.",
+        options.users("synthetic:48"),
+        options.listening(),
+        options.seed(),
+        options.workers(),
+        options.out_dir("one langctrl compare run per exercise in DIR/NAME"),
     )
     p.add_argument("--table-only", action="store_true", help="read existing runs in --out")
     p.add_argument(

@@ -11,7 +11,6 @@ Exit status 0 (the model's path printed), 2 on bad usage, a missing checkpoint o
 from __future__ import annotations
 
 import argparse
-import sys
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -23,17 +22,14 @@ __all__ = ["build_parser", "main", "parse_args"]
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl export`` (``python -m langctrl.jobs.export``)."""
-    p = argparse.ArgumentParser(
-        prog="langctrl export",
-        description="Export a checkpoint of a training run as a model PPOPolicy loads (ppo:PATH). "
-        "Also run as python -m langctrl.jobs.export.",
-        parents=[
-            options.out_file(
-                "stem of the exported model: STEM.zip, STEM_vecnormalize.pkl, STEM_config.yaml",
-                metavar="STEM",
-            ),
-            options.overwrite("existing OUT.* files"),
-        ],
+    p = options.job_parser(
+        "export",
+        "Export a checkpoint of a training run as a model PPOPolicy loads (ppo:PATH).",
+        options.out_file(
+            "stem of the exported model: STEM.zip, STEM_vecnormalize.pkl, STEM_config.yaml",
+            metavar="STEM",
+        ),
+        options.overwrite("existing OUT.* files"),
     )
     p.add_argument("run", type=Path, metavar="RUN", help="the run directory of a langctrl train")
     which = p.add_mutually_exclusive_group(required=True)
@@ -83,13 +79,9 @@ def parse_args(argv: Sequence[str] | None = None) -> ExportArgs:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``langctrl export``; returns the exit status."""
     args = parse_args(argv)
-    try:
-        path = export(args)
-    except (FileNotFoundError, FileExistsError, ValueError) as exc:
-        print(f"langctrl export: error: {exc}", file=sys.stderr)
-        return 2
-    print(path)
-    return 0
+    return options.run_job(
+        "export", lambda: export(args), (FileNotFoundError, FileExistsError, ValueError)
+    )
 
 
 if __name__ == "__main__":

@@ -10,7 +10,6 @@ Exit status 0 when it ran, whatever the verdicts; 2 on bad usage or bad session 
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -23,31 +22,20 @@ __all__ = ["build_parser", "main"]
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl fidelity`` (``python -m langctrl.jobs.fidelity``)."""
-    p = argparse.ArgumentParser(
-        prog="langctrl fidelity",
-        description="Replay recorded sessions and measure the simulation against them. Also run "
-        "as python -m langctrl.jobs.fidelity.",
-        parents=[
-            options.out_dir(
-                "fidelity.md, fidelity.png, fidelity.json", default=Path("out/fidelity")
-            ),
-            options.users(
-                None,
-                unless="none; with it, N simulated users also run under each "
-                "controller, their motion times and cooperation compared with the "
-                "recordings'",
-            ),
-            options.listening(),
-            options.seed(),
-            options.workers(),
-        ],
-    )
-    p.add_argument(
-        "--sessions",
-        type=Path,
-        required=True,
-        metavar="DIR",
-        help="directory of the recorded session CSVs: *_ac.csv, *_lcnoap.csv, *_lc.csv (required)",
+    p = options.job_parser(
+        "fidelity",
+        "Replay recorded sessions and measure the simulation against them.",
+        options.out_dir("fidelity.md, fidelity.png, fidelity.json", default=Path("out/fidelity")),
+        options.users(
+            None,
+            unless="none; with it, N simulated users also run under each "
+            "controller, their motion times and cooperation compared with the "
+            "recordings'",
+        ),
+        options.listening(),
+        options.sessions("session CSVs: *_ac.csv, *_lcnoap.csv, *_lc.csv"),
+        options.seed(),
+        options.workers(),
     )
     return p
 
@@ -67,8 +55,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             spec = parse_users(args.users, args.listening)
         checks = run_fidelity(args.sessions, args.out, spec, args.seed, args.workers)
     except (SessionDataError, ValueError, OSError) as exc:
-        print(f"langctrl fidelity: error: {exc}", file=sys.stderr)
-        return 2
+        return options.fail("fidelity", exc)
     width = max(len(c.name) for c in checks)
     for c in checks:
         print(

@@ -24,19 +24,16 @@ __all__ = ["build_parser", "main", "parse_args"]
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl generalise`` (``python -m langctrl.jobs.generalise``)."""
-    p = argparse.ArgumentParser(
-        prog="langctrl generalise",
-        description="Does a learned policy generalise? Every policy on every held-out exercise "
-        "and person. Also run as python -m langctrl.jobs.generalise.",
-        parents=[
-            options.people(24, per="exercise (the role's user seeds)"),
-            options.workers(),
-            options.seed(of="the bootstrap"),
-            options.out_dir(
-                "sessions.csv, generalise.md, figures, config.json; refused when it holds files"
-            ),
-            options.overwrite("files in a non-empty --out"),
-        ],
+    p = options.job_parser(
+        "generalise",
+        "Does a learned policy generalise? Every policy on every held-out exercise and person.",
+        options.people(24, per="exercise (the role's user seeds)"),
+        options.workers(),
+        options.seed(of="the bootstrap"),
+        options.out_dir(
+            "sessions.csv, generalise.md, figures, config.json; refused when it holds files"
+        ),
+        options.overwrite("files in a non-empty --out"),
     )
     p.add_argument(
         "--model",
@@ -114,8 +111,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         split = check_generalise(ns)
     except (ConfigError, ModelError, FileNotFoundError, KeyError) as exc:
-        print(f"langctrl generalise: error: {exc}", file=sys.stderr)
-        return 2
+        return options.fail("generalise", exc)
     if ns.role == "test":
         print(
             "langctrl generalise: this is a look at the TEST exercises and users: record it and "

@@ -9,7 +9,6 @@ Exit status 0 when it ran, 2 on bad usage or bad session files.
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -22,26 +21,17 @@ __all__ = ["build_parser", "main"]
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl listening`` (``python -m langctrl.jobs.listening``)."""
-    p = argparse.ArgumentParser(
-        prog="langctrl listening",
-        description="Does the person's pace follow the speech running ahead or behind? The "
-        "study's AC sessions against simulated ones: the listening person's follow, fitted. Also "
-        "run as python -m langctrl.jobs.listening.",
-        parents=[
-            options.out_dir(
-                "listening.json, listening.md, listening.png", default=Path("out/listening")
-            ),
-            options.people(48, per="run"),
-            options.seed(3000, of="the first simulated person, and of the bootstrap"),
-            options.workers(),
-        ],
-    )
-    p.add_argument(
-        "--sessions",
-        type=Path,
-        required=True,
-        metavar="DIR",
-        help="directory of the recorded sessions; its *_ac.csv are read (required)",
+    p = options.job_parser(
+        "listening",
+        "Does the person's pace follow the speech running ahead or behind? The study's AC "
+        "sessions against simulated ones: the listening person's follow, fitted.",
+        options.out_dir(
+            "listening.json, listening.md, listening.png", default=Path("out/listening")
+        ),
+        options.sessions("sessions; its *_ac.csv are read"),
+        options.people(48, per="run"),
+        options.seed(3000, of="the first simulated person, and of the bootstrap"),
+        options.workers(),
     )
     p.add_argument(
         "--boot",
@@ -62,8 +52,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         res = fit_listening(ns.sessions, ns.users, ns.seed, ns.boot, ns.workers)
     except (SessionDataError, ValueError, OSError) as exc:
-        print(f"langctrl listening: error: {exc}", file=sys.stderr)
-        return 2
+        return options.fail("listening", exc)
     print(write_listening(ns.out, res))
     print(f"wrote {ns.out} in {time.perf_counter() - t0:.1f} s")
     return 0

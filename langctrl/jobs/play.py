@@ -30,7 +30,6 @@ Policies are found by name through the ``langctrl.policies`` entry points
 from __future__ import annotations
 
 import argparse
-import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -43,24 +42,14 @@ __all__ = ["build_parser", "main", "parse_args"]
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl play`` (``python -m langctrl.jobs.play``)."""
-    from langenv.live.registry import registered_policies
-
-    p = argparse.ArgumentParser(
-        prog="langctrl play",
-        description="Run LangCtrl live: you drag the handle, the robot talks you through it. Also "
-        "run as python -m langctrl.jobs.play.",
-        parents=[
-            options.exercise("anything moves"),
-            options.seed(of="the first session"),
-            options.overwrite("an existing --audio-out, --trace-out or --log-out file"),
-        ],
-    )
-    p.add_argument(
-        "--policy",
-        default="lc",
-        metavar="NAME",
-        help=f"policy by name: {', '.join(registered_policies())} (ppo:PATH: a learned model) "
-        "(default: %(default)s)",
+    p = options.job_parser(
+        "play",
+        "Run LangCtrl live: you drag the handle, the robot talks you through it.",
+        options.exercise("anything moves"),
+        options.policy(),
+        options.seed(of="the first session"),
+        options.overwrite("an existing --audio-out, --trace-out or --log-out file"),
+        options.device(),
     )
     p.add_argument(
         "--graph",
@@ -92,11 +81,6 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="WAV",
         help="write the audio to this WAV instead of the sound card (default: the sound card; "
         "headless: required)",
-    )
-    p.add_argument(
-        "--device",
-        default=None,
-        help="sound card, by name or index (default: the system's)",
     )
     p.add_argument(
         "--trace-out",
@@ -144,15 +128,8 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
         p.error("--headless needs --seconds N and --audio-out X.wav")
     if ns.seconds is not None and not ns.seconds > 0:
         p.error(f"--seconds must be > 0, got {ns.seconds}")
-    for flag, path in (
-        ("--audio-out", ns.audio_out),
-        ("--trace-out", ns.trace_out),
-        ("--log-out", ns.log_out),
-    ):
-        if path is not None and not path.parent.is_dir():
-            p.error(f"{flag}: no directory {path.parent}")
-        if path is not None and path.exists() and not ns.overwrite:
-            p.error(f"{flag} {path}: exists; give --overwrite to replace it")
+    outputs = {"--audio-out": ns.audio_out, "--trace-out": ns.trace_out, "--log-out": ns.log_out}
+    options.check_outputs(p, ns.overwrite, outputs)
     if ns.user is None:
         ns.user = "synthetic" if ns.headless else "drag"
     if ns.headless and ns.user == "drag":
@@ -320,16 +297,7 @@ def _write_trace(path: Path, rows: list[tuple[Any, ...]]) -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the exit code (2 for a clear error, no traceback)."""
     ns = parse_args(argv)
-    try:
-        line = run(ns)
-    except LangEnvError as exc:
-        print(f"langctrl play: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("langctrl play: stopped", file=sys.stderr)
-        return 130
-    print(line)
-    return 0
+    return options.run_job("play", lambda: run(ns), (LangEnvError,), interruptible=True)
 
 
 if __name__ == "__main__":

@@ -17,16 +17,13 @@ __all__ = ["build_parser", "main"]
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl report`` (``python -m langctrl.jobs.report``)."""
-    parser = argparse.ArgumentParser(
-        prog="langctrl report",
-        description="Write summary.md (and summary.png) from a sessions.csv. Also run as "
-        "python -m langctrl.jobs.report.",
-        parents=[
-            options.out_file(
-                "the summary (Markdown)", default="summary.md beside SESSIONS.csv", metavar="MD"
-            ),
-            options.seed(of="the bootstrap"),
-        ],
+    parser = options.job_parser(
+        "report",
+        "Write summary.md (and summary.png) from a sessions.csv.",
+        options.out_file(
+            "the summary (Markdown)", default="summary.md beside SESSIONS.csv", metavar="MD"
+        ),
+        options.seed(of="the bootstrap"),
     )
     parser.add_argument(
         "sessions",

@@ -23,7 +23,6 @@ or the session ended on a stop, 2 a usage or connection error (no traceback).
 from __future__ import annotations
 
 import argparse
-import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -36,16 +35,13 @@ __all__ = ["build_parser", "main", "parse_args"]
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl robot`` (``python -m langctrl.jobs.robot``)."""
-    from langenv.live.registry import registered_policies
-
-    p = argparse.ArgumentParser(
-        prog="langctrl robot",
-        description="Run LangCtrl on a UR (or URSim) through ur-rtde: connect, check, then one "
-        "guided session. Also run as python -m langctrl.jobs.robot.",
-        parents=[
-            options.exercise("anything connects or moves"),
-            options.overwrite("an existing --log-out or --audio-out file"),
-        ],
+    p = options.job_parser(
+        "robot",
+        "Run LangCtrl on a UR (or URSim) through ur-rtde: connect, check, then one guided session.",
+        options.exercise("anything connects or moves"),
+        options.policy(),
+        options.overwrite("an existing --log-out or --audio-out file"),
+        options.device(),
     )
     p.add_argument(
         "--host",
@@ -63,13 +59,6 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--dry-run", action="store_true", help="connect, check, plan; move nothing")
     p.add_argument(
-        "--policy",
-        default="lc",
-        metavar="NAME",
-        help=f"policy by name: {', '.join(registered_policies())} (ppo:PATH: a learned model) "
-        "(default: %(default)s)",
-    )
-    p.add_argument(
         "--log-out",
         type=Path,
         default=None,
@@ -82,9 +71,6 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         metavar="WAV",
         help="write the speech to this WAV instead of the sound card (default: the sound card)",
-    )
-    p.add_argument(
-        "--device", default=None, help="sound card, by name or index (default: the system's)"
     )
     p.add_argument("--yes", action="store_true", help="confirm the move to the start (no prompt)")
     p.add_argument(
@@ -99,11 +85,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     ns = p.parse_args(argv)
     if ns.host is None and ns.config is None:
         p.error("give --host HOST or --config FILE")
-    for flag, path in (("--log-out", ns.log_out), ("--audio-out", ns.audio_out)):
-        if path is not None and not path.parent.is_dir():
-            p.error(f"{flag}: no directory {path.parent}")
-        if path is not None and path.exists() and not ns.overwrite:
-            p.error(f"{flag} {path}: exists; give --overwrite to replace it")
+    options.check_outputs(p, ns.overwrite, {"--log-out": ns.log_out, "--audio-out": ns.audio_out})
     return ns
 
 
@@ -206,11 +188,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return run(ns)
     except LangEnvError as exc:
-        print(f"langctrl robot: error: {exc}", file=sys.stderr)
-        return 2
+        return options.fail("robot", exc)
     except KeyboardInterrupt:
-        print("langctrl robot: stopped", file=sys.stderr)
-        return 130
+        return options.stopped("robot")
 
 
 if __name__ == "__main__":

@@ -37,10 +37,10 @@ _FORMATS = {".wav": ("WAV", "PCM_16"), ".flac": ("FLAC", "PCM_16")}
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl speech`` (``python -m langctrl.jobs.speech``)."""
-    p = argparse.ArgumentParser(
-        prog="langctrl speech",
-        description="Check LangCtrl phrase graphs, write one from a plain-text script, and render "
-        "speech at a varying audio pace. Also run as python -m langctrl.jobs.speech.",
+    p = options.job_parser(
+        "speech",
+        "Check LangCtrl phrase graphs, write one from a plain-text script, and render speech at a "
+        "varying audio pace.",
         epilog="GRAPH is a phrase-graph YAML file (see docs/speech.md) or the name of a shipped "
         f"graph ({', '.join(sorted(SHIPPED_GRAPHS))}).",
     )
@@ -349,9 +349,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         commands = {"check": _check, "author": _author, "render": _render}
         return commands[args.command](args)
     except (LangEnvError, OSError) as exc:
-        for line in str(exc).splitlines():
-            print(f"error: {line}", file=sys.stderr)
-        return 1
+        return options.fail_lines(exc)
 
 
 if __name__ == "__main__":

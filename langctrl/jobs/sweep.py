@@ -28,15 +28,13 @@ __all__ = ["build_parser", "main", "parse_args"]
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl sweep`` (``python -m langctrl.jobs.sweep``)."""
-    p = argparse.ArgumentParser(
-        prog="langctrl sweep",
-        description="Run a sweep (a grid or sample of sessions) resumably; summarise it. Also run "
-        "as python -m langctrl.jobs.sweep. With --backend ray, --workers is the CPUs of a local "
-        "Ray (a cluster's own CPUs decide there).",
-        parents=[
-            options.out_dir("the sweep's rows, summary and plots"),
-            options.workers(),
-        ],
+    p = options.job_parser(
+        "sweep",
+        "Run a sweep (a grid or sample of sessions) resumably; summarise it.",
+        options.out_dir("the sweep's rows, summary and plots"),
+        options.workers(),
+        more="With --backend ray, --workers is the CPUs of a local Ray (a cluster's own CPUs "
+        "decide there).",
     )
     p.add_argument("spec", type=Path, metavar="SWEEP.yaml", help="the sweep file (YAML)")
     p.add_argument(

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import shutil
-import sys
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -32,23 +31,20 @@ def build_parser() -> argparse.ArgumentParser:
     Every option but ``--config`` defaults to None, so that :func:`parse_args` can tell which were
     given: the config's ``train`` section sets those not given, :class:`TrainArgs` the rest.
     """
-    p = argparse.ArgumentParser(
-        prog="langctrl train",
-        description="Train the learned aligner (SB3 PPO) from a zoo-style config; the config's "
-        "'train' section sets these options, the command line overrides it. Also run as "
-        "python -m langctrl.jobs.train.",
-        parents=[
-            options.out_dir(
-                "the run; a fresh run refuses one that holds files",
-                otherwise=f"the config's train.out, else {TrainArgs.out}",
-            ),
-            options.seed(
-                None,
-                of="the first training env (env i: SEED + i) and of PPO; >= 1000000 keeps "
-                "training users apart from evaluation users",
-                otherwise=f"the config's train.seed, else {TrainArgs.seed}",
-            ),
-        ],
+    p = options.job_parser(
+        "train",
+        "Train the learned aligner (SB3 PPO) from a zoo-style config; the config's 'train' "
+        "section sets these options, the command line overrides it.",
+        options.out_dir(
+            "the run; a fresh run refuses one that holds files",
+            otherwise=f"the config's train.out, else {TrainArgs.out}",
+        ),
+        options.seed(
+            None,
+            of="the first training env (env i: SEED + i) and of PPO; >= 1000000 keeps "
+            "training users apart from evaluation users",
+            otherwise=f"the config's train.seed, else {TrainArgs.seed}",
+        ),
     )
     _add_run_options(p)
     _add_evaluation_options(p)
@@ -214,8 +210,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         path = train(args, given)
     except (FileNotFoundError, ConfigError) as exc:
-        print(f"langctrl train: error: {exc}", file=sys.stderr)
-        return 2
+        return options.fail("train", exc)
     except KeyboardInterrupt:
         return 130
     print(path)

@@ -16,6 +16,7 @@ import sys
 import tempfile
 from collections.abc import Sequence
 
+from langctrl import options
 from langenv.errors import LangEnvError
 from langenv.speech.manifest import MANIFEST_PATH, build, compare, load
 
@@ -24,11 +25,10 @@ __all__ = ["build_parser", "main"]
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl tts-manifest`` (``python -m langctrl.jobs.tts_manifest``)."""
-    p = argparse.ArgumentParser(
-        prog="langctrl tts-manifest",
-        description="Compare the shipped phrases' clips, synthesised into an empty cache, with "
-        "the committed manifest; --write pins them instead. Also run as python -m "
-        "langctrl.jobs.tts_manifest.",
+    p = options.job_parser(
+        "tts-manifest",
+        "Compare the shipped phrases' clips, synthesised into an empty cache, with the committed "
+        "manifest; --write pins them instead.",
     )
     p.add_argument(
         "--write", action="store_true", help="write the manifest instead of comparing (off)"
@@ -45,8 +45,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         try:
             made = build(ClipLibrary(cache_dir=tmp))
         except LangEnvError as exc:
-            print(f"langctrl tts-manifest: error: {exc}", file=sys.stderr)
-            return 1
+            return options.fail("tts-manifest", exc, 1)
     if args.write:
         MANIFEST_PATH.write_text(
             json.dumps(made, indent=1, ensure_ascii=False) + "\n", encoding="utf-8"

@@ -7,7 +7,6 @@ Exit status 0 (the video written), 2 on bad usage or a log it cannot render.
 from __future__ import annotations
 
 import argparse
-import sys
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -21,11 +20,10 @@ __all__ = ["build_parser", "main"]
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl video`` (``python -m langctrl.jobs.video``)."""
-    p = argparse.ArgumentParser(
-        prog="langctrl video",
-        description="Render a session video (MP4, H.264 + AAC) from an episode log. Also run as "
-        "python -m langctrl.jobs.video.",
-        parents=[options.out_file("the .mp4")],
+    p = options.job_parser(
+        "video",
+        "Render a session video (MP4, H.264 + AAC) from an episode log.",
+        options.out_file("the .mp4"),
     )
     p.add_argument(
         "log", type=Path, metavar="LOG.npz", help="episode log (.npz) written by langctrl compare"
@@ -56,11 +54,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run ``langctrl video``; returns the exit status."""
     args = build_parser().parse_args(argv)
     if args.out.suffix.lower() != ".mp4":
-        print(f"langctrl video: error: --out must end in .mp4, got {args.out}", file=sys.stderr)
-        return 2
+        return options.fail("video", f"--out must end in .mp4, got {args.out}")
     if not args.out.parent.is_dir():
-        print(f"langctrl video: error: --out: no directory {args.out.parent}", file=sys.stderr)
-        return 2
+        return options.fail("video", f"--out: no directory {args.out.parent}")
     try:
         log = EpisodeLog.load_npz(args.log)
         audio, sr = session_audio(log, args.phrase_graph)
@@ -68,8 +64,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             log, args.out, audio, sr, fps=args.fps, model_path=args.model_path, progress=None
         )
     except LangEnvError as exc:
-        print(f"langctrl video: error: {exc}", file=sys.stderr)
-        return 2
+        return options.fail("video", exc)
     print(f"wrote {path} ({len(log.utterances)} phrases, {log.t[-1] - log.t[0]:.1f} s)")
     return 0
 

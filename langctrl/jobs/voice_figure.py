@@ -21,11 +21,10 @@ __all__ = ["build_parser", "main"]
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl voice-figure`` (``python -m langctrl.jobs.voice_figure``)."""
-    p = argparse.ArgumentParser(
-        prog="langctrl voice-figure",
-        description="The voice figure of one session from its episode log. Also run as python -m "
-        "langctrl.jobs.voice_figure.",
-        parents=[options.out_file("the PNG")],
+    p = options.job_parser(
+        "voice-figure",
+        "The voice figure of one session from its episode log.",
+        options.out_file("the PNG"),
     )
     p.add_argument("log", type=Path, help="an episode log (.npz) written by langctrl compare")
     return p

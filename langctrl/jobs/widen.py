@@ -9,7 +9,6 @@ Exit status 0 (the widened model's path printed), 2 on a bad input.
 from __future__ import annotations
 
 import argparse
-import sys
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -21,11 +20,10 @@ __all__ = ["build_parser", "main"]
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl widen`` (``python -m langctrl.jobs.widen``)."""
-    p = argparse.ArgumentParser(
-        prog="langctrl widen",
-        description="Widen a saved model to phrase graphs with more choices, acting exactly as "
-        "before. Also run as python -m langctrl.jobs.widen.",
-        parents=[options.out_file("stem of the widened model", metavar="STEM")],
+    p = options.job_parser(
+        "widen",
+        "Widen a saved model to phrase graphs with more choices, acting exactly as before.",
+        options.out_file("stem of the widened model", metavar="STEM"),
     )
     p.add_argument("model", type=Path, metavar="MODEL.zip", help="the model zip to widen")
     p.add_argument(
@@ -41,13 +39,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``langctrl widen``; returns the exit status (2: a bad input)."""
     ns = build_parser().parse_args(argv)
-    try:
-        path = widen(ns.model, ns.max_children, ns.out)
-    except (FileNotFoundError, FileExistsError, ValueError, KeyError, TypeError) as exc:
-        print(f"langctrl widen: error: {exc}", file=sys.stderr)
-        return 2
-    print(path)
-    return 0
+    errors = (FileNotFoundError, FileExistsError, ValueError, KeyError, TypeError)
+    return options.run_job("widen", lambda: widen(ns.model, ns.max_children, ns.out), errors)
 
 
 if __name__ == "__main__":

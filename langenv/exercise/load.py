@@ -112,8 +112,8 @@ def load_exercise(path: str | Path, *, unwritten_scripts: bool = False) -> Exerc
         raise ExerciseError(
             [Problem("unreadable", None, None, f"invalid YAML: {exc}")], path
         ) from None
-    lines = _leg_lines(source)
-    found = _Problems(_key_lines(source))
+    keys, lines = _source_lines(source)
+    found = _Problems(keys)
     if not isinstance(data, dict):
         found.add(
             "not_mapping", "the file must be a mapping of the keys " + ", ".join(sorted(_TOP))
@@ -161,14 +161,15 @@ def load_exercise(path: str | Path, *, unwritten_scripts: bool = False) -> Exerc
         raise ExerciseError([_at_line(p, lines) for p in exc.problems], path) from None
 
 
-def _key_lines(source: str) -> dict[Where, int]:
-    """Line (1-based) of each key and list item of the file, by its place (:data:`Where`)."""
+def _source_lines(source: str) -> tuple[dict[Where, int], dict[str, int]]:
+    """Lines (1-based) in the file: of each key and list item, by its place (:data:`Where`), and
+    of each leg's mapping, by the leg's name (both empty where the file does not compose)."""
     import yaml
 
     try:
         root = yaml.compose(source)
     except yaml.YAMLError:
-        return {}
+        return {}, {}
     out: dict[Where, int] = {}
 
     def walk(node: Any, at: Where) -> None:
@@ -184,17 +185,13 @@ def _key_lines(source: str) -> dict[Where, int]:
                 walk(item, (*at, i))
 
     walk(root, ())
-    return out
+    return out, _leg_lines(root)
 
 
-def _leg_lines(source: str) -> dict[str, int]:
-    """Line (1-based) of each leg's mapping in the file, by leg name ({} if not found)."""
+def _leg_lines(root: Any) -> dict[str, int]:
+    """Line (1-based) of each leg's mapping under the composed file's ``root``, by leg name."""
     import yaml
 
-    try:
-        root = yaml.compose(source)
-    except yaml.YAMLError:
-        return {}
     out: dict[str, int] = {}
     if not isinstance(root, yaml.MappingNode):
         return out

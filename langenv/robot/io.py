@@ -61,15 +61,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from langenv.errors import DeviceError
-from langenv.validation import as_vector
+from langenv.validation import frozen_vector
 
 __all__ = ["RobotContext", "RobotIO", "RobotState", "limit_speed"]
 
 
 def _vector(value: ArrayLike, name: str, n: int | None) -> NDArray[np.float64]:
-    arr = np.array(as_vector(value, f"RobotState.{name}", DeviceError, n))  # a copy we own
-    arr.setflags(write=False)
-    return arr
+    return frozen_vector(value, f"RobotState.{name}", DeviceError, n)
 
 
 @dataclass(frozen=True, eq=False)

@@ -4,7 +4,7 @@ where it is built, one message per problem, each naming the graph (its file) and
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 from langenv.speech.intents import intent_problem
@@ -170,7 +170,7 @@ def structure_problems(label: str, phrases: Mapping[str, Phrase], start: object)
     if problems:
         return problems
     # cycles: strongly connected components with more than one phrase, or a self-loop
-    for comp in strongly_connected(phrases):
+    for comp in strongly_connected({pid: ph.next for pid, ph in phrases.items()}):
         if len(comp) > 1 or comp[0] in phrases[comp[0]].next:
             cycle = a_cycle(phrases, set(comp))
             problems.append(
@@ -243,15 +243,16 @@ def pause_problems(label: str, phrases: Mapping[str, Phrase], start: str) -> lis
     return problems
 
 
-def strongly_connected(phrases: Mapping[str, Phrase]) -> list[list[str]]:
-    """Tarjan's algorithm, iterative (graphs can be deep)."""
+def strongly_connected(successors: Mapping[str, Sequence[str]]) -> list[list[str]]:
+    """The strongly connected components of the graph ``successors`` (each node -> the nodes it
+    leads to, every one a key): Tarjan's algorithm, iterative (graphs can be deep)."""
     index: dict[str, int] = {}
     low: dict[str, int] = {}
     on_stack: set[str] = set()
     stack: list[str] = []
     comps: list[list[str]] = []
     counter = 0
-    for root in phrases:
+    for root in successors:
         if root in index:
             continue
         work: list[tuple[str, int]] = [(root, 0)]
@@ -262,7 +263,7 @@ def strongly_connected(phrases: Mapping[str, Phrase]) -> list[list[str]]:
                 counter += 1
                 stack.append(v)
                 on_stack.add(v)
-            kids = phrases[v].next
+            kids = successors[v]
             recurse = False
             while i < len(kids):
                 w = kids[i]

@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from langenv.errors import ConfigError
-from langenv.validation import as_vector
+from langenv.validation import frozen_vector
 
 __all__ = ["URConfig", "load_ur_config"]
 
@@ -45,9 +45,7 @@ _DEG = math.pi / 180.0
 
 
 def _array(values: Any, n: int, name: str) -> NDArray[np.float64]:
-    arr = np.array(as_vector(values, f"URConfig.{name}", ConfigError, n))  # a copy we own
-    arr.setflags(write=False)
-    return arr
+    return frozen_vector(values, f"URConfig.{name}", ConfigError, n)
 
 
 @dataclass(frozen=True, eq=False)
