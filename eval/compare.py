@@ -378,17 +378,60 @@ MAX_ENVS = 8
 
 def run_episode(job: Job) -> dict[str, Any]:
     """Run one episode, write its figure/audio/log into ``job.out_dir``; return its metrics row."""
-    import gymnasium as gym
-    import soundfile as sf
-
-    import langenv
     from eval.episode import EpisodeRecorder
     from eval.legs import graph_legs
     from eval.metrics import episode_metrics
-    from eval.plots import session_figure
     from langenv.exercise.script import speak
-    from langenv.speech.render import render_history
-    from langenv.users import ReplayUser, SyntheticUser
+
+    policy = _job_policy(job)
+    hz = job.decision_hz or policy.decision_hz
+    spoken = speak(policy, job.exercise, job.phrase_graph)  # may adapt a learned model to it
+    env = _job_env(job, policy, hz, spoken.ref)
+    base: Any = env.unwrapped
+    obs, info = env.reset(seed=job.seed, options=_reset_options(job, base))
+    policy.reset()
+    rec = EpisodeRecorder(policy=policy.name, user=job.user)
+    rec.append(_with_scene(info, base))
+    law = policy.pace_law() if hz == 500 and hasattr(policy, "pace_law") else None
+    if law is not None and base.runs_compiled:
+        ret, terminated, info = _run_law(base, policy, law, int(60 * hz), rec)
+    else:
+        ret, done = 0.0, False
+        while not done:
+            obs, reward, terminated, truncated, info = env.step(policy.act(obs))
+            ret += float(reward)
+            rec.append(_with_scene(info, base))
+            done = terminated or truncated
+    graph = base.graph
+    texts = {u: (ph.text or u) for u, ph in graph.phrases.items() if not ph.is_pause}
+    end_t = float(info["time"])
+    leg_of, spoken_legs = graph_legs(graph)
+    log = rec.build(
+        ret,
+        texts=texts,
+        fillers=graph.fillers,
+        t_motion=info["t_motion"] if info["t_motion"] is not None else end_t,
+        t_speech=info["t_speech"] if info["t_speech"] is not None else end_t,
+        utterances=base.speech.utterances(),
+        phrase_graph=_graph_ref(spoken.ref),
+        path=base.motion.trajectory.sample(200),
+        voice=graph.voice,
+        leg_of=leg_of,
+        leg_names=base.motion_legs,
+        spoken_legs=spoken_legs,
+    )
+    _write_session(job, log, base, Path(job.out_dir) / f"{policy.name}_{job.user}")
+    row = episode_metrics(log)
+    row["truncated"] = float(bool(info.get("TimeLimit.truncated", False)) or not terminated)
+    row["protective_stop"] = float(info.get("safety_stop") is not None)
+    row["stop_limit"] = info.get("safety_stop") or ""
+    row["graph"] = spoken.label
+    row["graph_role"] = spoken.role
+    return row
+
+
+def _job_policy(job: Job) -> Any:
+    """The job's policy, its parameters set and its name given."""
     from policies import load_policy
 
     policy = load_policy(job.policy)
@@ -398,12 +441,19 @@ def run_episode(job: Job) -> dict[str, Any]:
         policy = apply_policy_params(policy, job.params)
     if job.name is not None:
         policy.name = job.name
-    hz = job.decision_hz or policy.decision_hz
-    spoken = speak(policy, job.exercise, job.phrase_graph)  # may adapt a learned model to it
-    graph = spoken.ref
+    return policy
+
+
+def _job_env(job: Job, policy: Any, hz: int, graph: Any) -> Any:
+    """The env for the job: one per policy, rate, graph, exercise and env parameters in each
+    worker process (building one costs ~0.3 s), the oldest closed beyond :data:`MAX_ENVS`."""
+    import gymnasium as gym
+
+    import langenv
+
     key = (job.policy, hz, graph, job.exercise, job.env_params)
     env = _ENVS.get(key)
-    if env is None:  # one env per policy and worker process: building one costs ~0.3 s
+    if env is None:
         from eval.overrides import env_kwargs_with
 
         if len(_ENVS) >= MAX_ENVS:  # the oldest goes
@@ -418,58 +468,41 @@ def run_episode(job: Job) -> dict[str, Any]:
             max_episode_steps=int(60 * hz),
             **kwargs,
         )
-    options: dict[str, Any] | None = None
+    return env
+
+
+def _reset_options(job: Job, base: Any) -> dict[str, Any] | None:
+    """The reset's person: the session replayed, the job's model or parameters, else a
+    calibrated synthetic person (also in place of a reused env's last one)."""
+    from langenv.users import ReplayUser, SyntheticUser
+
     if job.session:
-        options = {"user": ReplayUser.from_csv(job.session)}
-    elif job.user_model is not None:
-        options = {"user": job.user_model}
-    elif job.user_params is not None:
-        options = {"user": SyntheticUser(job.user_params)}
-    base: Any = env.unwrapped
-    if options is None and type(base.user) is not SyntheticUser:  # a reused env's last person
-        options = {"user": SyntheticUser()}
-    obs, info = env.reset(seed=job.seed, options=options)
-    policy.reset()
-    rec = EpisodeRecorder(policy=policy.name, user=job.user)
-    rec.append(_with_scene(info, base))
-    law = policy.pace_law() if hz == 500 and hasattr(policy, "pace_law") else None
-    if law is not None and base.runs_compiled:
-        ret, terminated, info = _run_law(base, policy, law, int(60 * hz), rec)
-    else:
-        ret, done = 0.0, False
-        while not done:
-            obs, reward, terminated, truncated, info = env.step(policy.act(obs))
-            ret += float(reward)
-            rec.append(_with_scene(info, base))
-            done = terminated or truncated
-    graph_ref = _graph_ref(graph)
-    graph = base.graph
-    texts = {u: (ph.text or u) for u, ph in graph.phrases.items() if not ph.is_pause}
-    end_t = float(info["time"])
-    leg_of, spoken_legs = graph_legs(graph)
-    log = rec.build(
-        ret,
-        texts=texts,
-        fillers=graph.fillers,
-        t_motion=info["t_motion"] if info["t_motion"] is not None else end_t,
-        t_speech=info["t_speech"] if info["t_speech"] is not None else end_t,
-        utterances=base.speech.utterances(),
-        phrase_graph=graph_ref,
-        path=base.motion.trajectory.sample(200),
-        voice=graph.voice,
-        leg_of=leg_of,
-        leg_names=base.motion_legs,
-        spoken_legs=spoken_legs,
-    )
-    stem = Path(job.out_dir) / f"{policy.name}_{job.user}"
+        return {"user": ReplayUser.from_csv(job.session)}
+    if job.user_model is not None:
+        return {"user": job.user_model}
+    if job.user_params is not None:
+        return {"user": SyntheticUser(job.user_params)}
+    if type(base.user) is not SyntheticUser:  # a reused env's last person
+        return {"user": SyntheticUser()}
+    return None
+
+
+def _write_session(job: Job, log: Any, base: Any, stem: Path) -> None:
+    """The session's log, figure, audio and video, as the job asks."""
     if job.save_log:
         log.save_npz(stem.with_suffix(".npz"))
     if job.figures:
+        from eval.plots import session_figure
+
         session_figure(log, stem.with_suffix(".png"))
     if job.audio or job.video:
-        clips = base.clips
+        import soundfile as sf
+
+        from langenv.speech.render import render_history
+
+        clips, speech = base.clips, base.speech
         audio = render_history(
-            graph, clips, base.speech.path, log.t, log.a, pause_lengths=base.speech.pause_lengths
+            base.graph, clips, speech.path, log.t, log.a, pause_lengths=speech.pause_lengths
         )
         if job.audio:
             sf.write(stem.with_suffix(".wav"), audio, clips.sr, subtype="PCM_16")
@@ -477,13 +510,6 @@ def run_episode(job: Job) -> dict[str, Any]:
             from eval.video import write_video
 
             write_video(log, stem.with_suffix(".mp4"), audio, clips.sr)
-    row = episode_metrics(log)
-    row["truncated"] = float(bool(info.get("TimeLimit.truncated", False)) or not terminated)
-    row["protective_stop"] = float(info.get("safety_stop") is not None)
-    row["stop_limit"] = info.get("safety_stop") or ""
-    row["graph"] = spoken.label
-    row["graph_role"] = spoken.role
-    return row
 
 
 def _run_law(

@@ -627,7 +627,53 @@ class EpisodeRecorder:
         columns = np.array(self._rows, dtype=np.float64).T
         v = dict(zip(_TRACES, columns, strict=True))
         t = v["t"]
-        texts = texts or {}
+        said = self._said(t, texts or {}, fillers, utterances, leg_of)
+        for key, values in (("leg", self._legs), ("path_deviation", self._deviation)):
+            if values and len(values) != len(self):
+                raise ConfigError(
+                    f"EpisodeRecorder.build: info had key {key!r} in {len(values)} of "
+                    f"{len(self)} samples (give it in every sample or in none)"
+                )
+
+        flags = {name: v[name].astype(bool) for name in FLAG_TRACES}
+        floats = {name: v[name] for name in FLOAT_TRACES}
+        scene: dict[str, np.ndarray] = {}
+        for name, rows in self._scene.items():
+            if len(rows) != len(self):
+                raise ConfigError(
+                    f"EpisodeRecorder.build: info had key {name!r} in {len(rows)} of "
+                    f"{len(self)} samples (give it in every sample or in none)"
+                )
+            scene[name] = np.stack(rows)
+        return EpisodeLog(
+            policy=self.policy,
+            user=self.user,
+            utterances=tuple(said),
+            t_motion=self._end_time(t_motion, "t_motion", v["motion_done"], t),
+            t_speech=self._end_time(t_speech, "t_speech", v["speech_done"], t),
+            ret=float(ret),
+            **floats,
+            **flags,
+            **scene,
+            path=path,
+            phrase_graph=phrase_graph,
+            voice=voice,
+            leg=np.array(self._legs, np.int64) if self._legs else None,
+            leg_names=tuple(leg_names),
+            spoken_legs=tuple(spoken_legs),
+            path_deviation=np.array(self._deviation) if self._deviation else None,
+        )
+
+    def _said(
+        self,
+        t: np.ndarray,
+        texts: Mapping[str, str],
+        fillers: Collection[str],
+        utterances: Sequence[Any] | None,
+        leg_of: Mapping[str, str | None] | None,
+    ) -> list[Utterance]:
+        """The utterances: ``utterances`` given (labelled with ``texts``, fillers marked), else
+        read off the recorded ``phrase`` key; each with its leg from ``leg_of``."""
         if utterances is not None:
             said = [
                 Utterance(
@@ -644,52 +690,21 @@ class EpisodeRecorder:
             said = self._phrase_runs(t, texts)
         if leg_of:
             said = [replace(u, leg=leg_of.get(u.phrase) or "") for u in said]
-        for key, values in (("leg", self._legs), ("path_deviation", self._deviation)):
-            if values and len(values) != len(self):
-                raise ConfigError(
-                    f"EpisodeRecorder.build: info had key {key!r} in {len(values)} of "
-                    f"{len(self)} samples (give it in every sample or in none)"
-                )
+        return said
 
-        def end_time(given: float | None, key: str, flag: str) -> float:
-            if given is not None:
-                return float(given)
-            last = self._last.get(key)
-            if last is not None and math.isfinite(float(last)):
-                return float(last)
-            done = v[flag].astype(bool)
-            if not done.any():
-                raise ConfigError(f"EpisodeRecorder.build: {key} unknown ({flag} never set)")
-            return float(t[int(np.argmax(done))])
-
-        flags = {name: v[name].astype(bool) for name in FLAG_TRACES}
-        floats = {name: v[name] for name in FLOAT_TRACES}
-        scene: dict[str, np.ndarray] = {}
-        for name, rows in self._scene.items():
-            if len(rows) != len(self):
-                raise ConfigError(
-                    f"EpisodeRecorder.build: info had key {name!r} in {len(rows)} of "
-                    f"{len(self)} samples (give it in every sample or in none)"
-                )
-            scene[name] = np.stack(rows)
-        return EpisodeLog(
-            policy=self.policy,
-            user=self.user,
-            utterances=tuple(said),
-            t_motion=end_time(t_motion, "t_motion", "motion_done"),
-            t_speech=end_time(t_speech, "t_speech", "speech_done"),
-            ret=float(ret),
-            **floats,
-            **flags,
-            **scene,
-            path=path,
-            phrase_graph=phrase_graph,
-            voice=voice,
-            leg=np.array(self._legs, np.int64) if self._legs else None,
-            leg_names=tuple(leg_names),
-            spoken_legs=tuple(spoken_legs),
-            path_deviation=np.array(self._deviation) if self._deviation else None,
-        )
+    def _end_time(self, given: float | None, key: str, done: np.ndarray, t: np.ndarray) -> float:
+        """An end time: ``given``, else the last sample's ``key``, else the first sample where
+        ``done`` is set."""
+        if given is not None:
+            return float(given)
+        last = self._last.get(key)
+        if last is not None and math.isfinite(float(last)):
+            return float(last)
+        flag = done.astype(bool)
+        if not flag.any():
+            flag_name = "motion_done" if key == "t_motion" else "speech_done"
+            raise ConfigError(f"EpisodeRecorder.build: {key} unknown ({flag_name} never set)")
+        return float(t[int(np.argmax(flag))])
 
     def _phrase_runs(self, t: np.ndarray, texts: Mapping[str, str]) -> list[Utterance]:
         """One utterance per run of samples with the same non-empty phrase id."""

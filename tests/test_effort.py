@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from eval.compare import main
 from eval.episode import EpisodeLog, EpisodeRecorder
 from eval.metrics import episode_metrics
 from eval.report import read_sessions_csv
+from langctrl.jobs.compare import main
 from langenv.errors import ConfigError
 from tests.test_metrics import hand_log
 
