@@ -19,7 +19,9 @@ observation normalisation and the env arguments it was trained with.
 
 The network also sees a few features the raw observation lacks (:data:`FEATURES`): LC's own
 action, the misalignments on a 1 s scale (the raw ones are on a 40 s scale) and how fast the motion
-actually progresses compared with its estimate ``t_x`` (resistance the person has shown so far).
+actually progresses compared with its estimate ``t_x`` (resistance the person has shown so far);
+a phrase chooser may also read what each child asks (``ResidualSpec.child_intents``: its intent,
+:func:`~policies.coach.intent_inputs`, from the graph it speaks, :meth:`PPOPolicy.use_graph`).
 """
 
 from __future__ import annotations
@@ -43,11 +45,11 @@ from langenv.control.pacing import (
 )
 from langenv.errors import ConfigError, GraphChoicesError, ModelError, ObservationLayoutError
 from langenv.exercise.script import SpokenGraph, graph_label
-from langenv.speech.intents import INTENTS
 from langenv.task import observation as ob
 from langenv.task.observation import Obs
 from policies.analytic import LanguageController
-from policies.coach import ChildIntents, load_intents
+from policies.coach import INTENT_INPUTS, ChildIntents, intent_inputs, load_intents
+from policies.mlp import MlpActor
 
 __all__ = [
     "FEATURES",
@@ -79,43 +81,11 @@ FEATURES: tuple[str, ...] = (
 )
 
 
-#: What each child's intent inputs say (``ResidualSpec.child_intents``), in order: the intents
-#: of :data:`~langenv.speech.intents.INTENTS`, then ``"none"`` (a wording without one, a filler,
-#: a pause or a gate).
-INTENT_INPUTS: tuple[str, ...] = (*INTENTS, "none")
-
-
-def intent_inputs(
-    values: ob.ObsValues, reader: ChildIntents | None, max_children: int
-) -> np.ndarray:
-    """The child intent inputs of an env observation (``ResidualSpec.child_intents``): per child
-    block, a one-hot over :data:`INTENT_INPUTS` of the intent of the wording it stands for, read
-    from the graph spoken (:class:`~policies.coach.ChildIntents`, as ``lc-coach`` reads it).
-
-    Zeros for a block without a child, and for every block where the graph does not tell (no
-    graph read, or blocks that match no vertex of it, or two with other intents).
-
-    Args:
-        values: The env's observation (its child blocks).
-        reader: The intents of the graph spoken, or None.
-        max_children: Number of child blocks the model reads.
-
-    Returns:
-        float32, shape ``(max_children * len(INTENT_INPUTS),)``.
-    """
-    n = len(INTENT_INPUTS)
-    out = np.zeros(max_children * n, np.float32)
-    intents = reader.of(values) if reader is not None else None
-    for k, intent in enumerate((intents or ())[:max_children]):
-        out[k * n + INTENT_INPUTS.index(intent if intent is not None else "none")] = 1.0
-    return out
-
-
 def observation_layout(max_children: int, child_intents: bool = False) -> dict[str, Any]:
     """The learned policy's input layout for a phrase graph whose largest out-degree is
     ``max_children``: the env's fields (:mod:`langenv.task.observation`, with its scales), the child
     blocks, then :data:`FEATURES`, then with ``child_intents`` each child block's intent inputs
-    (:func:`intent_inputs`).
+    (:func:`~policies.coach.intent_inputs`).
 
     Returns:
         ``{"size": N, "signature": HEX}``: the input size and the first 16 hex digits of the
@@ -225,9 +195,10 @@ class ResidualSpec:
             ticks the base acts alone), on the phrase: the learned phrase chooser of issue 38,
             whose paces are the base's (``pace_scale = audio_scale = 0``).
         child_intents: Whether the network also reads each child's intent
-            (:func:`intent_inputs`, after :data:`FEATURES`): what each wording asks of a person
-            who listens, from the graph spoken (:meth:`ResidualLC.use_intents`). Only with
-            ``decisions="choices"``; False in a model's config that lacks it.
+            (:func:`~policies.coach.intent_inputs`, after :data:`FEATURES`): what each wording
+            asks of a person who listens, from the graph spoken
+            (:meth:`ResidualLC.use_intents`). Only with ``decisions="choices"``; False in a
+            model's config that lacks it.
     """
 
     choice_mode: Literal["target", "scores"] = "target"
@@ -485,85 +456,6 @@ class ResidualLC:
                 score = 0.5 * (prior + spec.choice_scale * r[2 + k])
                 out[2 + k] = min(1.0, max(-1.0, score))
         return out
-
-
-@dataclass(frozen=True)
-class MlpActor:
-    """The deterministic actor of an SB3 ``MlpPolicy`` (mean action), evaluated with NumPy.
-
-    Reading the weights and running the small MLP in NumPy keeps torch's thread pools out of the
-    evaluation, whose worker processes are forked (torch in a forked child can deadlock).
-
-    Attributes:
-        weights: Weight matrices ``(out, in)`` of the hidden layers, then of the action layer.
-        biases: Their biases ``(out,)``.
-        activation: ``"tanh"`` or ``"relu"`` (hidden layers).
-    """
-
-    weights: tuple[np.ndarray, ...]
-    biases: tuple[np.ndarray, ...]
-    activation: Literal["tanh", "relu"] = "tanh"
-
-    @property
-    def n_inputs(self) -> int:
-        """Observation size."""
-        return int(self.weights[0].shape[1])
-
-    @property
-    def n_actions(self) -> int:
-        """Action size."""
-        return int(self.weights[-1].shape[0])
-
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        """Mean action for one normalised observation ``(n_inputs,)``, clipped to [-1, 1]."""
-        # Row sums (NumPy's pairwise sums) and the C library's tanh, not BLAS's gemv and NumPy's
-        # vectorised tanh, whose results depend on the CPU: the same actions on any machine.
-        h = np.asarray(obs, dtype=np.float64).reshape(-1)
-        for w, b in zip(self.weights[:-1], self.biases[:-1], strict=True):
-            h = np.sum(w * h, axis=1) + b
-            if self.activation == "tanh":
-                h = np.array([math.tanh(v) for v in h.tolist()])
-            else:
-                h = np.maximum(h, 0.0)
-        out = np.sum(self.weights[-1] * h, axis=1) + self.biases[-1]
-        return np.clip(out, -1.0, 1.0)
-
-    @classmethod
-    def from_sb3_zip(cls, path: Path) -> MlpActor:
-        """Read the actor of a PPO ``MlpPolicy`` saved by SB3 (``model.save``).
-
-        Raises:
-            ValueError: if the zip is not such a model.
-            zipfile.BadZipFile: if it is not a zip at all.
-        """
-        import io
-        import json
-
-        import torch
-
-        with zipfile.ZipFile(path) as zf:
-            data = json.loads(zf.read("data"))
-            state = torch.load(
-                io.BytesIO(zf.read("policy.pth")), map_location="cpu", weights_only=True
-            )
-        act_repr = str((data.get("policy_kwargs") or {}).get("activation_fn", "Tanh"))
-        if "Tanh" in act_repr:
-            activation: Literal["tanh", "relu"] = "tanh"
-        elif "ReLU" in act_repr:
-            activation = "relu"
-        else:
-            raise ValueError(f"unsupported activation {act_repr}")
-        prefix = "mlp_extractor.policy_net."
-        layers = sorted(
-            {int(k[len(prefix) :].split(".")[0]) for k in state if k.startswith(prefix)}
-        )
-        weights = [state[f"{prefix}{i}.weight"] for i in layers] + [state["action_net.weight"]]
-        biases = [state[f"{prefix}{i}.bias"] for i in layers] + [state["action_net.bias"]]
-        return cls(
-            tuple(w.detach().numpy().astype(np.float64) for w in weights),
-            tuple(b.detach().numpy().astype(np.float64) for b in biases),
-            activation,
-        )
 
 
 def file_sha256(path: str | Path) -> str:

@@ -38,7 +38,7 @@ same for the same seeds. The draw is in the reset's ``info["listening"]`` (field
 
 **What each child asks** (``child_intents``, the learned coach): the observation also holds,
 per child block, a one-hot of the intent of the wording it stands for
-(:func:`policies.learned.intent_inputs`, after :data:`~policies.learned.FEATURES`), read from the
+(:func:`policies.coach.intent_inputs`, after :data:`~policies.learned.FEATURES`), read from the
 episode's graph as ``PPOPolicy`` reads it from the graph it speaks, so that the network can
 choose by what a wording asks, not by its length only. The model's config records it
 (``residual.child_intents``); off, the observation is the one of before, float for float.
