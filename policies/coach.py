@@ -46,10 +46,20 @@ import numpy as np
 
 from langenv.errors import ConfigError
 from langenv.speech.choice import choice_action, duration_factor, nearest
+from langenv.speech.intents import INTENTS
 from langenv.task import observation as ob
 from langenv.task.observation import Obs
 
-__all__ = ["COACH_RULE", "ChildIntents", "CoachRule", "PersonPace", "coach_choice", "load_intents"]
+__all__ = [
+    "COACH_RULE",
+    "INTENT_INPUTS",
+    "ChildIntents",
+    "CoachRule",
+    "PersonPace",
+    "coach_choice",
+    "intent_inputs",
+    "load_intents",
+]
 
 
 @dataclass(frozen=True)
@@ -171,6 +181,40 @@ def _block(t_min: float, t_max: float) -> tuple[float, float]:
         float(np.float32(min(1.0, max(-1.0, clip(t_min))))),
         float(np.float32(min(1.0, max(-1.0, clip(t_max))))),
     )
+
+
+#: What each child's intent inputs say (a learned chooser's ``child_intents``,
+#: :class:`~policies.learned.ResidualSpec`), in order: the intents of
+#: :data:`~langenv.speech.intents.INTENTS`, then ``"none"`` (a wording without one, a filler, a
+#: pause or a gate).
+INTENT_INPUTS: tuple[str, ...] = (*INTENTS, "none")
+
+
+def intent_inputs(
+    values: ob.ObsValues, reader: ChildIntents | None, max_children: int
+) -> np.ndarray:
+    """The child intent inputs of an env observation (a learned chooser's ``child_intents``,
+    :class:`~policies.learned.ResidualSpec`; training and ``PPOPolicy`` call this): per child
+    block, a one-hot over :data:`INTENT_INPUTS` of the intent of the wording it stands for, read
+    from the graph spoken with :class:`ChildIntents`, as ``lc-coach`` reads it.
+
+    Zeros for a block without a child, and for every block where the graph does not tell (no
+    graph read, or blocks that match no vertex of it, or two with other intents).
+
+    Args:
+        values: The env's observation (its child blocks).
+        reader: The intents of the graph spoken, or None.
+        max_children: Number of child blocks the model reads.
+
+    Returns:
+        float32, shape ``(max_children * len(INTENT_INPUTS),)``.
+    """
+    n = len(INTENT_INPUTS)
+    out = np.zeros(max_children * n, np.float32)
+    intents = reader.of(values) if reader is not None else None
+    for k, intent in enumerate((intents or ())[:max_children]):
+        out[k * n + INTENT_INPUTS.index(intent if intent is not None else "none")] = 1.0
+    return out
 
 
 _GRAPHS: dict[tuple[str, int], ChildIntents] = {}  # a graph file's intents, per path and mtime

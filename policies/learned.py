@@ -19,7 +19,9 @@ observation normalisation and the env arguments it was trained with.
 
 The network also sees a few features the raw observation lacks (:data:`FEATURES`): LC's own
 action, the misalignments on a 1 s scale (the raw ones are on a 40 s scale) and how fast the motion
-actually progresses compared with its estimate ``t_x`` (resistance the person has shown so far).
+actually progresses compared with its estimate ``t_x`` (resistance the person has shown so far);
+a phrase chooser may also read what each child asks (``ResidualSpec.child_intents``: its intent,
+:func:`~policies.coach.intent_inputs`, from the graph it speaks, :meth:`PPOPolicy.use_graph`).
 """
 
 from __future__ import annotations
@@ -46,9 +48,12 @@ from langenv.exercise.script import SpokenGraph, graph_label
 from langenv.task import observation as ob
 from langenv.task.observation import Obs
 from policies.analytic import LanguageController
+from policies.coach import INTENT_INPUTS, ChildIntents, intent_inputs, load_intents
+from policies.mlp import MlpActor
 
 __all__ = [
     "FEATURES",
+    "INTENT_INPUTS",
     "MlpActor",
     "PPOPolicy",
     "ResidualLC",
@@ -56,8 +61,10 @@ __all__ = [
     "child_inputs",
     "file_sha256",
     "graph_digest",
+    "intent_inputs",
     "model_files",
     "observation_layout",
+    "widened_inputs",
 ]
 
 #: Names of the features :class:`ResidualLC` appends to the env's observation, in order.
@@ -74,10 +81,11 @@ FEATURES: tuple[str, ...] = (
 )
 
 
-def observation_layout(max_children: int) -> dict[str, Any]:
+def observation_layout(max_children: int, child_intents: bool = False) -> dict[str, Any]:
     """The learned policy's input layout for a phrase graph whose largest out-degree is
     ``max_children``: the env's fields (:mod:`langenv.task.observation`, with its scales), the child
-    blocks, then :data:`FEATURES`.
+    blocks, then :data:`FEATURES`, then with ``child_intents`` each child block's intent inputs
+    (:func:`~policies.coach.intent_inputs`).
 
     Returns:
         ``{"size": N, "signature": HEX}``: the input size and the first 16 hex digits of the
@@ -88,6 +96,8 @@ def observation_layout(max_children: int) -> dict[str, Any]:
 
     children = [f"child{k}.{c.name}" for k in range(max_children) for c in ob.ChildField]
     names = [f.name for f in Obs] + children + list(FEATURES)
+    if child_intents:
+        names += [f"child{k}.intent.{i}" for k in range(max_children) for i in INTENT_INPUTS]
     scales = (
         f"T={ob.T_SCALE},PACE={ob.PACE_SCALE},SPEED={ob.SPEED_SCALE},ELAPSED={ob.ELAPSED_SCALE},"
         f"TREND={ob.TREND_WINDOW},FINE={FINE_SCALE},LOST={LOST_SCALE},RATE={RATE_AVG_TAU}"
@@ -112,6 +122,21 @@ def child_inputs(old_children: int, new_children: int) -> tuple[int, int]:
     return ob.FIRST_CHILD + ob.CHILD_FIELDS * old_children, ob.CHILD_FIELDS * (
         new_children - old_children
     )
+
+
+def widened_inputs(
+    old_children: int, new_children: int, child_intents: bool = False
+) -> tuple[tuple[int, int], ...]:
+    """Every ``(at, n)`` where a model's input grows from ``old_children`` to ``new_children``
+    choices, the last first (so that inserting them in this order leaves each ``at`` right):
+    the child blocks' (:func:`child_inputs`) and, with ``child_intents``, the new children's
+    intent inputs after the old ones' (the end of the input)."""
+    at, n = child_inputs(old_children, new_children)
+    if not child_intents:
+        return ((at, n),)
+    k = len(INTENT_INPUTS)
+    end = ob.FIRST_CHILD + ob.CHILD_FIELDS * old_children + len(FEATURES) + k * old_children
+    return ((end, k * (new_children - old_children)), (at, n))
 
 
 #: Time constant (s) of the motion-rate feature's average (the features' one home; the
@@ -169,6 +194,11 @@ class ResidualSpec:
             phrase is chosen among several (the env at 500 Hz, a tick per step; between those
             ticks the base acts alone), on the phrase: the learned phrase chooser of issue 38,
             whose paces are the base's (``pace_scale = audio_scale = 0``).
+        child_intents: Whether the network also reads each child's intent
+            (:func:`~policies.coach.intent_inputs`, after :data:`FEATURES`): what each wording
+            asks of a person who listens, from the graph spoken
+            (:meth:`ResidualLC.use_intents`). Only with ``decisions="choices"``; False in a
+            model's config that lacks it.
     """
 
     choice_mode: Literal["target", "scores"] = "target"
@@ -187,6 +217,7 @@ class ResidualSpec:
     fill_anticipate: float = 0.0
     pause_scale: float = 1.0
     decisions: Literal["steps", "choices"] = "steps"
+    child_intents: bool = False
 
     def __post_init__(self) -> None:
         if self.choice_mode not in ("target", "scores"):
@@ -219,6 +250,12 @@ class ResidualSpec:
             raise ConfigError(
                 f"ResidualSpec.decisions must be 'steps' or 'choices', got {self.decisions!r}"
             )
+        if not isinstance(self.child_intents, bool):
+            raise ConfigError(
+                f"ResidualSpec.child_intents must be true or false, got {self.child_intents!r}"
+            )
+        if self.child_intents and self.decisions != "choices":
+            raise ConfigError("ResidualSpec: child_intents needs decisions='choices'")
         if self.decisions == "choices":
             if self.choice_mode != "target" or self.decision_hz != 500:
                 raise ConfigError(
@@ -291,11 +328,24 @@ class ResidualLC:
         self._rate = 0.0
         self._rate_avg = 0.0
         self._last_r = np.zeros(2)
+        self._intents: ChildIntents | None = None
 
     @property
     def n_features(self) -> int:
-        """Number of appended features."""
-        return len(FEATURES)
+        """Number of appended inputs: :data:`FEATURES`, then with ``spec.child_intents`` the
+        child intent inputs."""
+        extra = self.spec.max_children * len(INTENT_INPUTS) if self.spec.child_intents else 0
+        return len(FEATURES) + extra
+
+    def use_intents(self, reader: ChildIntents | None) -> None:
+        """Read the children's intents (``spec.child_intents``) with ``reader``: the intents of
+        the graph the env speaks (None: unknown, their inputs 0)."""
+        self._intents = reader
+
+    @property
+    def reads_intents(self) -> bool:
+        """Whether :meth:`use_intents` gave it a graph's intents."""
+        return self._intents is not None
 
     def start(self, obs: np.ndarray) -> np.ndarray:
         """Begin an episode at its first observation; returns the augmented observation."""
@@ -346,7 +396,10 @@ class ResidualLC:
             dtype=np.float32,
         )
         np.clip(feats, -1.0, 1.0, out=feats)
-        return np.concatenate([obs, feats])
+        if not self.spec.child_intents:
+            return np.concatenate([obs, feats])
+        intents = intent_inputs(obs, self._intents, self.spec.max_children)
+        return np.concatenate([obs, feats, intents])
 
     def action(self, residual: np.ndarray) -> np.ndarray:
         """The env's action for the latest observation and a correction.
@@ -403,85 +456,6 @@ class ResidualLC:
                 score = 0.5 * (prior + spec.choice_scale * r[2 + k])
                 out[2 + k] = min(1.0, max(-1.0, score))
         return out
-
-
-@dataclass(frozen=True)
-class MlpActor:
-    """The deterministic actor of an SB3 ``MlpPolicy`` (mean action), evaluated with NumPy.
-
-    Reading the weights and running the small MLP in NumPy keeps torch's thread pools out of the
-    evaluation, whose worker processes are forked (torch in a forked child can deadlock).
-
-    Attributes:
-        weights: Weight matrices ``(out, in)`` of the hidden layers, then of the action layer.
-        biases: Their biases ``(out,)``.
-        activation: ``"tanh"`` or ``"relu"`` (hidden layers).
-    """
-
-    weights: tuple[np.ndarray, ...]
-    biases: tuple[np.ndarray, ...]
-    activation: Literal["tanh", "relu"] = "tanh"
-
-    @property
-    def n_inputs(self) -> int:
-        """Observation size."""
-        return int(self.weights[0].shape[1])
-
-    @property
-    def n_actions(self) -> int:
-        """Action size."""
-        return int(self.weights[-1].shape[0])
-
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        """Mean action for one normalised observation ``(n_inputs,)``, clipped to [-1, 1]."""
-        # Row sums (NumPy's pairwise sums) and the C library's tanh, not BLAS's gemv and NumPy's
-        # vectorised tanh, whose results depend on the CPU: the same actions on any machine.
-        h = np.asarray(obs, dtype=np.float64).reshape(-1)
-        for w, b in zip(self.weights[:-1], self.biases[:-1], strict=True):
-            h = np.sum(w * h, axis=1) + b
-            if self.activation == "tanh":
-                h = np.array([math.tanh(v) for v in h.tolist()])
-            else:
-                h = np.maximum(h, 0.0)
-        out = np.sum(self.weights[-1] * h, axis=1) + self.biases[-1]
-        return np.clip(out, -1.0, 1.0)
-
-    @classmethod
-    def from_sb3_zip(cls, path: Path) -> MlpActor:
-        """Read the actor of a PPO ``MlpPolicy`` saved by SB3 (``model.save``).
-
-        Raises:
-            ValueError: if the zip is not such a model.
-            zipfile.BadZipFile: if it is not a zip at all.
-        """
-        import io
-        import json
-
-        import torch
-
-        with zipfile.ZipFile(path) as zf:
-            data = json.loads(zf.read("data"))
-            state = torch.load(
-                io.BytesIO(zf.read("policy.pth")), map_location="cpu", weights_only=True
-            )
-        act_repr = str((data.get("policy_kwargs") or {}).get("activation_fn", "Tanh"))
-        if "Tanh" in act_repr:
-            activation: Literal["tanh", "relu"] = "tanh"
-        elif "ReLU" in act_repr:
-            activation = "relu"
-        else:
-            raise ValueError(f"unsupported activation {act_repr}")
-        prefix = "mlp_extractor.policy_net."
-        layers = sorted(
-            {int(k[len(prefix) :].split(".")[0]) for k in state if k.startswith(prefix)}
-        )
-        weights = [state[f"{prefix}{i}.weight"] for i in layers] + [state["action_net.weight"]]
-        biases = [state[f"{prefix}{i}.bias"] for i in layers] + [state["action_net.bias"]]
-        return cls(
-            tuple(w.detach().numpy().astype(np.float64) for w in weights),
-            tuple(b.detach().numpy().astype(np.float64) for b in biases),
-            activation,
-        )
 
 
 def file_sha256(path: str | Path) -> str:
@@ -603,7 +577,7 @@ class PPOPolicy:
             raise ModelError(
                 f"{norm_path}: observation normaliser does not match the model's {n_obs} inputs"
             )
-        _check_layout(config, cfg_path, zip_path, n_obs, spec.max_children)
+        _check_layout(config, cfg_path, zip_path, n_obs, spec)
         hz = int(env_kwargs.pop("decision_hz", spec.decision_hz))
         digest = config.get("phrase_graph_sha256") or None
         listed = config.get("phrase_graphs")
@@ -660,6 +634,8 @@ class PPOPolicy:
                 )
             self._widen(spoken.max_children)
         self.env_kwargs["max_children"] = self.residual.spec.max_children
+        if spec.child_intents:
+            self.residual.use_intents(load_intents(spoken.ref))
         if (
             self.trained_digest is not None
             and spoken.label == self.trained_graph
@@ -674,13 +650,13 @@ class PPOPolicy:
     def _widen(self, max_children: int) -> None:
         """Widen the model's input to ``max_children`` child blocks (see :meth:`use_graph`)."""
         old = self.residual.spec.max_children
-        at, n = child_inputs(old, max_children)
         weights = list(self.model.weights)
-        weights[0] = np.insert(weights[0], [at] * n, 0.0, axis=1)
-        self.model = MlpActor(tuple(weights), self.model.biases, self.model.activation)
         rms = self.normalizer.obs_rms
-        rms.mean = np.insert(np.asarray(rms.mean, np.float64), at, np.zeros(n))
-        rms.var = np.insert(np.asarray(rms.var, np.float64), at, np.ones(n))
+        for at, n in widened_inputs(old, max_children, self.residual.spec.child_intents):
+            weights[0] = np.insert(weights[0], [at] * n, 0.0, axis=1)
+            rms.mean = np.insert(np.asarray(rms.mean, np.float64), at, np.zeros(n))
+            rms.var = np.insert(np.asarray(rms.var, np.float64), at, np.ones(n))
+        self.model = MlpActor(tuple(weights), self.model.biases, self.model.activation)
         spec = replace(self.residual.spec, max_children=max_children)
         self.residual = ResidualLC(spec, self.residual.limits)
         self.widened_from = old if self.widened_from is None else self.widened_from
@@ -705,6 +681,11 @@ class PPOPolicy:
                     "the env's observation has another number of child blocks than the model "
                     "reads: build the env after langenv.exercise.speak(policy, exercise), "
                     "with the policy's env_kwargs",
+                )
+            if self.residual.spec.child_intents and not self.residual.reads_intents:
+                raise ModelError(
+                    f"{self.path}: the model reads each choice's intent from the graph spoken: "
+                    "fit it to the graph first (langenv.exercise.speak(policy, exercise))"
                 )
             aug = self.residual.start(observation)
             self._started = True
@@ -736,7 +717,7 @@ class PPOPolicy:
 
 
 def _check_layout(
-    config: dict[str, Any], cfg_path: Path, zip_path: Path, n_obs: int, max_children: int
+    config: dict[str, Any], cfg_path: Path, zip_path: Path, n_obs: int, spec: ResidualSpec
 ) -> None:
     """Refuse a model trained for another observation layout than this code gives.
 
@@ -746,7 +727,7 @@ def _check_layout(
     Raises:
         ObservationLayoutError: naming the file, the expected and the found layout.
     """
-    now = observation_layout(max_children)
+    now = observation_layout(spec.max_children, spec.child_intents)
     recorded = config.get("observation_layout")
     hint = "retrain it with this code (langctrl train)"
     if isinstance(recorded, dict) and recorded.get("signature") != now["signature"]:

@@ -36,6 +36,13 @@ uniformly within ranges (``"assumptions"``: each swept assumption's documented r
 field to ``[lo, hi]``), from a generator seeded by the reset's seed, so a run's people are the
 same for the same seeds. The draw is in the reset's ``info["listening"]`` (field: value).
 
+**What each child asks** (``child_intents``, the learned coach): the observation also holds,
+per child block, a one-hot of the intent of the wording it stands for
+(:func:`policies.coach.intent_inputs`, after :data:`~policies.learned.FEATURES`), read from the
+episode's graph as ``PPOPolicy`` reads it from the graph it speaks, so that the network can
+choose by what a wording asks, not by its length only. The model's config records it
+(``residual.child_intents``); off, the observation is the one of before, float for float.
+
 The final step's ``info`` also holds the metrics themselves (``content_share``,
 ``voice_natural``, ``legs_in_step``, ``sm_max_abs``, ``em_mean_abs``, ``am``), which the
 periodic evaluation of :mod:`train.ppo` records (:mod:`train.callbacks`).
@@ -58,6 +65,7 @@ from langenv.speech.in_step import boundaries, graph_legs, in_step, said_words
 from langenv.speech.voice import voice_rate, words_heard
 from langenv.task import observation as ob
 from policies.analytic import FILL_ANTICIPATE, FILL_K_C, FILL_MARGIN, FILL_PAUSE_SCALE
+from policies.coach import ChildIntents
 from policies.learned import ResidualLC, ResidualSpec
 
 __all__ = ["EPISODE_S", "ChoicePoints", "listening_ranges", "session_legs", "session_speech"]
@@ -190,6 +198,7 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
             terms.
         w_length: Weight of the session's length (1/s).
         listening: The people who listen (module docstring); None: the env's own people.
+        child_intents: Whether the observation holds each child's intent (module docstring).
 
     Raises:
         ConfigError: if the env does not step one tick at a time, or for a bad setting.
@@ -219,6 +228,7 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
         w_stop: float = 10.0,
         w_length: float = 0.0,
         listening: str | Mapping[str, Sequence[float]] | None = None,
+        child_intents: bool = False,
     ) -> None:
         super().__init__(env)
         inner: Any = env.unwrapped
@@ -259,6 +269,7 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
             fill_anticipate=float(fill_anticipate),
             pause_scale=float(pause_scale),
             decisions="choices",
+            child_intents=child_intents,
         )
         self.core = ResidualLC(self.residual_spec, inner.paces.limits)
         base = self.core.lc
@@ -269,6 +280,7 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
         self._limit = round(EPISODE_S * 500)
         self.listening = listening_ranges(listening)
         self._people = np.random.default_rng()
+        self._read: tuple[Any, ChildIntents] | None = None  # (graph, its intents)
         self._reset_trace()
 
     # ------------------------------------------------------------------ the episode
@@ -319,6 +331,8 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
                 options = {**(options or {}), "user": drawn}
         obs, info = self.env.reset(seed=seed, options=options)
         self._reset_trace()
+        if self.residual_spec.child_intents:
+            self._read_intents()
         self._record(info)
         aug = self.core.start(obs)
         obs, reward, info = self._advance(obs, info, False)
@@ -346,6 +360,13 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
         if not self._done:
             return out, reward, False, False, info
         return out, reward, bool(info["terminated"]), not info["terminated"], info
+
+    def _read_intents(self) -> None:
+        """Read the children's intents of the episode's graph (once per graph)."""
+        graph = self._plant().graph
+        if self._read is None or self._read[0] is not graph:
+            self._read = (graph, ChildIntents(graph))
+        self.core.use_intents(self._read[1])
 
     def _listener(self, seed: int | None) -> Any:
         """The episode's listening person (None without ``listening``)."""

@@ -33,7 +33,10 @@ def config_dict(run: Run, residual: dict[str, Any], extra: dict[str, Any]) -> di
     if run.worlds is not None:
         extra = {"worlds": run.worlds.to_dict(), **extra}
     if residual:
-        extra = {"observation_layout": observation_layout(int(residual["max_children"])), **extra}
+        layout = observation_layout(
+            int(residual["max_children"]), bool(residual.get("child_intents", False))
+        )
+        extra = {"observation_layout": layout, **extra}
     return {
         run.args.env_id: _plain(run.hyper),
         "train": recorded_args(run.args),

@@ -54,7 +54,7 @@ def widen(src: Path, max_children: int, out: Path) -> Path:
     from stable_baselines3 import PPO
 
     from langenv.errors import ConfigError
-    from policies.learned import child_inputs, file_sha256, model_files, observation_layout
+    from policies.learned import file_sha256, model_files, observation_layout, widened_inputs
 
     zip_in, pkl_in, cfg_in = model_files(src)
     zip_out, pkl_out, cfg_out = model_files(out)
@@ -69,22 +69,24 @@ def widen(src: Path, max_children: int, out: Path) -> Path:
         raise ConfigError(f"langctrl widen: --max-children {max_children} must exceed {old_k}")
     model = PPO.load(zip_in, device="cpu")
     n_old = int(np.prod(model.observation_space.shape or (0,)))
-    at, n_new = child_inputs(old_k, max_children)  # where the new child blocks go
-    space = _box(n_old + n_new)
+    intents = bool(config["residual"].get("child_intents", False))
+    grown = widened_inputs(old_k, max_children, intents)  # where the new inputs go, last first
+    space = _box(n_old + sum(n for _, n in grown))
     state = model.policy.state_dict()
     for key in _FIRST_LAYERS:
         if key not in state or tuple(state[key].shape[1:]) != (n_old,):
             raise ConfigError(f"langctrl widen: {zip_in}: no first layer {key} of {n_old} inputs")
-        state[key] = _insert_columns(state[key], at, n_new)
+        for at, n_new in grown:
+            state[key] = _insert_columns(state[key], at, n_new)
     policy = type(model.policy)(space, model.action_space, model.lr_schedule, **model.policy_kwargs)
     policy.load_state_dict(state)
     model.policy, model.observation_space = policy, space
-    norm = _widen_normalizer(pkl_in, space, model.action_space, at, n_new)
+    norm = _widen_normalizer(pkl_in, space, model.action_space, grown)
     zip_out.parent.mkdir(parents=True, exist_ok=True)
     model.save(zip_out)
     norm.save(pkl_out)
     config["residual"]["max_children"] = max_children
-    config["observation_layout"] = observation_layout(max_children)
+    config["observation_layout"] = observation_layout(max_children, intents)
     config["widened_from"] = {
         "model": zip_in.name,
         "sha256": file_sha256(zip_in),
@@ -111,9 +113,12 @@ def _insert_columns(weight: Any, at: int, n: int) -> Any:
     return torch.cat([weight[:, :at], zeros, weight[:, at:]], dim=1)
 
 
-def _widen_normalizer(src: Path, space: Any, actions: Any, at: int, n: int) -> Any:
+def _widen_normalizer(
+    src: Path, space: Any, actions: Any, grown: tuple[tuple[int, int], ...]
+) -> Any:
     """The ``VecNormalize`` of ``src`` with ``n`` neutral inputs (mean 0, variance 1) inserted
-    before input ``at``, attached to a bare env of the widened spaces so that it can be saved."""
+    before input ``at`` for each ``(at, n)`` of ``grown`` (in its order), attached to a bare env
+    of the widened spaces so that it can be saved."""
     import gymnasium as gym
     from stable_baselines3.common.vec_env import DummyVecEnv
 
@@ -123,8 +128,9 @@ def _widen_normalizer(src: Path, space: Any, actions: Any, at: int, n: int) -> A
     with src.open("rb") as fh:
         norm = pickle.load(fh)
     rms = norm.obs_rms
-    rms.mean = np.insert(np.asarray(rms.mean, np.float64), at, np.zeros(n))
-    rms.var = np.insert(np.asarray(rms.var, np.float64), at, np.ones(n))
+    for at, n in grown:
+        rms.mean = np.insert(np.asarray(rms.mean, np.float64), at, np.zeros(n))
+        rms.var = np.insert(np.asarray(rms.var, np.float64), at, np.ones(n))
     norm.observation_space = space
     norm.set_venv(DummyVecEnv([Spaces]))
     return norm
