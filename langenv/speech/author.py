@@ -629,7 +629,7 @@ def _ids(vids: list[str] | tuple[str, ...]) -> str:
 def graph_yaml(script: Script, source_name: str) -> str:
     """The phrase graph YAML (SPEC §4) of a parsed script, the same bytes for the same script."""
     out = [
-        f"# Written by `python -m langenv.speech author {source_name}` from its plain-text script:",
+        f"# Written by `langctrl speech author {source_name}` from its plain-text script:",
         "# edit the script and run the command again rather than editing this file.",
         f"start: {_id(script.start)}",
         f"pause: {_num(script.pause)}   # s of silence after each clip at a = 1",
