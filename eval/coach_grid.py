@@ -67,6 +67,7 @@ __all__ = [
     "DESIGNS",
     "GridPoint",
     "GridSpec",
+    "check_coach_grid",
     "differences",
     "grid_jobs",
     "grid_markdown",
@@ -443,22 +444,30 @@ def _run_points(
     return rows
 
 
-def run_coach_grid(ns: argparse.Namespace) -> int:
-    """Run ``langctrl coach-grid`` with its arguments ``ns``; the exit status (2: bad
-    arguments, grid or split)."""
+def check_coach_grid(
+    ns: argparse.Namespace,
+) -> tuple[Any, list[GridPoint], list[str], dict[str, Any]]:
+    """Every check of ``langctrl coach-grid``'s arguments ``ns`` before any episode: the split,
+    the points, the policy specs and the run's config.
+
+    Raises:
+        ConfigError: a bad argument, grid, split or ``--out``.
+        ModelError: a model that does not load.
+    """
+    split, points, specs, config = _prepare(ns)
+    _check_out(ns, config)
+    return split, points, specs, config
+
+
+def run_coach_grid(
+    ns: argparse.Namespace, checked: tuple[Any, list[GridPoint], list[str], dict[str, Any]]
+) -> tuple[str, int, int]:
+    """Run ``langctrl coach-grid`` with its arguments ``ns``, as :func:`check_coach_grid`
+    found them; the grid's table, and how many sessions and points ran."""
     from eval.compare import policy_names
     from eval.report import atomic_write, write_sessions_csv
-    from langenv.errors import ModelError
 
-    try:
-        split, points, specs, config = _prepare(ns)
-        _check_out(ns, config)
-    except (ConfigError, ModelError, FileNotFoundError, KeyError) as exc:
-        print(f"langctrl coach-grid: error: {exc}", file=sys.stderr)  # as langctrl.options.fail
-        return 2
-    if ns.role == "test":
-        print("langctrl coach-grid: this is a look at the TEST exercises and people: record it "
-              "and its figures in HISTORY.md", file=sys.stderr)  # fmt: skip
+    split, points, specs, config = checked
     ns.out.mkdir(parents=True, exist_ok=True)
     atomic_write(ns.out / "config.json", json.dumps(config, indent=2) + "\n")
     names = policy_names(specs)
@@ -471,9 +480,7 @@ def run_coach_grid(ns: argparse.Namespace) -> int:
     text = grid_markdown(diffs, ns.base)
     atomic_write(ns.out / "grid.md", text)
     plot_grid(diffs, ns.base, ns.out / "grid.png")
-    print(text)
-    print(f"wrote {ns.out} ({len(rows)} sessions, {len(points)} points)")
-    return 0
+    return text, len(rows), len(points)
 
 
 def config_params(config: Mapping[str, Any]) -> dict[str, tuple[tuple[str, float], ...]]:

@@ -649,8 +649,8 @@ class EpisodeRecorder:
             policy=self.policy,
             user=self.user,
             utterances=tuple(said),
-            t_motion=self._end_time(t_motion, "t_motion", v["motion_done"], t),
-            t_speech=self._end_time(t_speech, "t_speech", v["speech_done"], t),
+            t_motion=self._end_time(t_motion, "t_motion", "motion_done", v),
+            t_speech=self._end_time(t_speech, "t_speech", "speech_done", v),
             ret=float(ret),
             **floats,
             **flags,
@@ -692,19 +692,20 @@ class EpisodeRecorder:
             said = [replace(u, leg=leg_of.get(u.phrase) or "") for u in said]
         return said
 
-    def _end_time(self, given: float | None, key: str, done: np.ndarray, t: np.ndarray) -> float:
-        """An end time: ``given``, else the last sample's ``key``, else the first sample where
-        ``done`` is set."""
+    def _end_time(
+        self, given: float | None, key: str, flag: str, v: Mapping[str, np.ndarray]
+    ) -> float:
+        """An end time: ``given``, else the last sample's ``key``, else the time of the first
+        sample whose ``flag`` trace (in ``v``, with ``t``) is set."""
         if given is not None:
             return float(given)
         last = self._last.get(key)
         if last is not None and math.isfinite(float(last)):
             return float(last)
-        flag = done.astype(bool)
-        if not flag.any():
-            flag_name = "motion_done" if key == "t_motion" else "speech_done"
-            raise ConfigError(f"EpisodeRecorder.build: {key} unknown ({flag_name} never set)")
-        return float(t[int(np.argmax(flag))])
+        done = v[flag].astype(bool)
+        if not done.any():
+            raise ConfigError(f"EpisodeRecorder.build: {key} unknown ({flag} never set)")
+        return float(v["t"][int(np.argmax(done))])
 
     def _phrase_runs(self, t: np.ndarray, texts: Mapping[str, str]) -> list[Utterance]:
         """One utterance per run of samples with the same non-empty phrase id."""

@@ -11,10 +11,11 @@ Exit status 0 when it ran; 2 on bad arguments, a bad grid or split.
 from __future__ import annotations
 
 import argparse
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from eval.coach_grid import BASE, DEFAULT_GRID, DEFAULT_SPLIT, run_coach_grid
+from eval.coach_grid import BASE, DEFAULT_GRID, DEFAULT_SPLIT, check_coach_grid, run_coach_grid
 from langctrl import options
 
 __all__ = ["build_parser", "main", "parse_args"]
@@ -101,7 +102,23 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``langctrl coach-grid``; returns the exit status."""
-    return run_coach_grid(parse_args(argv))
+    from langenv.errors import ConfigError, ModelError
+
+    ns = parse_args(argv)
+    try:
+        checked = check_coach_grid(ns)
+    except (ConfigError, ModelError, FileNotFoundError, KeyError) as exc:
+        return options.fail("coach-grid", exc)
+    if ns.role == "test":
+        print(
+            "langctrl coach-grid: this is a look at the TEST exercises and people: record it "
+            "and its figures in HISTORY.md",
+            file=sys.stderr,
+        )
+    text, sessions, points = run_coach_grid(ns, checked)
+    print(text)
+    print(f"wrote {ns.out} ({sessions} sessions, {points} points)")
+    return 0
 
 
 if __name__ == "__main__":

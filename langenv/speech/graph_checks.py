@@ -7,6 +7,7 @@ import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
+from langenv.errors import PhraseGraphError
 from langenv.speech.intents import intent_problem
 from langenv.speech.legs import leg_problems
 from langenv.speech.phrase import MAX_FILLER, MAX_PAUSE, Phrase, is_number
@@ -37,8 +38,6 @@ def vertex_table(
     Raises:
         PhraseGraphError: an item that is not a :class:`Phrase`.
     """
-    from langenv.errors import PhraseGraphError
-
     items = list(phrases.values()) if isinstance(phrases, Mapping) else list(phrases)
     table: dict[str, Phrase] = {}
     problems: list[str] = []
