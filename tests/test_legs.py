@@ -22,6 +22,7 @@ from langenv.speech.legs_kernels import horizon as compiled_horizon
 from langenv.speech.legs_kernels import motion_segment as compiled_motion_segment
 from langenv.speech.phrase import Phrase
 from langenv.speech.repeat import WAIT_MAX, WAIT_PLAN
+from langenv.speech.timeline import SpeechTimeline
 from policies.analytic import make_analytic
 
 LEGS = ("out", "back", "again")
@@ -203,6 +204,30 @@ def test_a_gates_length_is_the_motions_time_to_the_legs_end() -> None:
     assert g.pause_length("back#gate", 3.7) == 3.7  # no words after it in its leg
     assert g.pause_length("back#gate", -1.0) == 0.0
     assert g.pause_length("p2", 0.1) == 0.2  # a pause that became the gate keeps its minimum
+
+
+def test_a_gate_its_leg_has_passed_leaves_the_legs_first_words_to_the_next_step() -> None:
+    """Words that run late reach a gate after its leg has begun: the gate ends with the step it
+    begins in, and the leg's first words are the next step's choice (a policy's), not the rule's
+    in the same step."""
+    tl = SpeechTimeline(three_legs())
+    asked: list[tuple[float, tuple[str, ...]]] = []
+
+    def choose(kids: tuple[str, ...]) -> str:
+        asked.append((tl.t, kids))
+        return "opt1" if "opt1" in kids else "ret"
+
+    hz = (0.0, 5.0, 8.0)  # the motion is in leg 'back' already
+    while tl.phrase != "back#gate":
+        tl.step(0.002, 1.0, choose, hz)
+    entered = tl.t
+    assert [kids for _, kids in asked] == [("opt1", "opt2", "back#gate")]
+    assert tl.in_pause and tl.remaining_in_phrase == 0.0
+    tl.step(0.002, 1.0, choose, hz)
+    assert asked[-1] == (pytest.approx(entered), ("okay", "ret"))
+    assert tl.phrase == "ret"
+    gate = [u for u in tl.utterances() if u.phrase == "back#gate"]
+    assert len(gate) == 1 and gate[0].t_end - gate[0].t_start < 0.002
 
 
 # ------------------------------------------------------------------------------ the env

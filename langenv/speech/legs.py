@@ -14,7 +14,9 @@ paper's law is applied at every leg instead of once for the whole motion:
 * **The words of a leg wait for their leg.** Every way from one segment's words to the next
   goes through a *gate*: a silence (a pause vertex ``LEG#gate``, planned as 0 to ``WAIT_PLAN`` s,
   open above) that lasts until the motion enters the next segment's legs, as the last phrase
-  waits for the motion's end (:mod:`langenv.speech.repeat`). A pause whose children all begin
+  waits for the motion's end (:mod:`langenv.speech.repeat`); words that run late reach it after
+  the leg has begun, and it then ends with the tick (the step) it begins in, so that the leg's
+  first words are the policy's next choice, not the rule's. A pause whose children all begin
   the next segment is itself opened into the gate; a pause written at the start of a leg's lines
   is the silence before them and belongs to the leg before. (Ending the gate early by half a
   filler, so that "Okay," falls before the leg, was measured worse: the fillers' lead is in

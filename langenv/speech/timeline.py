@@ -170,7 +170,9 @@ class SpeechTimeline:
         start of the step to the boundary. A vertex with a single child needs neither (``choice``
         is then not consulted, so a callable is only called when there is a real choice). A second
         boundary inside the same step (only with slots shorter than ``a * dt``) calls a callable
-        ``choice`` again, else uses the rule, else the first child. A pause entered takes the
+        ``choice`` again, else uses the rule, else the first child; but a gate between legs with a
+        choice after it, entered when its leg has begun, ends with the step: its leg's first
+        words are chosen at the next step, by the next ``choice``. A pause entered takes the
         length ``graph.pause_length(id, target')`` with ``target'`` the target (``pause``, else
         ``t_x``) minus the time to the boundary (at a second boundary without either: the
         pause's minimum); while it lasts, each step sets it again to
@@ -325,6 +327,11 @@ class SpeechTimeline:
                 self._cur_slot = nxt_len
                 lo, hi = self._graph.slot_range(nxt)
                 self._elastic = lo < hi
+                if rem >= nxt_len and self._gate_waits(nxt):
+                    # A gate that ends in the step it begins (its leg has begun) ends with the
+                    # step: the first words of its leg are the next step's choice, not the rule's.
+                    self._pos = nxt_len
+                    break
             else:
                 self._in_pause = False
                 self._cur_slot = self._slot[nxt]
@@ -333,6 +340,11 @@ class SpeechTimeline:
         self._t = t0 + dt
         if self._phrase is not None:
             self._mark = self._cur_slot if self._in_pause else self._dur[self._phrase]
+
+    def _gate_waits(self, v: str) -> bool:
+        """Whether the gate ``v`` holds the rest of the step in which it is entered: a gate
+        with a choice after it (its leg's first words are chosen at the next step)."""
+        return self._graph.is_gate(v) and len(self._children[v]) > 1
 
     def _pause_length(
         self, v: str, pause: PauseTarget, t_x: Horizons, tau: float, fallback: bool = False
