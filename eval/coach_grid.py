@@ -36,8 +36,9 @@ Writes into ``OUT`` (refused when it holds files, unless ``--overwrite`` or ``--
   motion's and the speech's end);
 * ``grid.csv``: one row per point, policy and metric: ``estimate``, ``lo``, ``hi`` (policy minus
   base) and ``n`` (sessions paired);
-* ``grid.md``: the same as tables, and per policy at how many points each metric is better
-  (the interval beyond 0 on the metric's good side) and worse;
+* ``grid.md``: the coaches' bars (:mod:`eval.coach_bars`: each ``--model`` against
+  ``lc-coach``, ``lc-coach`` against the base), the differences as tables, and per policy at how
+  many points each metric is better (the interval beyond 0 on the metric's good side) and worse;
 * ``grid.png``: the gain over the grid (:func:`plot_grid`): per metric, each policy's
   difference from the base with its interval at every point;
 * ``config.json``: the arguments, the grid's points, the split.
@@ -280,10 +281,13 @@ def tally(diffs: Sequence[Mapping[str, Any]], policy: str, metric: str) -> tuple
     return better, worse, total
 
 
-def grid_markdown(diffs: Sequence[Mapping[str, Any]], base: str) -> str:
-    """``grid.md``: the tally per policy, then per policy a table of every point and metric."""
+def grid_markdown(diffs: Sequence[Mapping[str, Any]], base: str, bars: str = "") -> str:
+    """``grid.md``: the coaches' bars (``bars``, :mod:`eval.coach_bars`), the tally per policy,
+    then per policy a table of every point and metric."""
     policies = list(dict.fromkeys(d["policy"] for d in diffs))
     lines = [f"# Policies against {base} across the listening assumptions", ""]
+    if bars:
+        lines += [bars]
     lines += ["Each cell: at how many points the 95 % interval of the difference lies on the "
               "metric's good side / on its bad side / points.", ""]  # fmt: skip
     lines += ["| policy | " + " | ".join(COMPARED[m][0] for m in COMPARED) + " |"]
@@ -477,10 +481,30 @@ def run_coach_grid(
     write_sessions_csv(rows, ns.out / "sessions.csv")
     diffs = differences(rows, [names[s] for s in specs], ns.base, ns.n_boot, ns.seed)
     _write_grid_csv(diffs, ns.out / "grid.csv")
-    text = grid_markdown(diffs, ns.base)
+    text = grid_markdown(diffs, ns.base, _bars(rows, diffs, specs, names, ns))
     atomic_write(ns.out / "grid.md", text)
     plot_grid(diffs, ns.base, ns.out / "grid.png")
     return text, len(rows), len(points)
+
+
+def _bars(
+    rows: Sequence[Mapping[str, Any]],
+    diffs: Sequence[Mapping[str, Any]],
+    specs: Sequence[str],
+    names: Mapping[str, str],
+    ns: argparse.Namespace,
+) -> str:
+    """The coaches' bars (:mod:`eval.coach_bars`): each model against ``lc-coach`` (its
+    differences taken here, the same generator seed), ``lc-coach`` against the base."""
+    from eval.coach_bars import bar_pairs, bars_markdown, coach_bars
+
+    models = [names[s] for s in specs if s.startswith("ppo:")]
+    policies = [names[s] for s in specs]
+    pairs = bar_pairs(policies, models, ns.base)
+    by = {ns.base: diffs}
+    for against in {a for _, a in pairs} - {ns.base}:
+        by[against] = differences(rows, models, against, ns.n_boot, ns.seed)
+    return bars_markdown(coach_bars(rows, by, pairs))
 
 
 def config_params(config: Mapping[str, Any]) -> dict[str, tuple[tuple[str, float], ...]]:
