@@ -40,14 +40,9 @@ USERS = 32
 def _run(spec: Path, out: Path, backend: str, workers: int) -> dict[str, float]:
     """One sweep of ``spec`` into ``out`` (``langctrl sweep SPEC --out OUT --no-summary
     --backend B --workers W``'s arguments); its timing row."""
-    from argparse import Namespace
+    from eval.sweep.driver import SweepArgs, run_sweep
 
-    from eval.sweep.driver import run_sweep
-
-    ns = Namespace(
-        spec=spec, out=out, workers=workers, backend=backend, address="local", resume=False,
-        retry_failed=False, only=[], batch_size=None, no_summary=True,
-    )  # fmt: skip
+    ns = SweepArgs(spec, out, workers, backend, no_summary=True)
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
         code = run_sweep(ns)
     if code != 0:

@@ -21,11 +21,12 @@ failed (their rows hold the errors: ``--retry-failed`` runs them again); 2 bad a
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import sys
 import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -34,11 +35,47 @@ from eval.sweep.errors import SweepError
 from eval.sweep.grid import SweepSession, expand
 from eval.sweep.spec import COORDINATES, SweepSpec, load_spec
 
-__all__ = ["MAX_BATCH", "batch_size", "run_sweep"]
+__all__ = ["MAX_BATCH", "SweepArgs", "batch_size", "run_sweep"]
 
 #: Sessions per batch at most when the size is chosen: a batch takes a few seconds, so Ray's
 #: few milliseconds per task stay far under 5 % of it, and a kill loses little work.
 MAX_BATCH = 16
+
+
+@dataclass(frozen=True)
+class SweepArgs:
+    """What a run of the sweep asks for (``langctrl sweep``'s arguments, by the same names).
+
+    Attributes:
+        spec: The sweep file.
+        out: The sweep's directory.
+        workers: Worker processes (Ray: the CPUs of a local Ray).
+        backend: ``"processes"`` or ``"ray"``.
+        address: Ray's address (``"local"``, ``"auto"`` or ``ray://HOST:PORT``).
+        resume: Finish the sweep in ``out``.
+        retry_failed: Run the failed sessions of ``out`` again.
+        only: Run just these sessions (empty: every one).
+        batch_size: Sessions per task (None: :func:`batch_size`'s choice).
+        no_summary: Skip the summary and plots.
+    """
+
+    spec: Path
+    out: Path
+    workers: int
+    backend: str
+    address: str = "local"
+    resume: bool = False
+    retry_failed: bool = False
+    only: Sequence[str] = field(default_factory=tuple)
+    batch_size: int | None = None
+    no_summary: bool = False
+
+    @classmethod
+    def of(cls, ns: Any) -> SweepArgs:
+        """The arguments a parsed command line (an ``argparse.Namespace``) holds."""
+        from dataclasses import fields
+
+        return cls(**{f.name: getattr(ns, f.name) for f in fields(cls)})
 
 
 def batch_size(n_sessions: int, workers: int, chosen: int | None = None) -> int:
@@ -80,7 +117,7 @@ def _prepare(spec: SweepSpec, out: Path, sessions: list[SweepSession], resuming:
 
 
 def _todo(
-    sessions: list[SweepSession], statuses: dict[str, str], ns: argparse.Namespace, out: Path
+    sessions: list[SweepSession], statuses: dict[str, str], ns: SweepArgs, out: Path
 ) -> list[SweepSession]:
     if ns.only:
         known = {s.session_id for s in sessions}
@@ -95,9 +132,8 @@ def _todo(
     return [s for s in sessions if wanted(statuses.get(s.session_id))]
 
 
-def run_sweep(ns: argparse.Namespace) -> int:
-    """Run the sweep ``ns`` (``langctrl sweep``'s arguments) asks for and report it; the exit
-    status."""
+def run_sweep(ns: SweepArgs) -> int:
+    """Run the sweep ``ns`` asks for and report it; the exit status."""
     from eval.sweep.store import SweepStore, row_schema
 
     t0 = time.perf_counter()
@@ -124,7 +160,7 @@ def run_sweep(ns: argparse.Namespace) -> int:
     return _report(rows, sessions, spec, ns, out, ran, time.perf_counter() - t0)
 
 
-def _run(todo: list[SweepSession], store: Any, ns: argparse.Namespace, spec: SweepSpec) -> float:
+def _run(todo: list[SweepSession], store: Any, ns: SweepArgs, spec: SweepSpec) -> float:
     """Run ``todo`` in batches, a part file per batch; returns the seconds it took."""
     if not todo:
         return 0.0
@@ -186,7 +222,7 @@ def _report(
     rows: list[dict[str, Any]],
     sessions: list[SweepSession],
     spec: SweepSpec,
-    ns: argparse.Namespace,
+    ns: SweepArgs,
     out: Path,
     ran: float,
     wall: float,

@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from eval.sweep.backend import SWEEP_BACKENDS, default_backend
-from eval.sweep.driver import MAX_BATCH, run_sweep
+from eval.sweep.driver import MAX_BATCH, SweepArgs, run_sweep
 from langctrl import options
 
 __all__ = ["build_parser", "main", "parse_args"]
@@ -87,7 +87,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``langctrl sweep``; returns the exit status."""
-    ns = parse_args(argv)
+    ns = SweepArgs.of(parse_args(argv))
     if threading.current_thread() is not threading.main_thread():
         return run_sweep(ns)
     # SIGTERM (a scheduler's stop, `kill`) unwinds like Ctrl-C: the workers and a local Ray are
