@@ -125,6 +125,14 @@ SPEECH_LOOK = (
     "--role test --users 48 --population both --out out/speech_test"
 )
 SPEECH_MD = "out/speech_test/generalise.md"
+#: The learned coach's test look (issue 46; the split's test people, 7 000 000 on, from
+#: configs/ppo_coach.yaml): the shipped model and its two seed siblings with LC, lc-fill-end and
+#: lc-coach at the 19 points of configs/coach_grid.yaml; a look, recorded in HISTORY.md.
+COACH_LOOK = (
+    "langctrl coach-grid --model models/ppo_coach.zip "
+    "--model models/coach_seeds/ppo_coach_s3100000.zip "
+    "--model models/coach_seeds/ppo_coach_s3200000.zip --out out/coach_grid"
+)
 SHIPPED = "ppo-ppo_speech"
 
 #: The results, by key (a key may appear in several pages; its commands run once).
@@ -200,6 +208,7 @@ SECTIONS: dict[str, Section] = {
             FileSection(SPEECH_MD, "The bars: ", (SHIPPED,)),
         ),
     ),
+    "coach-test": Section((COACH_LOOK,), (FileSection("out/coach_grid/grid.md", "The bars"),)),
     "fidelity": Section(
         (
             f"langctrl fidelity --sessions {SESSIONS} --users synthetic:48 --seed 2000 "
