@@ -290,14 +290,14 @@ def grid_markdown(diffs: Sequence[Mapping[str, Any]], base: str, bars: str = "")
         lines += [bars]
     lines += ["Each cell: at how many points the 95 % interval of the difference lies on the "
               "metric's good side / on its bad side / points.", ""]  # fmt: skip
-    lines += ["| policy | " + " | ".join(COMPARED[m][0] for m in COMPARED) + " |"]
+    lines += ["| policy | " + " | ".join(_label(m) for m in COMPARED) + " |"]
     lines += ["|---" * (len(COMPARED) + 1) + "|"]
     for pol in policies:
         cells = ["{} / {} / {}".format(*tally(diffs, pol, m)) for m in COMPARED]
         lines.append(f"| {pol} | " + " | ".join(cells) + " |")
     for pol in policies:
         lines += ["", f"## {pol} - {base} (mean of the paired differences [95 % CI])", ""]
-        lines += ["| point | " + " | ".join(COMPARED[m][0] for m in COMPARED) + " | n |"]
+        lines += ["| point | " + " | ".join(_label(m) for m in COMPARED) + " | n |"]
         lines += ["|---" * (len(COMPARED) + 2) + "|"]
         mine = [d for d in diffs if d["policy"] == pol]
         for point in dict.fromkeys(d["point"] for d in mine):
@@ -306,6 +306,11 @@ def grid_markdown(diffs: Sequence[Mapping[str, Any]], base: str, bars: str = "")
             first = here[next(iter(COMPARED))]
             lines.append(f"| {first['point_label']} | " + " | ".join(cells) + f" | {first['n']} |")
     return "\n".join(lines) + "\n"
+
+
+def _label(metric: str) -> str:
+    """A metric's label as a Markdown table cell (its ``|`` escaped)."""
+    return COMPARED[metric][0].replace("|", "\\|")
 
 
 def _cell(d: Mapping[str, Any]) -> str:
