@@ -79,12 +79,6 @@ BUDGET: dict[str, Shrink | Skip] = {
         "tools/results.py runs it for the README's table, the generalise job is tested on "
         "validation people"
     ),
-    "langctrl coach-grid --model models/ppo_coach.zip --model "
-    "models/coach_seeds/ppo_coach_s3100000.zip --model "
-    "models/coach_seeds/ppo_coach_s3200000.zip --out out/coach_grid": Skip(
-        "the learned coach's look at the test sets (HISTORY.md records it); tools/results.py "
-        "runs it for the README's table, the coach-grid job is tested on validation people"
-    ),
     "langctrl exercise list": Shrink(),
     "cp -r langenv/assets/exercises my_exercises": Shrink(),
     "langctrl exercise check my_exercises/hand_to_mouth.yaml": Shrink(),

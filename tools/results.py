@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-PAGES = ("README.md", "docs/results.md", "docs/fidelity.md", "docs/scale.md")
+PAGES = ("README.md", "docs/results.md", "docs/fidelity.md", "docs/scale.md", "docs/listening.md")
 SESSIONS = "../shared/sessions"  # the study's recordings: not part of the repository
 
 BLOCK = re.compile(
