@@ -34,6 +34,27 @@ def test_assumptions_are_the_documented_ranges_and_ranges_are_checked() -> None:
             listening_ranges(bad)  # type: ignore[arg-type]
 
 
+def test_a_held_out_person_listens_alike_in_every_evaluation() -> None:
+    """The periodic evaluation resets its held-out WorldEnv without a seed: each person's
+    listening draw is then seeded by that person's seed, the same in every run and every
+    evaluation (it came from an unseeded generator before)."""
+    split = WorldSplit.load(CONFIG)
+
+    def draws() -> list[dict[str, float]]:
+        world = WorldEnv(split, "validation", {"decision_hz": 500}, 2)
+        env = ChoicePoints(world, listening="assumptions")
+        out = []
+        for _ in range(3):  # the pairs cycle: the third is the first person again
+            assert world.next_user_seed is not None
+            out.append(env.reset()[1]["listening"])
+        return out
+
+    first, second = draws(), draws()
+    assert first == second and first[0] == first[2] and first[0] != first[1]
+    train = WorldEnv(split, "train", {"decision_hz": 500})
+    assert train.next_user_seed is None
+
+
 def test_each_episode_s_person_listens_with_assumptions_drawn_by_its_seed(tmp_path: Path) -> None:
     """Over a WorldEnv (the recipe's training and validation envs): a ListeningUser of drawn
     parameters per reset, the same for the same seed; the episode is the one eval.compare runs

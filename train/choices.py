@@ -33,8 +33,10 @@ Reward, once, when the episode ends (weights are keyword arguments; each term in
 :class:`~langenv.users.ListeningUser` whose :class:`~langenv.users.ListeningParams` are drawn
 uniformly within ranges (``"assumptions"``: each swept assumption's documented range,
 :data:`langenv.users.listening.SOURCES`, the other fields at their defaults; or a mapping of
-field to ``[lo, hi]``), from a generator seeded by the reset's seed, so a run's people are the
-same for the same seeds. The draw is in the reset's ``info["listening"]`` (field: value).
+field to ``[lo, hi]``), from a generator seeded by the reset's seed (a held-out
+:class:`~langenv.worlds.WorldEnv`, reset without one by the periodic evaluation: its next
+person's seed), so a run's people are the same for the same seeds. The draw is in the reset's
+``info["listening"]`` (field: value).
 
 **What each child asks** (``child_intents``, the learned coach): the observation also holds,
 per child block, a one-hot of the intent of the wording it stands for
@@ -322,7 +324,7 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
-        drawn = self._listener(seed)
+        drawn = self._listener(seed if seed is not None else self._held_out_seed())
         if drawn is not None:
             inner: Any = self.env.unwrapped
             if hasattr(inner, "current"):  # a WorldEnv resets each episode with its .user
@@ -367,6 +369,13 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
         if self._read is None or self._read[0] is not graph:
             self._read = (graph, ChildIntents(graph))
         self.core.use_intents(self._read[1])
+
+    def _held_out_seed(self) -> int | None:
+        """The next held-out person's seed when the env is a validation or test
+        :class:`~langenv.worlds.WorldEnv` (the periodic evaluation resets it without a seed), so
+        that the same person always listens alike; None otherwise."""
+        seed = getattr(self.env.unwrapped, "next_user_seed", None)
+        return seed if isinstance(seed, int) else None
 
     def _listener(self, seed: int | None) -> Any:
         """The episode's listening person (None without ``listening``)."""

@@ -115,6 +115,14 @@ class WorldEnv(gym.Env[np.ndarray, np.ndarray]):
         return self._env.step(action)
 
     @property
+    def next_user_seed(self) -> int | None:
+        """The seed of the next episode's person for a held-out role (its pairs cycle in order);
+        None for the train role, whose person is drawn at the reset."""
+        if self.role == "train":
+            return None
+        return int(self._pairs[self._next % len(self._pairs)][1])
+
+    @property
     def current(self) -> Any:
         """The ``LangCtrlEnv`` of the current episode (unwrapped): what a wrapper that steps
         it tick by tick or in compiled runs (``run_law``) drives."""
