@@ -493,7 +493,10 @@ FILL_K_C = 0.0
 FILL_TERMINAL = 1.0
 
 
-def _fill(name: str, terminal: float = 0.0) -> Callable[[int | None], LanguageController]:
+def _fill(
+    name: str, terminal: float = 0.0, **kw: Any
+) -> Callable[[int | None], LanguageController]:
+    """``lc-fill``'s settings (with ``terminal`` and any other ``kw``)."""
     return _lc(
         name,
         choice="fill",
@@ -502,6 +505,7 @@ def _fill(name: str, terminal: float = 0.0) -> Callable[[int | None], LanguageCo
         pause_scale=FILL_PAUSE_SCALE,
         gains=AlignerGains(k_c=FILL_K_C),
         terminal=terminal,
+        **kw,
     )
 
 
@@ -533,17 +537,7 @@ ANALYTIC: Mapping[str, tuple[str, Callable[[int | None], Analytic]]] = MappingPr
         "lc-coach": (
             "lc-fill-end choosing among the fitting wordings by what they ask of the person "
             "(a therapist's rule: relax, encourage, faster, slower, guide)",
-            _lc(
-                "lc-coach",
-                choice="fill",
-                fill_margin=FILL_MARGIN,
-                fill_anticipate=FILL_ANTICIPATE,
-                pause_scale=FILL_PAUSE_SCALE,
-                gains=AlignerGains(k_c=FILL_K_C),
-                terminal=FILL_TERMINAL,
-                intents=True,
-                rule=COACH_RULE,
-            ),
+            _fill("lc-coach", terminal=FILL_TERMINAL, intents=True, rule=COACH_RULE),
         ),
     }
 )
