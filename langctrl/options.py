@@ -87,6 +87,16 @@ def fail_lines(error: object, status: int = 1) -> int:
     return status
 
 
+def warn_test_look(name: str) -> None:
+    """Say on stderr that ``langctrl NAME`` is about to look at the test exercises and people,
+    which a study records and allows at most twice."""
+    print(
+        f"langctrl {name}: this is a look at the TEST exercises and people: record it and its "
+        "figures in HISTORY.md (at most two looks per study)",
+        file=sys.stderr,
+    )
+
+
 def stopped(name: str) -> int:
     """Say ``langctrl NAME: stopped`` on stderr (a Ctrl-C); returns the exit status, 130."""
     print(f"langctrl {name}: stopped", file=sys.stderr)

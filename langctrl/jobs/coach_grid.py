@@ -11,7 +11,6 @@ Exit status 0 when it ran; 2 on bad arguments, a bad grid or split.
 from __future__ import annotations
 
 import argparse
-import sys
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -110,11 +109,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (ConfigError, ModelError, FileNotFoundError, KeyError) as exc:
         return options.fail("coach-grid", exc)
     if ns.role == "test":
-        print(
-            "langctrl coach-grid: this is a look at the TEST exercises and people: record it "
-            "and its figures in HISTORY.md",
-            file=sys.stderr,
-        )
+        options.warn_test_look("coach-grid")
     text, sessions, points = run_coach_grid(ns, checked)
     print(text)
     print(f"wrote {ns.out} ({sessions} sessions, {points} points)")

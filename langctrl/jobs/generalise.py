@@ -12,7 +12,6 @@ arguments or a bad split.
 from __future__ import annotations
 
 import argparse
-import sys
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -113,11 +112,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (ConfigError, ModelError, FileNotFoundError, KeyError) as exc:
         return options.fail("generalise", exc)
     if ns.role == "test":
-        print(
-            "langctrl generalise: this is a look at the TEST exercises and users: record it and "
-            "its figures in HISTORY.md (at most two looks per study)",
-            file=sys.stderr,
-        )
+        options.warn_test_look("generalise")
     text, n = run_generalise(ns, split)
     print(text)
     print(f"wrote {ns.out} ({n} episodes)")
