@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 __all__ = [
     "AM_BAR",
@@ -100,8 +101,8 @@ class Bars:
 
 
 def coach_bars(
-    rows: Sequence[Mapping[str, object]],
-    diffs: Mapping[str, Sequence[Mapping[str, object]]],
+    rows: Sequence[Mapping[str, Any]],
+    diffs: Mapping[str, Sequence[Mapping[str, Any]]],
     pairs: Sequence[tuple[str, str]],
 ) -> list[Bars]:
     """The bars of each ``(policy, against)`` in ``pairs``: ``diffs[against]`` holds the paired
@@ -110,42 +111,42 @@ def coach_bars(
 
 
 def _bars(
-    rows: Sequence[Mapping[str, object]],
-    diffs: Sequence[Mapping[str, object]],
+    rows: Sequence[Mapping[str, Any]],
+    diffs: Sequence[Mapping[str, Any]],
     policy: str,
     against: str,
 ) -> Bars:
-    per_point: dict[object, list[Mapping[str, object]]] = {}
+    per_point: dict[object, list[Mapping[str, Any]]] = {}
     for d in diffs:
         if d["policy"] == policy and d["metric"] in GAINS:
             per_point.setdefault(d["point"], []).append(d)
     points = gained = worse = 0
     for ds in per_point.values():
-        if all(math.isnan(float(str(d["lo"]))) for d in ds):
+        if all(math.isnan(float(d["lo"])) for d in ds):
             continue
         points += 1
-        gained += any(float(str(d["hi"])) < 0.0 for d in ds)
-        worse += any(float(str(d["lo"])) > 0.0 for d in ds)
+        gained += any(float(d["hi"]) < 0.0 for d in ds)
+        worse += any(float(d["lo"]) > 0.0 for d in ds)
     mine = {_key(r): r for r in rows if r["policy"] == policy}
     theirs = {_key(r): r for r in rows if r["policy"] == against}
-    legs = [float(str(r["legs_in_step"])) for r in mine.values()]
+    legs = [float(r["legs_in_step"]) for r in mine.values()]
     legs = [x for x in legs if not math.isnan(x)]
-    sms = [float(str(r["sm_max_abs"])) for r in mine.values()]
+    sms = [float(r["sm_max_abs"]) for r in mine.values()]
     sms = [x for x in sms if not math.isnan(x)]
     new_stops = sum(_stop(r) and not (k in theirs and _stop(theirs[k])) for k, r in mine.items())
     return Bars(
         policy, against, points, gained, worse, len(mine),
-        sum(float(str(r["abs_am"])) <= AM_BAR for r in mine.values()),
+        sum(float(r["abs_am"]) <= AM_BAR for r in mine.values()),
         sum(legs) / len(legs) if legs else math.nan, max(sms) if sms else math.nan, new_stops,
     )  # fmt: skip
 
 
-def _key(row: Mapping[str, object]) -> tuple[str, str, str]:
+def _key(row: Mapping[str, Any]) -> tuple[str, str, str]:
     return str(row["point"]), str(row["exercise"]), str(row["user"])
 
 
-def _stop(row: Mapping[str, object]) -> bool:
-    return float(str(row["protective_stop"])) > 0.0
+def _stop(row: Mapping[str, Any]) -> bool:
+    return float(row["protective_stop"]) > 0.0
 
 
 def bar_pairs(policies: Sequence[str], models: Sequence[str], base: str) -> list[tuple[str, str]]:
