@@ -31,7 +31,7 @@ from langenv.control.pacing_kernels import step as pace_step
 from langenv.kernels import kernel
 from langenv.kernels.mjc import P_POW
 from langenv.kernels.views import ArrayField, Record, f8, f8_2, i8
-from langenv.layout import Field, Layout
+from langenv.layout import Layout, field_table
 from langenv.motion import tick_kernels as mk
 from langenv.speech.graph_kernels import eta, fill
 from langenv.speech.legs_kernels import gate, horizon, motion_segment, segment
@@ -55,22 +55,30 @@ __all__ = [
     "run_law",
 ]
 
-ENV_TIMES = (
-    Field("time", doc="the env's time since the reset (s)"),
-    Field("t_a", doc="the speech ETC after the last tick (s)"),
-    Field("t_h", doc="the motion's time to the end of the horizon segment after the last tick (s)"),
-    Field("em_int", doc="the step's misalignment integral so far (s^2)"),
-    Field("pace_int", doc="the step's pace objective integral so far (s)"),
-    Field("max_speed", doc="the step's highest hand speed so far (m/s)"),
+ENV_TIMES = field_table(
+    """
+    time       the env's time since the reset (s)
+    t_a        the speech ETC after the last tick (s)
+    t_h        the motion's time to the end of the horizon segment after the last tick (s)
+    em_int     the step's misalignment integral so far (s^2)
+    pace_int   the step's pace objective integral so far (s)
+    max_speed  the step's highest hand speed so far (m/s)
+    """
 )
-ENV_STATE = (
-    Field("coop_i", kind="int", doc="cooperation samples taken (the history's write index)"),
-    Field("user_step", doc="the user's force table's step (s)"),
-    Field("pause_factor", doc="the pause rule's target over t_x (the target action's factor)"),
-    Field("f_user", 3, doc="the person's force in the last tick (N)"),
+ENV_STATE = field_table(
+    """
+    coop_i:int    cooperation samples taken (the history's write index)
+    user_step     the user's force table's step (s)
+    pause_factor  the pause rule's target over t_x (the target action's factor)
+    f_user[3]     the person's force in the last tick (N)
+    """
 )
 """The env's own state in its compiled ticks (with :data:`ENV_TIMES`)."""
-ENV_SETTINGS = (Field("dt", doc="the tick (s)"),)
+ENV_SETTINGS = field_table(
+    """
+    dt  the tick (s)
+    """
+)
 """The env's own settings."""
 
 ENV_STEPS = Layout(
@@ -82,10 +90,12 @@ own state, then the pace laws' and the env's settings."""
 LAW = Layout(
     "law",
     PACE_LAW,
-    (
-        Field("w_em", doc="the env's misalignment weight"),
-        Field("w_pace", doc="the env's pace weight"),
-        Field("t_scale", doc="the observation's time scale (s)"),
+    field_table(
+        """
+        w_em     the env's misalignment weight
+        w_pace   the env's pace weight
+        t_scale  the observation's time scale (s)
+        """
     ),
 )
 """The law and the env's reward weights as :func:`run_law` reads them."""

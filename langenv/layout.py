@@ -17,6 +17,15 @@ another in a flat float64 array, and everything else is derived from it, as MuJo
   session's kernels take (:mod:`langenv.batch`);
 * the documentation (:meth:`Layout.table`).
 
+A part writes its declaration as a table, one field a line (:func:`field_table`), the way
+``mjxmacro.h`` lists ``mjData``'s arrays::
+
+    PACE_STATE = field_table('''
+        p      physical pace
+        a      audio pace
+        p_dot  the physical pace's rate in the last tick (1/s)
+    ''')
+
 Every value is stored as float64; a field's ``kind`` says how :meth:`Layout.unpack` gives it back
 (``"float"``, ``"int"``, ``"bool"``; ``"index"`` is an int where -1 means none). Changing a
 declaration changes the slots of every kernel that reads it: the kernels' disk cache is dropped
@@ -25,6 +34,8 @@ declaration changes the slots of every kernel that reads it: the kernels' disk c
 
 from __future__ import annotations
 
+import re
+import textwrap
 from collections import namedtuple
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -34,9 +45,10 @@ import numpy as np
 
 from langenv.errors import ConfigError
 
-__all__ = ["Field", "Layout"]
+__all__ = ["Field", "Layout", "field_table"]
 
 _KINDS = ("float", "int", "bool", "index")
+_HEAD = re.compile(r"(?P<name>[A-Za-z_][A-Za-z0-9_]*)(?:\[(?P<size>\d+)\])?(?::(?P<kind>\w+))?$")
 
 
 @dataclass(frozen=True)
@@ -201,6 +213,39 @@ class Layout:
                 f"| {self._offsets[f.name]} | ``{f.name}`` | {f.size} | {f.kind} | {f.doc} |"
             )
         return "\n".join(rows)
+
+
+def field_table(table: str) -> tuple[Field, ...]:
+    """The fields of a declaration written as a table, one field a line: ``NAME  MEANING``,
+    where ``NAME`` may carry a size and a kind (``end_tangent[3]``, ``n_legs:int``,
+    ``leg[2]:index``; default 1 and ``"float"``) and a line indented deeper than the names
+    continues the meaning above it. Blank lines are skipped.
+
+    Raises:
+        ConfigError: naming the line, for a malformed name or a continuation before any field
+            (and :class:`Field`'s own checks: a size below 1, an unknown kind).
+    """
+    rows: list[list[str]] = []
+    for k, line in enumerate(textwrap.dedent(table).splitlines(), 1):
+        if not line.strip():
+            continue
+        if line[0].isspace():
+            if not rows:
+                raise ConfigError(f"fields table line {k}: a continuation before any field")
+            rows[-1][1] += " " + line.strip()
+            continue
+        head, _, doc = line.partition(" ")
+        if _HEAD.match(head) is None:
+            raise ConfigError(f"fields table line {k}: {head!r} is not NAME[SIZE]:KIND")
+        rows.append([head, doc.strip()])
+    return tuple(_field(head, doc) for head, doc in rows)
+
+
+def _field(head: str, doc: str) -> Field:
+    m = _HEAD.match(head)
+    assert m is not None  # checked by field_table()
+    size = int(m["size"]) if m["size"] else 1
+    return Field(m["name"], size, m["kind"] or "float", doc)
 
 
 def _camel(name: str) -> str:

@@ -26,7 +26,7 @@ from langenv.control.pacing_kernels import (
     command_from_action,
 )
 from langenv.kernels import SOURCES, clear_stale_cache, inline, jit
-from langenv.layout import Field, Layout
+from langenv.layout import Layout, field_table
 from langenv.task.observation import (
     CHILD_FIELDS,
     ELAPSED_SCALE,
@@ -56,40 +56,44 @@ clear_stale_cache(  # numba checks this file only; the kernels read langenv's de
 
 RESIDUAL_STATE = Layout(
     "residual_state",
-    (
-        Field("t_x0", doc="t_x at the episode's start (s)"),
-        Field("rate", doc="the motion-rate feature"),
-        Field("rate_avg", doc="its average"),
-        Field("last_r_p", doc="the previous correction of p, as applied"),
-        Field("last_r_a", doc="the previous correction of a, as applied"),
-        Field("base_final", kind="bool", doc="the base is in its terminal or finishing phase"),
-        Field("base_p", doc="the base's physical pace action for the latest observation"),
-        Field("base_a", doc="the base's audio pace action"),
-        Field("lc_has_last", kind="bool", doc="the base's rate estimate has a previous sample"),
-        Field("lc_last_t_x", doc="its t_x (s)"),
-        Field("lc_last_now", doc="its time (s)"),
-        Field("lc_rate", doc="the base's motion-rate estimate (1 at rest)"),
+    field_table(
+        """
+        t_x0              t_x at the episode's start (s)
+        rate              the motion-rate feature
+        rate_avg          its average
+        last_r_p          the previous correction of p, as applied
+        last_r_a          the previous correction of a, as applied
+        base_final:bool   the base is in its terminal or finishing phase
+        base_p            the base's physical pace action for the latest observation
+        base_a            the base's audio pace action
+        lc_has_last:bool  the base's rate estimate has a previous sample
+        lc_last_t_x       its t_x (s)
+        lc_last_now       its time (s)
+        lc_rate           the base's motion-rate estimate (1 at rest)
+        """
     ),
 )
 """One session's state of :class:`~policies.learned.ResidualLC` (and of its base
 :class:`~policies.analytic.LanguageController`)."""
 RESIDUAL_PARAMS = Layout(
     "residual_params",
-    (
-        Field("scores", kind="bool", doc="choice_mode 'scores' (else 'target')"),
-        Field("max_children", kind="int", doc="choice scores"),
-        Field("pace_scale", doc="largest change of the p command"),
-        Field("audio_gain", doc="largest change of the a command"),
-        Field("choice_scale", doc="largest change of the choice"),
-        Field("decision_hz", doc="decision rate (1/s)"),
-        Field("terminal", doc="the base's terminal-phase horizon (s)"),
-        Field("k_em", doc="the base's misalignment feedback (1/s)"),
-        Field("em_clip", doc="its bound"),
-        Field("gate_em", doc="the correction's gate (s)"),
-        Field("deadband", doc="the correction's dead band"),
-        Field("p_max", doc="the pace limits' upper bound of p"),
-        Field("a_max", doc="and of a"),
-        Field("k_ca", doc="the base's k_c / k_a"),
+    field_table(
+        """
+        scores:bool       choice_mode 'scores' (else 'target')
+        max_children:int  choice scores
+        pace_scale        largest change of the p command
+        audio_gain        largest change of the a command
+        choice_scale      largest change of the choice
+        decision_hz       decision rate (1/s)
+        terminal          the base's terminal-phase horizon (s)
+        k_em              the base's misalignment feedback (1/s)
+        em_clip           its bound
+        gate_em           the correction's gate (s)
+        deadband          the correction's dead band
+        p_max             the pace limits' upper bound of p
+        a_max             and of a
+        k_ca              the base's k_c / k_a
+        """
     ),
 )
 """The design of the correction and of its base, as the kernels read it."""

@@ -26,7 +26,7 @@ from langenv import env_kernels as ek
 from langenv.control.pacing_kernels import command_from_action as command
 from langenv.kernels import jit, kernel
 from langenv.kernels.views import f4_2, f8, i8
-from langenv.layout import Field, Layout
+from langenv.layout import Layout, field_table
 from langenv.motion import tick_kernels as mk
 from langenv.task import observation_kernels as ok
 from langenv.task import reward_kernels as rk
@@ -43,20 +43,22 @@ __all__ = [
 
 CONTROL = Layout(
     "control",
-    (
-        Field("active", kind="bool", doc="the session takes part in this round"),
-        Field("p_cmd", doc="the step's physical pace command"),
-        Field("a_cmd", doc="the step's audio pace command"),
-        Field("left", kind="int", doc="ticks of the step still to run"),
-        Field("answer", kind="int", doc=":func:`langenv.env_kernels.run`'s answer"),
-        Field("code", kind="int", doc="and its code"),
-        Field("length", doc="the trajectory's length (m)"),
-        Field("horizon", doc="a step's length (s): the boundary flag's horizon"),
-        Field("t_speech", doc="when the speech ended (s; NaN while it goes on)"),
-        Field("w_em", doc="the env's misalignment weight"),
-        Field("w_pace", doc="the env's pace weight"),
-        Field("p_max", doc="the env's upper bound of p (the action map)"),
-        Field("a_max", doc="the env's upper bound of a"),
+    field_table(
+        """
+        active:bool  the session takes part in this round
+        p_cmd        the step's physical pace command
+        a_cmd        the step's audio pace command
+        left:int     ticks of the step still to run
+        answer:int   :func:`langenv.env_kernels.run`'s answer
+        code:int     and its code
+        length       the trajectory's length (m)
+        horizon      a step's length (s): the boundary flag's horizon
+        t_speech     when the speech ended (s; NaN while it goes on)
+        w_em         the env's misalignment weight
+        w_pace       the env's pace weight
+        p_max        the env's upper bound of p (the action map)
+        a_max        the env's upper bound of a
+        """
     ),
 )
 """Per session: the step's commands and progress, and what :func:`observe` needs besides the

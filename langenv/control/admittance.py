@@ -24,15 +24,21 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from langenv.errors import ConfigError
-from langenv.layout import Field
+from langenv.layout import field_table
 
 __all__ = ["ADMITTANCE_SETTINGS", "ADMITTANCE_STATE", "AdmittanceParams", "VariableAdmittance"]
 
-ADMITTANCE_STATE = (Field("v_ref", 3, doc="the reference velocity (m/s)"),)
+ADMITTANCE_STATE = field_table(
+    """
+    v_ref[3]  the reference velocity (m/s)
+    """
+)
 """The admittance's state: the velocity :meth:`VariableAdmittance.step` integrates."""
-ADMITTANCE_SETTINGS = (
-    Field("d_over_m", doc="D0 / M0 (1/s)"),
-    Field("inv_d", doc="1 / D0 (s m / N)"),
+ADMITTANCE_SETTINGS = field_table(
+    """
+    d_over_m  D0 / M0 (1/s)
+    inv_d     1 / D0 (s m / N)
+    """
 )
 """The admittance's settings (:meth:`VariableAdmittance.settings`)."""
 

@@ -14,18 +14,22 @@ import math
 
 import numpy as np
 
-from langenv.layout import Field
+from langenv.layout import field_table
 
 __all__ = ["COMMAND_SETTINGS", "COMMAND_STATE", "cap_speed", "follow"]
 
-COMMAND_STATE = (
-    Field("v_cmd", 3, doc="the velocity command sent in the last tick (m/s)"),
-    Field("was_moving", kind="bool", doc="the command was not zero before the last tick"),
+COMMAND_STATE = field_table(
+    """
+    v_cmd[3]         the velocity command sent in the last tick (m/s)
+    was_moving:bool  the command was not zero before the last tick
+    """
 )
 """The command's state, declared for the compiled tick."""
-COMMAND_SETTINGS = (
-    Field("max_acc", doc="the command's acceleration limit (m/s^2)"),
-    Field("dv_max", doc="its largest change per tick (m/s)"),
+COMMAND_SETTINGS = field_table(
+    """
+    max_acc  the command's acceleration limit (m/s^2)
+    dv_max   its largest change per tick (m/s)
+    """
 )
 """The command's settings."""
 

@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from langenv.errors import ConfigError
-from langenv.layout import Field
+from langenv.layout import field_table
 
 __all__ = [
     "COOPERATION_SETTINGS",
@@ -25,14 +25,18 @@ __all__ = [
     "force_for_cooperation",
 ]
 
-COOPERATION_STATE = (
-    Field("r", doc="the filtered resistance in [0, 1]"),
-    Field("c", doc="cooperation 1 - r"),
+COOPERATION_STATE = field_table(
+    """
+    r  the filtered resistance in [0, 1]
+    c  cooperation 1 - r
+    """
 )
 """The filter's state (:attr:`CooperationFilter.r`, :attr:`CooperationFilter.c`)."""
-COOPERATION_SETTINGS = (
-    Field("keep", doc="alpha^dt: the share of r kept per sample"),
-    Field("inv_f_max", doc="1 / F_max (1/N)"),
+COOPERATION_SETTINGS = field_table(
+    """
+    keep       alpha^dt: the share of r kept per sample
+    inv_f_max  1 / F_max (1/N)
+    """
 )
 """The filter's settings for a sample period (:meth:`CooperationFilter.settings`)."""
 

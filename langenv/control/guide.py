@@ -73,7 +73,7 @@ import numpy as np
 from langenv.control.admittance import AdmittanceParams
 from langenv.control.trajectory import Trajectory
 from langenv.errors import ConfigError
-from langenv.layout import Field, Layout
+from langenv.layout import Layout, field_table
 
 __all__ = [
     "GATE_REACH",
@@ -138,32 +138,38 @@ def switch_gate(trajectory: Trajectory, start: float, end: float, reach: float) 
     return ss[gate] if returns else start
 
 
-GUIDE_STATE = (
-    Field("s", doc="arc length of the closest point (m)"),
-    Field("leg", kind="int", doc="the leg being guided (the number of legs once done)"),
-    Field("done", kind="bool", doc="the last leg's end has been reached"),
+GUIDE_STATE = field_table(
+    """
+    s          arc length of the closest point (m)
+    leg:int    the leg being guided (the number of legs once done)
+    done:bool  the last leg's end has been reached
+    """
 )
 """The guide's state (:class:`GuideState`), declared for the compiled tick."""
-GUIDE_SETTINGS = (
-    Field("k", doc="guide stiffness K (N/m)"),
-    Field("f_prop", doc="propelling force (N)"),
-    Field("tol2", doc="the switch tolerance's square (m^2, rad^2)"),
-    Field("ff_mass", doc="mass of the curvature feed-forward (kg; 0: off)"),
-    Field("acc", doc="the command's acceleration limit (m/s^2; inf: no governor)"),
-    Field("v_turn2", doc="the guided plateau speed's square (m^2/s^2)"),
-    Field("end_tangent", 3, doc="the direction of progress once done"),
-    Field("n_legs", kind="int", doc="number of legs"),
+GUIDE_SETTINGS = field_table(
+    """
+    k               guide stiffness K (N/m)
+    f_prop          propelling force (N)
+    tol2            the switch tolerance's square (m^2, rad^2)
+    ff_mass         mass of the curvature feed-forward (kg; 0: off)
+    acc             the command's acceleration limit (m/s^2; inf: no governor)
+    v_turn2         the guided plateau speed's square (m^2/s^2)
+    end_tangent[3]  the direction of progress once done
+    n_legs:int      number of legs
+    """
 )
 """The guide's settings (:meth:`Guide.settings`)."""
 LEG = Layout(
     "leg",
-    (
-        Field("start", doc="the leg's start (arc length, m)"),
-        Field("end", doc="its end (arc length, m)"),
-        Field("end_point", 3, doc="its end point (m)"),
-        Field("end_angle", doc="the tool's running turn at its end (rad)"),
-        Field("switch", doc="its switch distance before the end (m)"),
-        Field("gate", doc="its gate (arc length, m; :meth:`Guide.gate`)"),
+    field_table(
+        """
+        start         the leg's start (arc length, m)
+        end           its end (arc length, m)
+        end_point[3]  its end point (m)
+        end_angle     the tool's running turn at its end (rad)
+        switch        its switch distance before the end (m)
+        gate          its gate (arc length, m; :meth:`Guide.gate`)
+        """
     ),
 )
 """One leg's row (:meth:`Guide.leg_rows`)."""

@@ -18,7 +18,7 @@ import numpy as np
 
 from langenv.control.trajectory_kernels import frame, locate
 from langenv.kernels import kernel
-from langenv.layout import Field, Layout
+from langenv.layout import Layout, field_table
 
 __all__ = [
     "ETC_LEG",
@@ -35,30 +35,34 @@ __all__ = [
 
 ETC_PARAMS = Layout(
     "etc_params",
-    (
-        Field("dt", doc="the law's tick (s)"),
-        Field("acc", doc="the command's acceleration limit (m/s^2)"),
-        Field("u_inf", doc="the guided plateau speed (m/s)"),
-        Field("tau", doc="the admittance's time constant M0/D0 (s)"),
-        Field("tau_d", doc="1/tau (1/s)"),
-        Field("inv_acc", doc="1/acc (s^2/m)"),
-        Field("behind_origin", 3, doc="the behind-the-start tables' grid origin (m, m/s, m/s)"),
-        Field("behind_step", 3, doc="their grid steps"),
-        Field("behind_shape", 3, kind="int", doc="their shape"),
-        Field("rest_u0", doc="the rest tables' first speed (m/s)"),
-        Field("rest_du", doc="their speed step (m/s)"),
-        Field("rest_n", kind="int", doc="their points per axis"),
-        Field("n_legs", kind="int", doc="number of legs"),
-        Field("rest_offset", kind="int", doc="where the rest tables start in ``tab``"),
+    field_table(
+        """
+        dt                   the law's tick (s)
+        acc                  the command's acceleration limit (m/s^2)
+        u_inf                the guided plateau speed (m/s)
+        tau                  the admittance's time constant M0/D0 (s)
+        tau_d                1/tau (1/s)
+        inv_acc              1/acc (s^2/m)
+        behind_origin[3]     the behind-the-start tables' grid origin (m, m/s, m/s)
+        behind_step[3]       their grid steps
+        behind_shape[3]:int  their shape
+        rest_u0              the rest tables' first speed (m/s)
+        rest_du              their speed step (m/s)
+        rest_n:int           their points per axis
+        n_legs:int           number of legs
+        rest_offset:int      where the rest tables start in ``tab``
+        """
     ),
 )
 """FastETC's ``prm``: its law and the tables' grids; then a row of :data:`ETC_LEG` per leg."""
 ETC_LEG = Layout(
     "etc_leg",
-    (
-        Field("end", doc="the leg's end (arc length, m)"),
-        Field("length", doc="its length (m)"),
-        Field("switch", doc="its switch distance before the end (m)"),
+    field_table(
+        """
+        end     the leg's end (arc length, m)
+        length  its length (m)
+        switch  its switch distance before the end (m)
+        """
     ),
 )
 """One leg's row of FastETC's ``prm`` (from ``ETC_PARAMS.size`` on)."""

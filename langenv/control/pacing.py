@@ -31,7 +31,7 @@ import numbers
 from dataclasses import asdict, dataclass
 
 from langenv.errors import ConfigError
-from langenv.layout import Field
+from langenv.layout import field_table
 
 __all__ = [
     "COMMAND_MIN",
@@ -53,28 +53,34 @@ __all__ = [
 #: Pace command at u = -1 (lowest value the paper's law can ask for).
 COMMAND_MIN = -1.5
 
-PACE_STATE = (
-    Field("p", doc="physical pace"),
-    Field("a", doc="audio pace"),
-    Field("p_dot", doc="the physical pace's rate in the last tick (1/s)"),
+PACE_STATE = field_table(
+    """
+    p      physical pace
+    a      audio pace
+    p_dot  the physical pace's rate in the last tick (1/s)
+    """
 )
 """The pace actuator's state (:class:`PaceActuator`), declared for the compiled ticks."""
-PACE_SETTINGS = (
-    Field("k_p", doc="physical pace gain (1/s)"),
-    Field("k_a", doc="audio pace gain (1/s)"),
-    Field("p_min", doc="lower bound of p"),
-    Field("p_max", doc="upper bound of p"),
-    Field("a_min", doc="lower bound of a"),
-    Field("a_max", doc="upper bound of a"),
+PACE_SETTINGS = field_table(
+    """
+    k_p    physical pace gain (1/s)
+    k_a    audio pace gain (1/s)
+    p_min  lower bound of p
+    p_max  upper bound of p
+    a_min  lower bound of a
+    a_max  upper bound of a
+    """
 )
 """The pace laws' settings (a :class:`PaceLimits`, :meth:`PaceLimits.settings`)."""
-PACE_LAW = (
-    Field("k_ca", doc="k_c / k_a of the audio command"),
-    Field("k_em", doc="the misalignment feedback on p (1/s)"),
-    Field("em_clip", doc="its bound (pace units)"),
-    Field("law_p_max", doc="the policy's upper bound of p (its action map)"),
-    Field("law_a_max", doc="the policy's upper bound of a"),
-    Field("c_min", doc="the pace command at u = -1 (:data:`COMMAND_MIN`)"),
+PACE_LAW = field_table(
+    """
+    k_ca       k_c / k_a of the audio command
+    k_em       the misalignment feedback on p (1/s)
+    em_clip    its bound (pace units)
+    law_p_max  the policy's upper bound of p (its action map)
+    law_a_max  the policy's upper bound of a
+    c_min      the pace command at u = -1 (:data:`COMMAND_MIN`)
+    """
 )
 """A :class:`PaceLaw` as its compiled form reads it (:meth:`PaceLaw.values`)."""
 

@@ -34,7 +34,7 @@ from numpy.typing import ArrayLike
 
 from langenv import vec
 from langenv.errors import TrajectoryError
-from langenv.layout import Field, Layout
+from langenv.layout import Layout, field_table
 from langenv.validation import as_vec3
 
 __all__ = [
@@ -59,19 +59,21 @@ Vec3 = tuple[float, float, float]
 
 SEGMENT = Layout(
     "segment",
-    (
-        Field("kind", kind="int", doc="0 a line, 1 an arc"),
-        Field("s0", doc="arc length at the segment's start (m)"),
-        Field("s1", doc="arc length at its end (m)"),
-        Field("length", doc="its length (m)"),
-        Field("turn0", doc="the tool's running turn at its start (rad)"),
-        Field("turn_rate", doc="the tool's turn per metre along it (rad/m)"),
-        Field("origin", 3, doc="a line's start point, an arc's centre (m)"),
-        Field("axis1", 3, doc="a line's unit direction, an arc's e1 (start radius direction)"),
-        Field("axis2", 3, doc="an arc's e2 (in-plane normal to e1; zeros for a line)"),
-        Field("radius", doc="an arc's radius (m)"),
-        Field("sign", doc="an arc's sense of rotation about its axis (+-1)"),
-        Field("angle", doc="an arc's swept angle (rad)"),
+    field_table(
+        """
+        kind:int   0 a line, 1 an arc
+        s0         arc length at the segment's start (m)
+        s1         arc length at its end (m)
+        length     its length (m)
+        turn0      the tool's running turn at its start (rad)
+        turn_rate  the tool's turn per metre along it (rad/m)
+        origin[3]  a line's start point, an arc's centre (m)
+        axis1[3]   a line's unit direction, an arc's e1 (start radius direction)
+        axis2[3]   an arc's e2 (in-plane normal to e1; zeros for a line)
+        radius     an arc's radius (m)
+        sign       an arc's sense of rotation about its axis (+-1)
+        angle      an arc's swept angle (rad)
+        """
     ),
 )
 """One row of a packed trajectory (:meth:`Trajectory.packed`): what the compiled path functions

@@ -30,7 +30,7 @@ from numba.extending import intrinsic
 
 from langenv.errors import ConfigError
 from langenv.kernels import kernel
-from langenv.layout import Field, Layout
+from langenv.layout import Layout, field_table
 
 __all__ = [
     "POINTERS",
@@ -45,16 +45,18 @@ __all__ = [
 
 POINTERS = Layout(
     "pointers",
-    (
-        Field("model", kind="int", doc="the ``mjModel``"),
-        Field("data", kind="int", doc="the ``mjData``"),
-        Field("step1", kind="int", doc="``mj_step1``"),
-        Field("step2", kind="int", doc="``mj_step2``"),
-        Field("jac_site", kind="int", doc="``mj_jacSite``"),
-        Field("jacp", kind="int", doc="the positional Jacobian's buffer"),
-        Field("jacr", kind="int", doc="the rotational Jacobian's buffer"),
-        Field("site", kind="int", doc="the handle site's id (a number, not an address)"),
-        Field("pow", kind="int", doc="the C library's ``pow``"),
+    field_table(
+        """
+        model:int     the ``mjModel``
+        data:int      the ``mjData``
+        step1:int     ``mj_step1``
+        step2:int     ``mj_step2``
+        jac_site:int  ``mj_jacSite``
+        jacp:int      the positional Jacobian's buffer
+        jacr:int      the rotational Jacobian's buffer
+        site:int      the handle site's id (a number, not an address)
+        pow:int       the C library's ``pow``
+        """
     ),
 )
 """The addresses of :func:`pointers`' ``int64`` array, by name."""

@@ -37,7 +37,7 @@ from langenv.kernels import inline, kernel, mjc
 from langenv.kernels.blas import mul_mat_vec
 from langenv.kernels.pymath import dist3, hypot3
 from langenv.kernels.views import ArrayField, Record, f8, f8_2, i8
-from langenv.layout import Field, Layout
+from langenv.layout import Layout, field_table
 from langenv.robot import arm_kernels
 from langenv.robot.force_sensor import SENSOR_SETTINGS, SENSOR_STATE
 from langenv.robot.force_sensor_kernels import deadband
@@ -58,19 +58,25 @@ __all__ = [
     "tick",
 ]
 
-MOTION_STATE = (
-    Field("t_x", doc="the motion ETC after the tick (s)"),
-    Field("time", doc="time since the reset (s)"),
-    Field("t_end", doc="when the motion ended (s; NaN while it goes on)"),
-    Field("path_point", 3, doc="the closest path point T(s) (m)"),
-    Field("hand_velocity", 3, doc="the hand's velocity after the tick (m/s)"),
-    Field("hand_speed", doc="its norm (m/s)"),
-    Field("path_deviation", doc="the hand's distance from T(s) (m)"),
-    Field("tangent", 3, doc="the guide's direction of progress at the hand after the tick"),
-    Field("t_leg", doc="the motion's time to the current leg's switch after the tick (s)"),
+MOTION_STATE = field_table(
+    """
+    t_x               the motion ETC after the tick (s)
+    time              time since the reset (s)
+    t_end             when the motion ended (s; NaN while it goes on)
+    path_point[3]     the closest path point T(s) (m)
+    hand_velocity[3]  the hand's velocity after the tick (m/s)
+    hand_speed        its norm (m/s)
+    path_deviation    the hand's distance from T(s) (m)
+    tangent[3]        the guide's direction of progress at the hand after the tick
+    t_leg             the motion's time to the current leg's switch after the tick (s)
+    """
 )
 """The guided arm's own state (what :class:`~langenv.motion.tick.GuidedArm` exposes)."""
-MOTION_SETTINGS = (Field("dt", doc="the tick (s)"),)
+MOTION_SETTINGS = field_table(
+    """
+    dt  the tick (s)
+    """
+)
 """The guided arm's own settings."""
 
 TICK = Layout(

@@ -52,7 +52,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from langenv import vec
 from langenv.errors import ActionError, ConfigError
-from langenv.layout import Field, Layout
+from langenv.layout import Layout, field_table
 from langenv.robot.handles import ArmHandles, shared_model
 from langenv.robot.ik import IK_ACCEPT, solve_ik
 from langenv.robot.rotation import rotation_error_matrix, rotation_vector
@@ -80,26 +80,28 @@ _LIMIT_CHECK_MAX = 25  # ticks, longest interval between two joint-limit checks
 
 ARM = Layout(
     "arm",
-    (
-        Field("v_max", doc="the hand's speed limit (m/s)"),
-        Field("kp", doc="position gain (1/s)"),
-        Field("e_max", doc="largest tracking error (m)"),
-        Field("e_max2", doc="its square"),
-        Field("lambda2", doc="the damping's square"),
-        Field("dt", doc="the control period (s)"),
-        Field("task", kind="int", doc="task size: 6 (orientation held) or 3"),
-        Field("n", kind="int", doc="controlled joints"),
-        Field("nv", kind="int", doc="the model's degrees of freedom"),
-        Field("has_limits", kind="bool", doc="whether any joint is limited"),
-        Field("countdown", kind="int", doc="ticks until the joint margins are checked again"),
-        Field("full_dofs", kind="bool", doc="whether the joints are the model's dofs in order"),
-        Field("max_qd", doc="the highest joint speed limit (rad/s)"),
-        Field("x_ref", 3, doc="the reference point (m); the Arm's own ``x_ref`` is a view of it"),
-        Field("rot_b", 27, doc="the orientation hold's (3, 9) matrix"),
-        Field("a", 36, doc="work: the damped system's matrix"),
-        Field("xdot", 6, doc="work: the task velocity"),
-        Field("y", 6, doc="work: the system's solution"),
-        Field("v", 3, doc="the clipped hand velocity command (m/s)"),
+    field_table(
+        """
+        v_max            the hand's speed limit (m/s)
+        kp               position gain (1/s)
+        e_max            largest tracking error (m)
+        e_max2           its square
+        lambda2          the damping's square
+        dt               the control period (s)
+        task:int         task size: 6 (orientation held) or 3
+        n:int            controlled joints
+        nv:int           the model's degrees of freedom
+        has_limits:bool  whether any joint is limited
+        countdown:int    ticks until the joint margins are checked again
+        full_dofs:bool   whether the joints are the model's dofs in order
+        max_qd           the highest joint speed limit (rad/s)
+        x_ref[3]         the reference point (m); the Arm's own ``x_ref`` is a view of it
+        rot_b[27]        the orientation hold's (3, 9) matrix
+        a[36]            work: the damped system's matrix
+        xdot[6]          work: the task velocity
+        y[6]             work: the system's solution
+        v[3]             the clipped hand velocity command (m/s)
+        """
     ),
 )
 """The compiled controller's settings, state and work (:mod:`langenv.robot.arm_kernels`); after
@@ -107,13 +109,15 @@ ARM = Layout(
 Jacobian (``task * n``)."""
 ARM_JOINTS = Layout(
     "arm_joints",
-    (
-        Field("inv_qd_max", doc="1 / the joint's speed limit (s/rad)"),
-        Field("lower", doc="lower limit (rad)"),
-        Field("upper", doc="upper limit (rad)"),
-        Field("lower_margin", doc="lower limit plus the margin (rad)"),
-        Field("upper_margin", doc="upper limit minus the margin (rad)"),
-        Field("qdot", doc="the joint speed command (rad/s)"),
+    field_table(
+        """
+        inv_qd_max    1 / the joint's speed limit (s/rad)
+        lower         lower limit (rad)
+        upper         upper limit (rad)
+        lower_margin  lower limit plus the margin (rad)
+        upper_margin  upper limit minus the margin (rad)
+        qdot          the joint speed command (rad/s)
+        """
     ),
 )
 """Per-joint blocks of the compiled controller's array: block ``j`` of field ``f`` starts at

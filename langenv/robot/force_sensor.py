@@ -9,13 +9,21 @@ from numpy.typing import NDArray
 
 from langenv import vec
 from langenv.errors import ActionError, ConfigError
-from langenv.layout import Field
+from langenv.layout import field_table
 
 __all__ = ["SENSOR_SETTINGS", "SENSOR_STATE", "ForceSensor"]
 
-SENSOR_STATE = (Field("f_measured", 3, doc="the last reading, after the deadband (N)"),)
+SENSOR_STATE = field_table(
+    """
+    f_measured[3]  the last reading, after the deadband (N)
+    """
+)
 """The sensor's reading, declared for the compiled tick."""
-SENSOR_SETTINGS = (Field("deadband", doc="the deadband's radius (N)"),)
+SENSOR_SETTINGS = field_table(
+    """
+    deadband  the deadband's radius (N)
+    """
+)
 """The sensor's settings (the compiled tick draws no noise: a noisy sensor ticks in Python)."""
 
 

@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from langenv.errors import ConfigError
-from langenv.layout import Field
+from langenv.layout import field_table
 
 __all__ = [
     "DEFAULT_MAX_SPEED",
@@ -53,17 +53,23 @@ __all__ = [
 DEFAULT_MAX_SPEED = 0.5
 """Default TCP speed limit (m/s): the arm's velocity command limit."""
 
-MONITOR_STATE = (Field("countdown", kind="int", doc="ticks until the joints are checked again"),)
+MONITOR_STATE = field_table(
+    """
+    countdown:int  ticks until the joints are checked again
+    """
+)
 """The monitor's state (:attr:`SafetyMonitor.countdown`), declared for the compiled tick."""
-SAFETY_SETTINGS = (
-    Field("hold", doc="``hold_deviation``: no command away from the path beyond it (m)"),
-    Field("v_max", doc="``max_speed``: the command's speed limit (m/s)"),
-    Field("f_max", doc="the force limit (N)"),
-    Field("d_max", doc="the path deviation limit (m)"),
-    Field("v_trip", doc="the measured speed that trips a stop (m/s)"),
-    Field("per_tick", doc="the most a joint moves in a tick (rad)"),
-    Field("has_joint_limits", kind="bool", doc="whether any joint is limited"),
-    Field("n_joints", kind="int", doc="the joints watched (their bounds follow the legs)"),
+SAFETY_SETTINGS = field_table(
+    """
+    hold                   ``hold_deviation``: no command away from the path beyond it (m)
+    v_max                  ``max_speed``: the command's speed limit (m/s)
+    f_max                  the force limit (N)
+    d_max                  the path deviation limit (m)
+    v_trip                 the measured speed that trips a stop (m/s)
+    per_tick               the most a joint moves in a tick (rad)
+    has_joint_limits:bool  whether any joint is limited
+    n_joints:int           the joints watched (their bounds follow the legs)
+    """
 )
 """The safety layer's settings (:meth:`SafetyMonitor.settings`)."""
 

@@ -24,19 +24,21 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from langenv.errors import ActionError, ConfigError
-from langenv.layout import Field
+from langenv.layout import field_table
 from langenv.speech.graph import PhraseGraph
 
 __all__ = ["TIMELINE_STATE", "Choice", "PauseTarget", "SpeechTimeline", "Utterance"]
 
-TIMELINE_STATE = (
-    Field("speech_pos", doc="base-pace seconds into the current vertex's slot"),
-    Field("speech_t", doc="time since the timeline's reset (s)"),
-    Field("speech_a", doc="the audio pace of the last step"),
-    Field("mark", doc="the content position where the next boundary falls (s at a = 1)"),
-    Field("phrase", kind="index", doc="the current vertex (its index; -1 once speech is over)"),
-    Field("slot", doc="the current vertex's slot length (a pause: as planned now; s at a = 1)"),
-    Field("in_pause", kind="bool", doc="in the silence after a clip, or a pause vertex"),
+TIMELINE_STATE = field_table(
+    """
+    speech_pos     base-pace seconds into the current vertex's slot
+    speech_t       time since the timeline's reset (s)
+    speech_a       the audio pace of the last step
+    mark           the content position where the next boundary falls (s at a = 1)
+    phrase:index   the current vertex (its index; -1 once speech is over)
+    slot           the current vertex's slot length (a pause: as planned now; s at a = 1)
+    in_pause:bool  in the silence after a clip, or a pause vertex
+    """
 )
 """The timeline's state inside a vertex, declared for the compiled ticks (which stop before a
 boundary: the choice and the history are Python's)."""
