@@ -179,6 +179,24 @@ def test_the_choice_env_needs_ticks() -> None:
         ChoicePoints(gym.make(langenv.ENV_ID, decision_hz=25))
     with pytest.raises(ConfigError, match="w_content"):
         ChoicePoints(gym.make(langenv.ENV_ID, decision_hz=500), w_content=-1.0)
+    with pytest.raises(ConfigError, match="am_scale must be finite and > 0"):
+        ChoicePoints(gym.make(langenv.ENV_ID, decision_hz=500), am_scale=0.0)
+    with pytest.raises(ConfigError, match=r"unknown argument\(s\) w_speed"):
+        ChoicePoints(gym.make(langenv.ENV_ID, decision_hz=500), w_speed=1.0)
+
+
+def test_the_choice_reward_pays_each_term_once() -> None:
+    from train.shaping import ChoiceReward
+
+    r = ChoiceReward(w_content=2.0, w_legs=1.0, w_length=0.5, w_am_far=3.0, w_stop=7.0)
+    ended = r.terms((0.5, 0.8, float("nan")), em_mean=0.2, length=10.0, am=-1.5)
+    assert ended["reward_content"] == 1.0 and ended["reward_voice"] == 4.0
+    assert ended["reward_legs"] == 0.0 and ended["reward_length"] == -5.0
+    assert ended["reward_em"] == pytest.approx(-0.2)
+    assert ended["reward_am"] == pytest.approx(-1.5 - 0.5 * math.log1p(15.0))
+    assert ended["reward_am_far"] == -3.0
+    stopped = r.terms((0.5, 0.8, 1.0), em_mean=0.2, length=10.0, am=None)
+    assert (stopped["reward_am"], stopped["reward_am_far"]) == (-7.0, 0.0)
 
 
 @pytest.fixture(scope="module")

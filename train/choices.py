@@ -69,6 +69,7 @@ from langenv.task import observation as ob
 from policies.analytic import FILL_ANTICIPATE, FILL_K_C, FILL_MARGIN, FILL_PAUSE_SCALE
 from policies.coach import ChildIntents
 from policies.learned import ResidualLC, ResidualSpec
+from train.shaping import ChoiceReward
 
 __all__ = ["EPISODE_S", "ChoicePoints", "listening_ranges", "session_legs", "session_speech"]
 
@@ -188,19 +189,11 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
         fill_anticipate: How much the content rule trusts the person's pace so far.
         pause_scale: The base's pause target over ``t_x`` in pauses with a choice after them.
         k_em: The base's misalignment feedback on the physical pace (1/s).
-        w_content: Weight of the content share (module docstring).
-        w_voice: Weight of the voice natural share.
-        w_legs: Weight of the share of legs in step.
-        w_am: Weight of ``|AM|`` (1/s).
-        w_am_fine: Weight of ``ln(1 + |AM| / am_scale)``.
-        am_scale: Scale of that term (s), > 0.
-        w_am_far: Penalty when ``|AM| > 1 s``.
-        w_em: Weight of the mean ``|EM|`` (1/s).
-        w_stop: Penalty for a protective stop or a cut-off episode, instead of the alignment
-            terms.
-        w_length: Weight of the session's length (1/s).
         listening: The people who listen (module docstring); None: the env's own people.
         child_intents: Whether the observation holds each child's intent (module docstring).
+        **weights: The reward's weights (:class:`~train.shaping.ChoiceReward`: ``w_content``,
+            ``w_voice``, ``w_legs``, ``w_am``, ``w_am_fine``, ``am_scale``, ``w_am_far``,
+            ``w_em``, ``w_stop``, ``w_length``).
 
     Raises:
         ConfigError: if the env does not step one tick at a time, or for a bad setting.
@@ -219,18 +212,9 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
         fill_anticipate: float = FILL_ANTICIPATE,
         pause_scale: float = FILL_PAUSE_SCALE,
         k_em: float = 0.0,
-        w_content: float = 10.0,
-        w_voice: float = 5.0,
-        w_legs: float = 0.0,
-        w_am: float = 1.0,
-        w_am_fine: float = 0.5,
-        am_scale: float = 0.1,
-        w_am_far: float = 5.0,
-        w_em: float = 1.0,
-        w_stop: float = 10.0,
-        w_length: float = 0.0,
         listening: str | Mapping[str, Sequence[float]] | None = None,
         child_intents: bool = False,
+        **weights: float,
     ) -> None:
         super().__init__(env)
         inner: Any = env.unwrapped
@@ -239,24 +223,7 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
                 f"ChoicePoints: the env must decide at 500 Hz (a tick per step), got "
                 f"decision_hz={inner.decision_hz}"
             )
-        weights = {
-            "w_content": w_content,
-            "w_voice": w_voice,
-            "w_legs": w_legs,
-            "w_am": w_am,
-            "w_am_fine": w_am_fine,
-            "w_am_far": w_am_far,
-            "w_em": w_em,
-            "w_stop": w_stop,
-            "w_length": w_length,
-        }
-        for name, value in weights.items():
-            if not (math.isfinite(value) and value >= 0.0):
-                raise ConfigError(f"ChoicePoints: {name} must be finite and >= 0, got {value!r}")
-        if not (math.isfinite(am_scale) and am_scale > 0.0):
-            raise ConfigError(f"ChoicePoints: am_scale must be finite and > 0, got {am_scale!r}")
-        self.weights = {k: float(v) for k, v in weights.items()}
-        self.am_scale = float(am_scale)
+        self.reward = ChoiceReward.from_kwargs(weights)
         self.residual_spec = ResidualSpec(
             choice_mode=inner.choice_mode,
             max_children=int(inner.max_children),
@@ -458,23 +425,10 @@ class ChoicePoints(gym.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.ndarray]):
         legs = session_legs(t, leg, said, plant.graph, plant.motion_legs)
         w = np.append(np.diff(t), t[-1] - t[-2]) * ~(md & sd)
         em_mean = float(np.sum(w * np.abs(em)) / np.sum(w)) if np.sum(w) > 0 else 0.0
-        in_legs = legs["legs_in_step"]
-        wt = self.weights
-        terms = {
-            "reward_content": wt["w_content"] * (content if math.isfinite(content) else 0.0),
-            "reward_voice": wt["w_voice"] * (voice if math.isfinite(voice) else 0.0),
-            "reward_legs": wt["w_legs"] * (in_legs if math.isfinite(in_legs) else 0.0),
-            "reward_em": -wt["w_em"] * em_mean,
-            "reward_length": -wt["w_length"] * max(t_motion, float(plant.t_speech or t[-1])),
-        }
+        length = max(t_motion, float(plant.t_speech or t[-1]))
         am = info.get("am")
-        if terminated and am is not None:
-            am = abs(float(am))
-            terms["reward_am"] = -wt["w_am"] * am - wt["w_am_fine"] * math.log1p(am / self.am_scale)
-            terms["reward_am_far"] = -wt["w_am_far"] if am > 1.0 else 0.0
-        else:
-            terms["reward_am"] = -wt["w_stop"]
-            terms["reward_am_far"] = 0.0
+        am = float(am) if terminated and am is not None else None
+        terms = self.reward.terms((content, voice, legs["legs_in_step"]), em_mean, length, am)
         info.update(terms)
         info.update(content_share=content, voice_natural=voice, em_mean_abs=em_mean, **legs)
         return float(sum(terms.values()))

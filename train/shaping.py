@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike
 
 from langenv.errors import ConfigError
 
-__all__ = ["AlignmentShaping"]
+__all__ = ["AlignmentShaping", "ChoiceReward"]
 
 
 @dataclass(frozen=True)
@@ -106,3 +106,88 @@ class AlignmentShaping:
         for i in np.flatnonzero(ended).tolist():  # math.log1p, the same in every caller
             r_am.flat[i] = -self.w_am_fine * math.log1p(abs(float(am.flat[i])) / self.am_scale)
         return r_em, r_adev, r_am
+
+
+@dataclass(frozen=True)
+class ChoiceReward:
+    """The learned chooser's reward, paid once when the episode ends
+    (:class:`train.choices.ChoicePoints`; the terms in its module docstring).
+
+    Attributes:
+        w_content: Weight of the content share.
+        w_voice: Weight of the voice natural share.
+        w_legs: Weight of the share of legs in step.
+        w_am: Weight of ``|AM|`` (1/s).
+        w_am_fine: Weight of ``ln(1 + |AM| / am_scale)``.
+        am_scale: Scale of that term (s), > 0.
+        w_am_far: Penalty when ``|AM| > 1 s``.
+        w_em: Weight of the mean ``|EM|`` (1/s).
+        w_stop: Penalty for a protective stop or a cut-off episode, instead of the alignment
+            terms.
+        w_length: Weight of the session's length (1/s).
+
+    Raises:
+        ConfigError: naming the weight, for a negative or non-finite one, or ``am_scale <= 0``.
+    """
+
+    w_content: float = 10.0
+    w_voice: float = 5.0
+    w_legs: float = 0.0
+    w_am: float = 1.0
+    w_am_fine: float = 0.5
+    am_scale: float = 0.1
+    w_am_far: float = 5.0
+    w_em: float = 1.0
+    w_stop: float = 10.0
+    w_length: float = 0.0
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.name == "am_scale":
+                if not (math.isfinite(value) and value > 0.0):
+                    raise ConfigError(
+                        f"ChoicePoints: am_scale must be finite and > 0, got {value!r}"
+                    )
+            elif not (math.isfinite(value) and value >= 0.0):
+                raise ConfigError(f"ChoicePoints: {f.name} must be finite and >= 0, got {value!r}")
+            object.__setattr__(self, f.name, float(value))
+
+    @classmethod
+    def from_kwargs(cls, kwargs: Mapping[str, Any]) -> ChoiceReward:
+        """The reward of ``ChoicePoints``' weight arguments.
+
+        Raises:
+            ConfigError: for an argument it does not take, or a bad value.
+        """
+        unknown = sorted(set(kwargs) - {f.name for f in fields(cls)})
+        if unknown:
+            raise ConfigError(f"ChoicePoints: unknown argument(s) {', '.join(unknown)}")
+        return cls(**kwargs)
+
+    def terms(
+        self,
+        speech: tuple[float, float, float],
+        em_mean: float,
+        length: float,
+        am: float | None,
+    ) -> dict[str, float]:
+        """The reward's terms by name: ``speech`` is (content share, voice natural share, share
+        of legs in step; a NaN counts 0), ``em_mean`` the mean ``|EM|`` (s), ``length`` the
+        session's (s), ``am`` the ``AM`` of an episode that ended by itself (None: a protective
+        stop or a cut-off, which pays ``-w_stop``)."""
+        content, voice, legs = (v if math.isfinite(v) else 0.0 for v in speech)
+        terms = {
+            "reward_content": self.w_content * content,
+            "reward_voice": self.w_voice * voice,
+            "reward_legs": self.w_legs * legs,
+            "reward_em": -self.w_em * em_mean,
+            "reward_length": -self.w_length * length,
+        }
+        if am is None:
+            terms.update(reward_am=-self.w_stop, reward_am_far=0.0)
+            return terms
+        am = abs(am)
+        terms["reward_am"] = -self.w_am * am - self.w_am_fine * math.log1p(am / self.am_scale)
+        terms["reward_am_far"] = -self.w_am_far if am > 1.0 else 0.0
+        return terms
