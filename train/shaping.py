@@ -69,10 +69,7 @@ class AlignmentShaping:
         Raises:
             ConfigError: for an argument it does not take, or a bad value.
         """
-        unknown = sorted(set(kwargs) - {f.name for f in fields(cls)})
-        if unknown:
-            raise ConfigError(f"AlignmentReward: unknown argument(s) {', '.join(unknown)}")
-        return cls(**kwargs)
+        return cls(**_known(cls, kwargs, "AlignmentReward"))
 
     def terms(
         self,
@@ -155,15 +152,8 @@ class ChoiceReward:
 
     @classmethod
     def from_kwargs(cls, kwargs: Mapping[str, Any]) -> ChoiceReward:
-        """The reward of ``ChoicePoints``' weight arguments.
-
-        Raises:
-            ConfigError: for an argument it does not take, or a bad value.
-        """
-        unknown = sorted(set(kwargs) - {f.name for f in fields(cls)})
-        if unknown:
-            raise ConfigError(f"ChoicePoints: unknown argument(s) {', '.join(unknown)}")
-        return cls(**kwargs)
+        """The reward of ``ChoicePoints``' weight arguments (errors as the shaping's)."""
+        return cls(**_known(cls, kwargs, "ChoicePoints"))
 
     def terms(
         self,
@@ -191,3 +181,11 @@ class ChoiceReward:
         terms["reward_am"] = -self.w_am * am - self.w_am_fine * math.log1p(am / self.am_scale)
         terms["reward_am_far"] = -self.w_am_far if am > 1.0 else 0.0
         return terms
+
+
+def _known(cls: type, kwargs: Mapping[str, Any], who: str) -> Mapping[str, Any]:
+    """``kwargs``, if ``cls`` has a field for each; else a ConfigError naming ``who`` and them."""
+    unknown = sorted(set(kwargs) - {f.name for f in fields(cls)})
+    if unknown:
+        raise ConfigError(f"{who}: unknown argument(s) {', '.join(unknown)}")
+    return kwargs
