@@ -17,6 +17,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -499,14 +500,7 @@ def write_summary_md(
     rows: Sequence[Row],
     path: str | Path,
     reference: str = "lc",
-    *,
-    rng: np.random.Generator,
-    policies: Sequence[str] | None = None,
-    metrics: Sequence[str] = NUMERIC_METRICS,
-    stat: Stat = "median",
-    n_boot: int = 10_000,
-    level: float = 0.95,
-    figure: str | None = None,
+    **options: Any,
 ) -> Path:
     """Write ``summary.md``: findings, per-controller spreads and differences against a reference.
 
@@ -514,13 +508,8 @@ def write_summary_md(
         rows: Session rows (``policy``, ``user`` and the metric columns).
         path: Destination markdown file (written atomically).
         reference: Policy the differences are taken against.
-        rng: Source of randomness for the bootstrap.
-        policies: Order and selection of the controllers (default: order of first appearance).
-        metrics: Metrics to tabulate (default: all of :data:`~eval.metrics.NUMERIC_METRICS`).
-        stat: Statistic of the differences.
-        n_boot: Bootstrap resamples per interval.
-        level: Confidence level.
-        figure: Relative path of the violin figure to embed (e.g. ``"summary.png"``), if any.
+        **options: :func:`render_summary_md`'s keyword arguments (``rng``, required;
+            ``policies``, ``metrics``, ``stat``, ``n_boot``, ``level``, ``figure``).
 
     Returns:
         The path written.
@@ -528,15 +517,5 @@ def write_summary_md(
     Raises:
         ConfigError: for empty rows, missing columns or a requested policy without sessions.
     """
-    text = render_summary_md(
-        rows,
-        reference,
-        rng=rng,
-        policies=policies,
-        metrics=metrics,
-        stat=stat,
-        n_boot=n_boot,
-        level=level,
-        figure=figure,
-    )
+    text = render_summary_md(rows, reference, **options)
     return atomic_write(path, text)

@@ -476,20 +476,8 @@ class Arm:
         Raises:
             ActionError: ``v_ref`` or ``f_ext`` is not a finite (3,) vector (names which).
         """
-        if (
-            type(v_ref) is not np.ndarray
-            or v_ref.shape != (3,)
-            or v_ref.dtype != np.float64
-            or not v_ref.flags.c_contiguous
-        ):
-            v_ref = as_vec3(v_ref, "v_ref", ActionError)
-        if (
-            type(f_ext) is not np.ndarray
-            or f_ext.shape != (3,)
-            or f_ext.dtype != np.float64
-            or not f_ext.flags.c_contiguous
-        ):
-            f_ext = as_vec3(f_ext, "f_ext", ActionError)
+        v_ref = _vec3(v_ref, "v_ref")
+        f_ext = _vec3(f_ext, "f_ext")
         s2 = vec.sumsq(v_ref)
         f2 = vec.sumsq(f_ext)
         if not (s2 < math.inf and f2 < math.inf):  # NaN fails the comparison too
@@ -643,3 +631,12 @@ class Arm:
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
+
+
+def _vec3(x: ArrayLike, name: str) -> np.ndarray:
+    """``x`` itself when it is already a contiguous float64 (3,) array (the per-tick case), else
+    :func:`~langenv.validation.as_vec3` of it (an ActionError naming ``name`` if it is not a
+    3-vector)."""
+    if type(x) is np.ndarray and x.shape == (3,) and x.dtype == np.float64 and x.flags.c_contiguous:
+        return x
+    return as_vec3(x, name, ActionError)
