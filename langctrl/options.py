@@ -21,6 +21,7 @@ import argparse
 import sys
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 __all__ = [
     "COMMON_OPTIONS",
@@ -51,8 +52,12 @@ __all__ = [
 COMMON_OPTIONS = ("--workers", "--seed", "--users", "--listening", "--out", "--overwrite")
 
 
-def _parent() -> argparse.ArgumentParser:
-    return argparse.ArgumentParser(add_help=False)
+def _option(flag: str, **kwargs: Any) -> argparse.ArgumentParser:
+    """A parent parser (``add_help=False``) holding the one option ``flag``, added with
+    ``kwargs``."""
+    p = argparse.ArgumentParser(add_help=False)
+    p.add_argument(flag, **kwargs)
+    return p
 
 
 def job_parser(
@@ -158,8 +163,7 @@ def workers() -> argparse.ArgumentParser:
     """``--workers N``: the processes that run the episodes (default: one per usable core)."""
     from langenv.kernels.cores import usable_cores
 
-    p = _parent()
-    p.add_argument(
+    return _option(
         "--workers",
         type=positive_int,
         default=usable_cores(),
@@ -167,7 +171,6 @@ def workers() -> argparse.ArgumentParser:
         help="parallel worker processes that run the episodes, >= 1 (default: one per usable "
         "CPU core)",
     )
-    return p
 
 
 def seed(
@@ -177,21 +180,18 @@ def seed(
 ) -> argparse.ArgumentParser:
     """``--seed``: the seed ``of`` what the job seeds, ``default`` unless given (``otherwise``
     says what that is where it is not a number: None, for the job to find)."""
-    p = _parent()
-    p.add_argument(
+    return _option(
         "--seed",
         type=non_negative_int,
         default=default,
         help=f"seed of {of}, >= 0 (default: {otherwise})",
     )
-    return p
 
 
 def users(default: str | None, unless: str = "none") -> argparse.ArgumentParser:
     """``--users KIND:N``: simulated users (:func:`eval.users.parse_users`); ``unless`` says what
     the job does without it when ``default`` is None."""
-    p = _parent()
-    p.add_argument(
+    return _option(
         "--users",
         type=users_spec,
         default=default,
@@ -201,46 +201,39 @@ def users(default: str | None, unless: str = "none") -> argparse.ArgumentParser:
         + ("%(default)s" if default is not None else unless)
         + ")",
     )
-    return p
 
 
 def people(default: int, per: str) -> argparse.ArgumentParser:
     """``--users N``: how many simulated users ``per`` run, candidate or exercise."""
-    p = _parent()
-    p.add_argument(
+    return _option(
         "--users",
         type=positive_int,
         default=default,
         metavar="N",
         help=f"synthetic users per {per}, >= 1: the first N user seeds (default: %(default)s)",
     )
-    return p
 
 
 def listening() -> argparse.ArgumentParser:
     """``--listening KEY=VALUE,...``: the listening people's parameters."""
-    p = _parent()
-    p.add_argument(
+    return _option(
         "--listening",
         default=None,
         metavar="KEY=VALUE,...",
         help="the listening people's parameters (langenv.users.ListeningParams, e.g. "
         "latency=1.2,comply=0.4), with --users listening:N (default: its defaults)",
     )
-    return p
 
 
 def exercise(before: str = "any episode runs") -> argparse.ArgumentParser:
     """``--exercise NAME|FILE``: the exercise, checked before ``before``."""
-    p = _parent()
-    p.add_argument(
+    return _option(
         "--exercise",
         default=None,
         metavar="NAME|FILE",
         help=f"exercise: a shipped name (langctrl exercise list) or a YAML path, checked before "
         f"{before} (default: the study's external_rotation)",
     )
-    return p
 
 
 def out_dir(
@@ -248,12 +241,11 @@ def out_dir(
 ) -> argparse.ArgumentParser:
     """``--out DIR``: the job's output directory, which ``holds`` what the job writes; required
     unless ``default`` or ``otherwise`` (what the job does without it, the default None)."""
-    p = _parent()
     if otherwise is not None:
         shown = f"default: {otherwise}"
     else:
         shown = "required" if default is None else "default: %(default)s"
-    p.add_argument(
+    return _option(
         "--out",
         type=Path,
         default=default,
@@ -261,7 +253,6 @@ def out_dir(
         metavar="DIR",
         help=f"output directory: {holds} ({shown})",
     )
-    return p
 
 
 def out_file(
@@ -269,8 +260,7 @@ def out_file(
 ) -> argparse.ArgumentParser:
     """``--out FILE``: the file (or file stem) the job writes, ``what``; required unless
     ``default`` (a phrase) says where it goes without it."""
-    p = _parent()
-    p.add_argument(
+    return _option(
         "--out",
         type=Path,
         default=None,
@@ -278,45 +268,38 @@ def out_file(
         metavar=metavar,
         help=f"{what} to write ({'required' if default is None else 'default: ' + default})",
     )
-    return p
 
 
 def policy() -> argparse.ArgumentParser:
     """``--policy NAME``: the policy that runs the session, by its registered name."""
     from langenv.live.registry import registered_policies
 
-    p = _parent()
-    p.add_argument(
+    return _option(
         "--policy",
         default="lc",
         metavar="NAME",
         help=f"policy by name: {', '.join(registered_policies())} (ppo:PATH: a learned model) "
         "(default: %(default)s)",
     )
-    return p
 
 
 def device() -> argparse.ArgumentParser:
     """``--device``: the sound card a live session speaks through."""
-    p = _parent()
-    p.add_argument(
+    return _option(
         "--device", default=None, help="sound card, by name or index (default: the system's)"
     )
-    return p
 
 
 def sessions(holds: str) -> argparse.ArgumentParser:
     """``--sessions DIR``: the directory of the recorded sessions, which ``holds`` what the job
     reads (required)."""
-    p = _parent()
-    p.add_argument(
+    return _option(
         "--sessions",
         type=Path,
         required=True,
         metavar="DIR",
         help=f"directory of the recorded {holds} (required)",
     )
-    return p
 
 
 def check_outputs(
@@ -333,6 +316,4 @@ def check_outputs(
 
 def overwrite(what: str) -> argparse.ArgumentParser:
     """``--overwrite``: replace ``what`` (without it the job refuses)."""
-    p = _parent()
-    p.add_argument("--overwrite", action="store_true", help=f"replace {what} (default: refuse)")
-    return p
+    return _option("--overwrite", action="store_true", help=f"replace {what} (default: refuse)")
