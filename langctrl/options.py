@@ -21,7 +21,7 @@ import argparse
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 __all__ = [
     "COMMON_OPTIONS",
@@ -32,6 +32,7 @@ __all__ = [
     "fail_lines",
     "job_parser",
     "listening",
+    "n_boot",
     "non_negative_int",
     "out_dir",
     "out_file",
@@ -39,17 +40,22 @@ __all__ = [
     "people",
     "policy",
     "positive_int",
+    "role",
+    "run_held_out",
     "run_job",
     "seed",
     "sessions",
     "stopped",
     "users",
     "users_spec",
+    "warn_test_look",
     "workers",
 ]
 
 #: The options only this module adds (``tests/test_architecture.py`` checks it).
 COMMON_OPTIONS = ("--workers", "--seed", "--users", "--listening", "--out", "--overwrite")
+
+_Checked = TypeVar("_Checked")
 
 
 def _option(flag: str, **kwargs: Any) -> argparse.ArgumentParser:
@@ -125,6 +131,27 @@ def run_job(
             raise
         return stopped(name)
     print(result)
+    return 0
+
+
+def run_held_out(
+    name: str,
+    ns: argparse.Namespace,
+    check: Callable[[argparse.Namespace], _Checked],
+    run: Callable[[argparse.Namespace, _Checked], str],
+) -> int:
+    """Run a job on held-out exercises and people (its :func:`role`): ``check`` its arguments
+    ``ns`` before any episode (a bad config, model, file or key: :func:`fail`, 2), warn of a look
+    at the test ones (:func:`warn_test_look`), then ``run`` and print what it returns (0)."""
+    from langenv.errors import ConfigError, ModelError
+
+    try:
+        checked = check(ns)
+    except (ConfigError, ModelError, FileNotFoundError, KeyError) as exc:
+        return fail(name, exc)
+    if ns.role == "test":
+        warn_test_look(name)
+    print(run(ns, checked))
     return 0
 
 
@@ -280,6 +307,29 @@ def policy() -> argparse.ArgumentParser:
         metavar="NAME",
         help=f"policy by name: {', '.join(registered_policies())} (ppo:PATH: a learned model) "
         "(default: %(default)s)",
+    )
+
+
+def role(default: str, note: str) -> argparse.ArgumentParser:
+    """``--role validation|test``: which held-out exercises and people the job runs on, ``note``
+    saying what each is for (:func:`run_held_out` warns of a look at the test ones)."""
+    return _option(
+        "--role",
+        choices=("validation", "test"),
+        default=default,
+        help=f"which held-out exercises and people; {note} (default: %(default)s)",
+    )
+
+
+def n_boot(default: int, check: Callable[[str], int] = int) -> argparse.ArgumentParser:
+    """``--n-boot N``: the bootstrap resamples of each interval (``check``: argparse's
+    ``type``)."""
+    return _option(
+        "--n-boot",
+        type=check,
+        default=default,
+        metavar="N",
+        help="bootstrap resamples per interval (default: %(default)s)",
     )
 
 
