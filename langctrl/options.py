@@ -21,10 +21,14 @@ import argparse
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
 
 __all__ = [
     "COMMON_OPTIONS",
+    "args_of",
     "check_outputs",
     "device",
     "exercise",
@@ -56,6 +60,7 @@ __all__ = [
 COMMON_OPTIONS = ("--workers", "--seed", "--users", "--listening", "--out", "--overwrite")
 
 _Checked = TypeVar("_Checked")
+_Args = TypeVar("_Args", bound="DataclassInstance")
 
 
 def _option(flag: str, **kwargs: Any) -> argparse.ArgumentParser:
@@ -132,6 +137,15 @@ def run_job(
         return stopped(name)
     print(result)
     return 0
+
+
+def args_of(cls: type[_Args], ns: argparse.Namespace, **given: Any) -> _Args:
+    """The job's arguments ``cls`` (a dataclass) from its parsed command line ``ns``: each field
+    ``ns``'s value of the same name, or its value in ``given`` (what the job worked out)."""
+    from dataclasses import fields
+
+    taken = {f.name: getattr(ns, f.name) for f in fields(cls) if f.init and f.name not in given}
+    return cls(**taken, **given)
 
 
 def run_held_out(
