@@ -29,6 +29,7 @@ if TYPE_CHECKING:
 __all__ = [
     "COMMON_OPTIONS",
     "args_of",
+    "audio_out",
     "check_outputs",
     "device",
     "exercise",
@@ -36,6 +37,7 @@ __all__ = [
     "fail_lines",
     "job_parser",
     "listening",
+    "log_out",
     "n_boot",
     "non_negative_int",
     "out_dir",
@@ -351,6 +353,32 @@ def device() -> argparse.ArgumentParser:
     """``--device``: the sound card a live session speaks through."""
     return _option(
         "--device", default=None, help="sound card, by name or index (default: the system's)"
+    )
+
+
+def audio_out(more: str = "") -> argparse.ArgumentParser:
+    """``--audio-out WAV``: a live session's speech written to a WAV instead of spoken through
+    the sound card (``more``: what the default's note adds)."""
+    return _option(
+        "--audio-out",
+        type=Path,
+        default=None,
+        metavar="WAV",
+        help=f"write the speech to this WAV instead of the sound card (default: the sound card"
+        f"{more})",
+    )
+
+
+def log_out(needs: str | None = None) -> argparse.ArgumentParser:
+    """``--log-out CSV``: the session CSV a live session on a robot writes (only with the option
+    ``needs``, where one is named)."""
+    when = "" if needs is None else f"with {needs}: "
+    return _option(
+        "--log-out",
+        type=Path,
+        default=None,
+        metavar="CSV",
+        help=f"{when}write the session CSV here (default: none)",
     )
 
 
