@@ -30,15 +30,16 @@ __all__ = [
     "COMMON_OPTIONS",
     "args_of",
     "audio_out",
+    "bootstrap",
     "check_outputs",
     "device",
+    "episode_log",
     "exercise",
     "fail",
     "fail_lines",
     "job_parser",
     "listening",
     "log_out",
-    "n_boot",
     "non_negative_int",
     "out_dir",
     "out_file",
@@ -337,15 +338,20 @@ def role(default: str, note: str) -> argparse.ArgumentParser:
     )
 
 
-def n_boot(default: int, check: Callable[[str], int] = int) -> argparse.ArgumentParser:
-    """``--n-boot N``: the bootstrap resamples of each interval (``check``: argparse's
-    ``type``)."""
+def bootstrap(
+    default: int,
+    of: str = "per interval",
+    flag: str = "--n-boot",
+    check: Callable[[str], int] = int,
+) -> argparse.ArgumentParser:
+    """``--n-boot N`` (or ``flag``): the bootstrap resamples ``of`` what the job resamples
+    (``check``: argparse's ``type``)."""
     return _option(
-        "--n-boot",
+        flag,
         type=check,
         default=default,
         metavar="N",
-        help="bootstrap resamples per interval (default: %(default)s)",
+        help=f"bootstrap resamples {of} (default: %(default)s)",
     )
 
 
@@ -391,6 +397,16 @@ def sessions(holds: str) -> argparse.ArgumentParser:
         required=True,
         metavar="DIR",
         help=f"directory of the recorded {holds} (required)",
+    )
+
+
+def episode_log() -> argparse.ArgumentParser:
+    """``LOG.npz``: the episode log a job reads (a positional argument)."""
+    return _option(
+        "log",
+        type=Path,
+        metavar="LOG.npz",
+        help="an episode log (.npz) written by langctrl compare",
     )
 
 

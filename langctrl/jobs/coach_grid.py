@@ -33,7 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
         options.out_dir("sessions.csv, grid.csv, grid.md, grid.png, config.json, points/"),
         options.overwrite("files in a non-empty --out (its points are run again)"),
         options.role("test", "validation for tuning"),
-        options.n_boot(2000, check=options.positive_int),
+        options.bootstrap(2000, check=options.positive_int),
     )
     p.add_argument(
         "--grid",

@@ -35,7 +35,7 @@ def build_parser() -> argparse.ArgumentParser:
         ),
         options.overwrite("files in a non-empty --out"),
         options.role("validation", "test only for the models you ship, at most twice"),
-        options.n_boot(2000),
+        options.bootstrap(2000),
     )
     p.add_argument(
         "--model",

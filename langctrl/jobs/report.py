@@ -24,7 +24,7 @@ def build_parser() -> argparse.ArgumentParser:
             "the summary (Markdown)", default="summary.md beside SESSIONS.csv", metavar="MD"
         ),
         options.seed(of="the bootstrap"),
-        options.n_boot(10_000),
+        options.bootstrap(10_000),
     )
     parser.add_argument(
         "sessions",
