@@ -10,8 +10,9 @@ module adds these options.
 
     p = job_parser("fidelity", "Replay recorded sessions ...", workers(), seed())
 
-:func:`job_parser` opens every job's parser (its name, where else it runs); :func:`fail`,
-:func:`fail_lines`, :func:`stopped` and :func:`run_job` end every job the same way
+:func:`job_parser` opens every job's parser (its name, where else it runs); :func:`args_of`
+makes a job's arguments (a dataclass) of what it parsed; :func:`fail`, :func:`fail_lines`,
+:func:`stopped`, :func:`run_job` and :func:`run_held_out` end every job the same way
 (``langctrl NAME: error: ...`` on stderr and exit status 2; 130 on Ctrl-C).
 """
 
