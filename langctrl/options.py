@@ -10,8 +10,9 @@ module adds these options.
 
     p = job_parser("fidelity", "Replay recorded sessions ...", workers(), seed())
 
-:func:`job_parser` opens every job's parser (its name, where else it runs); :func:`fail`,
-:func:`fail_lines`, :func:`stopped` and :func:`run_job` end every job the same way
+:func:`job_parser` opens every job's parser (its name, where else it runs); :func:`args_of`
+makes a job's arguments (a dataclass) of what it parsed; :func:`fail`, :func:`fail_lines`,
+:func:`stopped`, :func:`run_job` and :func:`run_held_out` end every job the same way
 (``langctrl NAME: error: ...`` on stderr and exit status 2; 130 on Ctrl-C).
 """
 
@@ -21,16 +22,25 @@ import argparse
 import sys
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, TypeVar
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
 
 __all__ = [
     "COMMON_OPTIONS",
+    "args_of",
+    "audio_out",
+    "bootstrap",
     "check_outputs",
     "device",
+    "episode_log",
     "exercise",
     "fail",
     "fail_lines",
     "job_parser",
     "listening",
+    "log_out",
     "non_negative_int",
     "out_dir",
     "out_file",
@@ -38,21 +48,31 @@ __all__ = [
     "people",
     "policy",
     "positive_int",
+    "role",
+    "run_held_out",
     "run_job",
     "seed",
     "sessions",
     "stopped",
     "users",
     "users_spec",
+    "warn_test_look",
     "workers",
 ]
 
 #: The options only this module adds (``tests/test_architecture.py`` checks it).
 COMMON_OPTIONS = ("--workers", "--seed", "--users", "--listening", "--out", "--overwrite")
 
+_Checked = TypeVar("_Checked")
+_Args = TypeVar("_Args", bound="DataclassInstance")
 
-def _parent() -> argparse.ArgumentParser:
-    return argparse.ArgumentParser(add_help=False)
+
+def _option(flag: str, **kwargs: Any) -> argparse.ArgumentParser:
+    """A parent parser (``add_help=False``) holding the one option ``flag``, added with
+    ``kwargs``."""
+    p = argparse.ArgumentParser(add_help=False)
+    p.add_argument(flag, **kwargs)
+    return p
 
 
 def job_parser(
@@ -123,6 +143,36 @@ def run_job(
     return 0
 
 
+def args_of(cls: type[_Args], ns: argparse.Namespace, **given: Any) -> _Args:
+    """The job's arguments ``cls`` (a dataclass) from its parsed command line ``ns``: each field
+    ``ns``'s value of the same name, or its value in ``given`` (what the job worked out)."""
+    from dataclasses import fields
+
+    taken = {f.name: getattr(ns, f.name) for f in fields(cls) if f.init and f.name not in given}
+    return cls(**taken, **given)
+
+
+def run_held_out(
+    name: str,
+    ns: argparse.Namespace,
+    check: Callable[[argparse.Namespace], _Checked],
+    run: Callable[[argparse.Namespace, _Checked], str],
+) -> int:
+    """Run a job on held-out exercises and people (its :func:`role`): ``check`` its arguments
+    ``ns`` before any episode (a bad config, model, file or key: :func:`fail`, 2), warn of a look
+    at the test ones (:func:`warn_test_look`), then ``run`` and print what it returns (0)."""
+    from langenv.errors import ConfigError, ModelError
+
+    try:
+        checked = check(ns)
+    except (ConfigError, ModelError, FileNotFoundError, KeyError) as exc:
+        return fail(name, exc)
+    if ns.role == "test":
+        warn_test_look(name)
+    print(run(ns, checked))
+    return 0
+
+
 def positive_int(text: str) -> int:
     """An integer >= 1 (argparse's ``type``: a named error otherwise)."""
     value = non_negative_int(text)
@@ -158,8 +208,7 @@ def workers() -> argparse.ArgumentParser:
     """``--workers N``: the processes that run the episodes (default: one per usable core)."""
     from langenv.kernels.cores import usable_cores
 
-    p = _parent()
-    p.add_argument(
+    return _option(
         "--workers",
         type=positive_int,
         default=usable_cores(),
@@ -167,7 +216,6 @@ def workers() -> argparse.ArgumentParser:
         help="parallel worker processes that run the episodes, >= 1 (default: one per usable "
         "CPU core)",
     )
-    return p
 
 
 def seed(
@@ -177,21 +225,18 @@ def seed(
 ) -> argparse.ArgumentParser:
     """``--seed``: the seed ``of`` what the job seeds, ``default`` unless given (``otherwise``
     says what that is where it is not a number: None, for the job to find)."""
-    p = _parent()
-    p.add_argument(
+    return _option(
         "--seed",
         type=non_negative_int,
         default=default,
         help=f"seed of {of}, >= 0 (default: {otherwise})",
     )
-    return p
 
 
 def users(default: str | None, unless: str = "none") -> argparse.ArgumentParser:
     """``--users KIND:N``: simulated users (:func:`eval.users.parse_users`); ``unless`` says what
     the job does without it when ``default`` is None."""
-    p = _parent()
-    p.add_argument(
+    return _option(
         "--users",
         type=users_spec,
         default=default,
@@ -201,46 +246,39 @@ def users(default: str | None, unless: str = "none") -> argparse.ArgumentParser:
         + ("%(default)s" if default is not None else unless)
         + ")",
     )
-    return p
 
 
 def people(default: int, per: str) -> argparse.ArgumentParser:
     """``--users N``: how many simulated users ``per`` run, candidate or exercise."""
-    p = _parent()
-    p.add_argument(
+    return _option(
         "--users",
         type=positive_int,
         default=default,
         metavar="N",
         help=f"synthetic users per {per}, >= 1: the first N user seeds (default: %(default)s)",
     )
-    return p
 
 
 def listening() -> argparse.ArgumentParser:
     """``--listening KEY=VALUE,...``: the listening people's parameters."""
-    p = _parent()
-    p.add_argument(
+    return _option(
         "--listening",
         default=None,
         metavar="KEY=VALUE,...",
         help="the listening people's parameters (langenv.users.ListeningParams, e.g. "
         "latency=1.2,comply=0.4), with --users listening:N (default: its defaults)",
     )
-    return p
 
 
 def exercise(before: str = "any episode runs") -> argparse.ArgumentParser:
     """``--exercise NAME|FILE``: the exercise, checked before ``before``."""
-    p = _parent()
-    p.add_argument(
+    return _option(
         "--exercise",
         default=None,
         metavar="NAME|FILE",
         help=f"exercise: a shipped name (langctrl exercise list) or a YAML path, checked before "
         f"{before} (default: the study's external_rotation)",
     )
-    return p
 
 
 def out_dir(
@@ -248,12 +286,11 @@ def out_dir(
 ) -> argparse.ArgumentParser:
     """``--out DIR``: the job's output directory, which ``holds`` what the job writes; required
     unless ``default`` or ``otherwise`` (what the job does without it, the default None)."""
-    p = _parent()
     if otherwise is not None:
         shown = f"default: {otherwise}"
     else:
         shown = "required" if default is None else "default: %(default)s"
-    p.add_argument(
+    return _option(
         "--out",
         type=Path,
         default=default,
@@ -261,7 +298,6 @@ def out_dir(
         metavar="DIR",
         help=f"output directory: {holds} ({shown})",
     )
-    return p
 
 
 def out_file(
@@ -269,8 +305,7 @@ def out_file(
 ) -> argparse.ArgumentParser:
     """``--out FILE``: the file (or file stem) the job writes, ``what``; required unless
     ``default`` (a phrase) says where it goes without it."""
-    p = _parent()
-    p.add_argument(
+    return _option(
         "--out",
         type=Path,
         default=None,
@@ -278,45 +313,102 @@ def out_file(
         metavar=metavar,
         help=f"{what} to write ({'required' if default is None else 'default: ' + default})",
     )
-    return p
 
 
 def policy() -> argparse.ArgumentParser:
     """``--policy NAME``: the policy that runs the session, by its registered name."""
     from langenv.live.registry import registered_policies
 
-    p = _parent()
-    p.add_argument(
+    return _option(
         "--policy",
         default="lc",
         metavar="NAME",
         help=f"policy by name: {', '.join(registered_policies())} (ppo:PATH: a learned model) "
         "(default: %(default)s)",
     )
-    return p
+
+
+def role(default: str, note: str) -> argparse.ArgumentParser:
+    """``--role validation|test``: which held-out exercises and people the job runs on, ``note``
+    saying what each is for (:func:`run_held_out` warns of a look at the test ones)."""
+    return _option(
+        "--role",
+        choices=("validation", "test"),
+        default=default,
+        help=f"which held-out exercises and people; {note} (default: %(default)s)",
+    )
+
+
+def bootstrap(
+    default: int,
+    of: str = "per interval",
+    flag: str = "--n-boot",
+    check: Callable[[str], int] = int,
+) -> argparse.ArgumentParser:
+    """``--n-boot N`` (or ``flag``): the bootstrap resamples ``of`` what the job resamples
+    (``check``: argparse's ``type``)."""
+    return _option(
+        flag,
+        type=check,
+        default=default,
+        metavar="N",
+        help=f"bootstrap resamples {of} (default: %(default)s)",
+    )
 
 
 def device() -> argparse.ArgumentParser:
     """``--device``: the sound card a live session speaks through."""
-    p = _parent()
-    p.add_argument(
+    return _option(
         "--device", default=None, help="sound card, by name or index (default: the system's)"
     )
-    return p
+
+
+def audio_out(more: str = "") -> argparse.ArgumentParser:
+    """``--audio-out WAV``: a live session's speech written to a WAV instead of spoken through
+    the sound card (``more``: what the default's note adds)."""
+    return _option(
+        "--audio-out",
+        type=Path,
+        default=None,
+        metavar="WAV",
+        help=f"write the speech to this WAV instead of the sound card (default: the sound card"
+        f"{more})",
+    )
+
+
+def log_out(needs: str | None = None) -> argparse.ArgumentParser:
+    """``--log-out CSV``: the session CSV a live session on a robot writes (only with the option
+    ``needs``, where one is named)."""
+    when = "" if needs is None else f"with {needs}: "
+    return _option(
+        "--log-out",
+        type=Path,
+        default=None,
+        metavar="CSV",
+        help=f"{when}write the session CSV here (default: none)",
+    )
 
 
 def sessions(holds: str) -> argparse.ArgumentParser:
     """``--sessions DIR``: the directory of the recorded sessions, which ``holds`` what the job
     reads (required)."""
-    p = _parent()
-    p.add_argument(
+    return _option(
         "--sessions",
         type=Path,
         required=True,
         metavar="DIR",
         help=f"directory of the recorded {holds} (required)",
     )
-    return p
+
+
+def episode_log() -> argparse.ArgumentParser:
+    """``LOG.npz``: the episode log a job reads (a positional argument)."""
+    return _option(
+        "log",
+        type=Path,
+        metavar="LOG.npz",
+        help="an episode log (.npz) written by langctrl compare",
+    )
 
 
 def check_outputs(
@@ -333,6 +425,4 @@ def check_outputs(
 
 def overwrite(what: str) -> argparse.ArgumentParser:
     """``--overwrite``: replace ``what`` (without it the job refuses)."""
-    p = _parent()
-    p.add_argument("--overwrite", action="store_true", help=f"replace {what} (default: refuse)")
-    return p
+    return _option("--overwrite", action="store_true", help=f"replace {what} (default: refuse)")

@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from eval.coach_grid import BASE, DEFAULT_GRID, DEFAULT_SPLIT, check_coach_grid, run_coach_grid
 from langctrl import options
@@ -31,6 +32,8 @@ def build_parser() -> argparse.ArgumentParser:
         options.seed(of="the bootstrap"),
         options.out_dir("sessions.csv, grid.csv, grid.md, grid.png, config.json, points/"),
         options.overwrite("files in a non-empty --out (its points are run again)"),
+        options.role("test", "validation for tuning"),
+        options.bootstrap(2000, check=options.positive_int),
     )
     p.add_argument(
         "--grid",
@@ -74,19 +77,6 @@ def build_parser() -> argparse.ArgumentParser:
         help="a config with a 'worlds' section (default: %(default)s)",
     )
     p.add_argument(
-        "--role",
-        choices=("validation", "test"),
-        default="test",
-        help="which held-out exercises and people; validation for tuning (default: %(default)s)",
-    )
-    p.add_argument(
-        "--n-boot",
-        type=options.positive_int,
-        default=2000,
-        metavar="N",
-        help="bootstrap resamples per interval (default: %(default)s)",
-    )
-    p.add_argument(
         "--resume",
         action="store_true",
         help="keep the points already in --out (same arguments) and run the rest (default: off)",
@@ -101,19 +91,12 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``langctrl coach-grid``; returns the exit status."""
-    from langenv.errors import ConfigError, ModelError
+    return options.run_held_out("coach-grid", parse_args(argv), check_coach_grid, _run)
 
-    ns = parse_args(argv)
-    try:
-        checked = check_coach_grid(ns)
-    except (ConfigError, ModelError, FileNotFoundError, KeyError) as exc:
-        return options.fail("coach-grid", exc)
-    if ns.role == "test":
-        options.warn_test_look("coach-grid")
+
+def _run(ns: argparse.Namespace, checked: Any) -> str:
     text, sessions, points = run_coach_grid(ns, checked)
-    print(text)
-    print(f"wrote {ns.out} ({sessions} sessions, {points} points)")
-    return 0
+    return f"{text}\nwrote {ns.out} ({sessions} sessions, {points} points)"
 
 
 if __name__ == "__main__":

@@ -114,25 +114,14 @@ def parse_args(argv: Sequence[str] | None = None) -> CompareArgs:
         graph, policy_graphs = split_graphs(ns.phrase_graph or [], ns.policies)
     except UsageError as exc:
         p.error(str(exc))
-    return CompareArgs(
-        policies=ns.policies,
+    return options.args_of(
+        CompareArgs,
+        ns,
         users=users,
-        sessions=ns.sessions,
-        pattern=ns.pattern,
-        seed=ns.seed,
-        out=ns.out,
-        workers=ns.workers,
         audio=not ns.no_audio,
         figures=not ns.no_figures,
-        decision_hz=ns.decision_hz,
         phrase_graph=graph,
-        stat=ns.stat,
-        video=ns.video,
-        overwrite=ns.overwrite,
-        exercise=ns.exercise,
         policy_graphs=policy_graphs,
-        listening=ns.listening,
-        allow_mixed_graphs=ns.allow_mixed_graphs,
     )
 
 

@@ -44,7 +44,7 @@ def parse_args(argv: Sequence[str] | None = None) -> EnsembleArgs:
     ns = p.parse_args(argv)
     if ns.out.suffix not in (".yaml", ".yml"):
         p.error(f"--out must end in .yaml, got {ns.out}")
-    return EnsembleArgs(models=tuple(ns.models), out=ns.out, overwrite=ns.overwrite)
+    return options.args_of(EnsembleArgs, ns, models=tuple(ns.models))
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -64,16 +64,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def parse_args(argv: Sequence[str] | None = None) -> ExportArgs:
     """Parse the command line into :class:`~train.export.ExportArgs`."""
-    ns = build_parser().parse_args(argv)
-    return ExportArgs(
-        run=ns.run,
-        steps=ns.steps,
-        out=ns.out,
-        name=ns.name,
-        choice_only=ns.choice_only,
-        overwrite=ns.overwrite,
-        terminal=ns.terminal,
-    )
+    return options.args_of(ExportArgs, build_parser().parse_args(argv))
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from eval.generalise import BASE, POPULATIONS, check_generalise, run_generalise
 from langctrl import options
@@ -33,6 +34,8 @@ def build_parser() -> argparse.ArgumentParser:
             "sessions.csv, generalise.md, figures, config.json; refused when it holds files"
         ),
         options.overwrite("files in a non-empty --out"),
+        options.role("validation", "test only for the models you ship, at most twice"),
+        options.bootstrap(2000),
     )
     p.add_argument(
         "--model",
@@ -63,13 +66,6 @@ def build_parser() -> argparse.ArgumentParser:
         "first model)",
     )
     p.add_argument(
-        "--role",
-        choices=("validation", "test"),
-        default="validation",
-        help="which held-out exercises and users; test only for the models you ship, at most "
-        "twice (default: %(default)s)",
-    )
-    p.add_argument(
         "--population",
         choices=tuple(POPULATIONS),
         default=None,
@@ -81,13 +77,6 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="the plain synthetic population instead of the split's perturbed users "
         "(--population plain)",
-    )
-    p.add_argument(
-        "--n-boot",
-        type=int,
-        default=2000,
-        metavar="N",
-        help="bootstrap resamples per interval (default: %(default)s)",
     )
     return p
 
@@ -104,19 +93,12 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``langctrl generalise``; returns the exit status."""
-    from langenv.errors import ConfigError, ModelError
+    return options.run_held_out("generalise", parse_args(argv), check_generalise, _run)
 
-    ns = parse_args(argv)
-    try:
-        split = check_generalise(ns)
-    except (ConfigError, ModelError, FileNotFoundError, KeyError) as exc:
-        return options.fail("generalise", exc)
-    if ns.role == "test":
-        options.warn_test_look("generalise")
+
+def _run(ns: argparse.Namespace, split: Any) -> str:
     text, n = run_generalise(ns, split)
-    print(text)
-    print(f"wrote {ns.out} ({n} episodes)")
-    return 0
+    return f"{text}\nwrote {ns.out} ({n} episodes)"
 
 
 if __name__ == "__main__":

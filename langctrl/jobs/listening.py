@@ -21,7 +21,7 @@ __all__ = ["build_parser", "main"]
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl listening`` (``python -m langctrl.jobs.listening``)."""
-    p = options.job_parser(
+    return options.job_parser(
         "listening",
         "Does the person's pace follow the speech running ahead or behind? The study's AC "
         "sessions against simulated ones: the listening person's follow, fitted.",
@@ -32,15 +32,8 @@ def build_parser() -> argparse.ArgumentParser:
         options.people(48, per="run"),
         options.seed(3000, of="the first simulated person, and of the bootstrap"),
         options.workers(),
+        options.bootstrap(2000, of="of the recorded people", flag="--boot"),
     )
-    p.add_argument(
-        "--boot",
-        type=int,
-        default=2000,
-        metavar="N",
-        help="bootstrap resamples of the recorded people (default: %(default)s)",
-    )
-    return p
 
 
 def main(argv: Sequence[str] | None = None) -> int:

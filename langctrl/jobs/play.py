@@ -50,6 +50,8 @@ def build_parser() -> argparse.ArgumentParser:
         options.seed(of="the first session"),
         options.overwrite("an existing --audio-out, --trace-out or --log-out file"),
         options.device(),
+        options.audio_out("; headless: required"),
+        options.log_out(needs="--robot"),
     )
     p.add_argument(
         "--graph",
@@ -75,14 +77,6 @@ def build_parser() -> argparse.ArgumentParser:
         help="stop after this many seconds, > 0 (default: run until closed; headless: required)",
     )
     p.add_argument(
-        "--audio-out",
-        type=Path,
-        default=None,
-        metavar="WAV",
-        help="write the audio to this WAV instead of the sound card (default: the sound card; "
-        "headless: required)",
-    )
-    p.add_argument(
         "--trace-out",
         type=Path,
         default=None,
@@ -97,13 +91,6 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="BACKEND",
         help="run one session through the robot-IO seam on a simulated robot: mujoco or "
         "ur-fake, headless (default: none; a real UR: langctrl robot)",
-    )
-    p.add_argument(
-        "--log-out",
-        type=Path,
-        default=None,
-        metavar="CSV",
-        help="with --robot: write the session CSV here (default: none)",
     )
     return p
 

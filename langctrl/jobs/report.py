@@ -24,6 +24,7 @@ def build_parser() -> argparse.ArgumentParser:
             "the summary (Markdown)", default="summary.md beside SESSIONS.csv", metavar="MD"
         ),
         options.seed(of="the bootstrap"),
+        options.bootstrap(10_000),
     )
     parser.add_argument(
         "sessions",
@@ -43,13 +44,6 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="LIST",
         help="comma-separated policies to show, in order (default: all, in order of first "
         "appearance)",
-    )
-    parser.add_argument(
-        "--n-boot",
-        type=int,
-        default=10_000,
-        metavar="N",
-        help="bootstrap resamples per interval (default: %(default)s)",
     )
     return parser
 

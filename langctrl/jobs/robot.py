@@ -42,6 +42,8 @@ def build_parser() -> argparse.ArgumentParser:
         options.policy(),
         options.overwrite("an existing --log-out or --audio-out file"),
         options.device(),
+        options.log_out(),
+        options.audio_out(),
     )
     p.add_argument(
         "--host",
@@ -58,20 +60,6 @@ def build_parser() -> argparse.ArgumentParser:
         "default: langenv/robot/ur/config.py; default: those defaults with --host)",
     )
     p.add_argument("--dry-run", action="store_true", help="connect, check, plan; move nothing")
-    p.add_argument(
-        "--log-out",
-        type=Path,
-        default=None,
-        metavar="CSV",
-        help="write the session CSV here (default: none)",
-    )
-    p.add_argument(
-        "--audio-out",
-        type=Path,
-        default=None,
-        metavar="WAV",
-        help="write the speech to this WAV instead of the sound card (default: the sound card)",
-    )
     p.add_argument("--yes", action="store_true", help="confirm the move to the start (no prompt)")
     p.add_argument(
         "--fake", action="store_true", help="drive the built-in fake UR (a loopback host only)"

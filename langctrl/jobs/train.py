@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import argparse
 import shutil
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from langctrl import options
@@ -60,6 +60,23 @@ def _default(name: str, shown: object = None) -> str:
     return f"(default: the config's train.{name}, else {value})"
 
 
+def _setting(
+    p: argparse.ArgumentParser,
+    flag: str,
+    what: str,
+    *,
+    type: Callable[[str], object] = str,
+    metavar: str | None = None,
+    shown: object = None,
+) -> None:
+    """Add ``flag``, a setting of the config's ``train`` section of the same name: None unless
+    given; its help says ``what`` it is, then :func:`_default` (``shown``) where it defaults."""
+    name = flag.removeprefix("--").replace("-", "_")
+    p.add_argument(
+        flag, type=type, default=None, metavar=metavar, help=f"{what} {_default(name, shown)}"
+    )
+
+
 def _add_run_options(p: argparse.ArgumentParser) -> None:
     """The config and the run's budget (where it goes and its seed: the shared options)."""
     p.add_argument(
@@ -69,63 +86,46 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
         metavar="YAML",
         help="zoo-style YAML of hyperparameters, keyed by the env id (default: %(default)s)",
     )
-    p.add_argument(
-        "--env-id", default=None, metavar="ID", help=f"Gymnasium env id {_default('env_id')}"
-    )
-    p.add_argument(
-        "--name", default=None, help=f"file stem of the saved model, NAME.zip {_default('name')}"
-    )
-    p.add_argument(
+    _setting(p, "--env-id", "Gymnasium env id", metavar="ID")
+    _setting(p, "--name", "file stem of the saved model, NAME.zip")
+    _setting(
+        p,
         "--total-timesteps",
+        "training budget, env steps of all envs together, rounded up to whole rollouts "
+        "(n_steps x n_envs)",
         type=int,
-        default=None,
         metavar="STEPS",
-        help="training budget, env steps of all envs together, rounded up to whole rollouts "
-        f"(n_steps x n_envs) {_default('total_timesteps', 'its n_timesteps')}",
+        shown="its n_timesteps",
     )
 
 
 def _add_evaluation_options(p: argparse.ArgumentParser) -> None:
     """The periodic evaluation and the checkpoints."""
-    p.add_argument(
-        "--eval-seed",
-        type=int,
-        default=None,
-        metavar="SEED",
-        help=f"seed of the first periodic-evaluation user {_default('eval_seed')}",
+    _setting(
+        p, "--eval-seed", "seed of the first periodic-evaluation user", type=int, metavar="SEED"
     )
-    p.add_argument(
-        "--n-eval-episodes",
-        type=int,
-        default=None,
-        metavar="N",
-        help=f"users per periodic evaluation, 0: none {_default('n_eval_episodes')}",
+    _setting(
+        p, "--n-eval-episodes", "users per periodic evaluation, 0: none", type=int, metavar="N"
     )
-    p.add_argument(
+    _setting(
+        p,
         "--eval-freq",
+        "env steps (all envs) between periodic evaluations",
         type=int,
-        default=None,
         metavar="STEPS",
-        help=f"env steps (all envs) between periodic evaluations {_default('eval_freq')}",
     )
-    p.add_argument(
+    _setting(
+        p,
         "--checkpoint-freq",
+        "env steps (all envs) between checkpoints",
         type=int,
-        default=None,
         metavar="STEPS",
-        help=f"env steps (all envs) between checkpoints {_default('checkpoint_freq')}",
     )
 
 
 def _add_env_options(p: argparse.ArgumentParser) -> None:
     """How many training envs, and the vector env that steps them."""
-    p.add_argument(
-        "--n-envs",
-        type=int,
-        default=None,
-        metavar="N",
-        help=f"parallel training envs {_default('n_envs', 'its n_envs')}",
-    )
+    _setting(p, "--n-envs", "parallel training envs", type=int, metavar="N", shown="its n_envs")
     p.add_argument(
         "--vec-env",
         choices=VEC_ENVS,
@@ -145,13 +145,13 @@ def _add_start_options(p: argparse.ArgumentParser) -> None:
         default=None,
         help="continue the run in --out from its resume point, with its saved settings",
     )
-    p.add_argument(
+    _setting(
+        p,
         "--init-from",
+        "fine-tune: start from this model's weights and normalisation statistics",
         type=Path,
-        default=None,
         metavar="ZIP",
-        help="fine-tune: start from this model's weights and normalisation statistics "
-        f"{_default('init_from', 'random weights')}",
+        shown="random weights",
     )
 
 
@@ -172,23 +172,9 @@ def _add_learner_options(p: argparse.ArgumentParser) -> None:
         help="write no TensorBoard logs to OUT/tb (written unless the config's "
         "train.tensorboard is false)",
     )
-    p.add_argument(
-        "--device", default=None, help=f"torch device of the learner {_default('device')}"
-    )
-    p.add_argument(
-        "--torch-threads",
-        type=int,
-        default=None,
-        metavar="N",
-        help=f"torch threads of the learner process {_default('torch_threads')}",
-    )
-    p.add_argument(
-        "--verbose",
-        type=int,
-        default=None,
-        metavar="{0,1,2}",
-        help=f"SB3 verbosity, 0 (quiet) to 2 {_default('verbose')}",
-    )
+    _setting(p, "--device", "torch device of the learner")
+    _setting(p, "--torch-threads", "torch threads of the learner process", type=int, metavar="N")
+    _setting(p, "--verbose", "SB3 verbosity, 0 (quiet) to 2", type=int, metavar="{0,1,2}")
 
 
 def parse_args(argv: Sequence[str] | None = None) -> tuple[TrainArgs, set[str]]:

@@ -23,10 +23,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = options.job_parser(
         "video",
         "Render a session video (MP4, H.264 + AAC) from an episode log.",
+        options.episode_log(),
         options.out_file("the .mp4"),
-    )
-    p.add_argument(
-        "log", type=Path, metavar="LOG.npz", help="episode log (.npz) written by langctrl compare"
     )
     p.add_argument(
         "--fps",

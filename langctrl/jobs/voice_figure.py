@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Sequence
-from pathlib import Path
 
 from eval.episode import EpisodeLog
 from eval.voice_figure import voice_figure
@@ -21,13 +20,12 @@ __all__ = ["build_parser", "main"]
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``langctrl voice-figure`` (``python -m langctrl.jobs.voice_figure``)."""
-    p = options.job_parser(
+    return options.job_parser(
         "voice-figure",
         "The voice figure of one session from its episode log.",
+        options.episode_log(),
         options.out_file("the PNG"),
     )
-    p.add_argument("log", type=Path, help="an episode log (.npz) written by langctrl compare")
-    return p
 
 
 def main(argv: Sequence[str] | None = None) -> int:
