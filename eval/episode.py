@@ -133,7 +133,8 @@ class EpisodeLog:
         t_a: Speech ETC at base pace (s).
         em: Estimated misalignment ``t_a - t_x`` (s).
         motion_done: True once the motion is over.
-        speech_done: True once the speech is over.
+        speech_done: True while the speech is over (False again where it goes on after its
+            end because the motion went back: :mod:`langenv.speech.repeat`).
         utterances: Phrases said, ordered by start time.
         t_motion: Time at which the motion ended (s).
         t_speech: Time at which the speech ended (s).
@@ -277,10 +278,10 @@ class EpisodeLog:
                 raise ConfigError(f"EpisodeLog.{name} must be boolean (or 0/1)")
             arr = raw.astype(np.bool_)
             unset = arr[:-1] & ~arr[1:]
-            if unset.any():
+            if name == "motion_done" and unset.any():
                 i = int(np.argmax(unset))
                 raise ConfigError(
-                    f"EpisodeLog.{name} must stay True once set, but goes back to False at "
+                    f"EpisodeLog.motion_done must stay True once set, but goes back to False at "
                     f"index {i + 1} (t={self.t[i + 1]} s)"
                 )
             arr.setflags(write=False)

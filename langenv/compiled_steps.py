@@ -22,9 +22,10 @@ TABULATED_USERS = (SyntheticUser, PerturbedUser, ReplayUser)
 """The users whose force the compiled ticks compute (a table against the motion)."""
 
 _E = ek.ENV_STEPS.at
-_LOADED = ek.ENV_STEPS.span("p", "pause_factor")
+_LOADED = ek.ENV_STEPS.span("p", "reopen_at")
 """The state loaded from the env's Python objects in one slice: the paces, the env's times, the
-timeline's state, the cooperation count, the user's table step, the pause factor."""
+timeline's state, the cooperation count, the user's table step, the pause factor, from when the
+speech may go on after its end."""
 _NONE = np.zeros(0)
 """The episode's arrays (the cooperation history, the user's force table) until :meth:`load`."""
 
@@ -123,7 +124,7 @@ class CompiledSteps:
             paces.p, paces.a, paces.p_dot, env.time, env.t_a, env.t_h, em_int, pace_int,
             env.max_speed,
             pos, t, a, mark, -1.0 if u is None else self.index[u], slot, in_pause,
-            env.coop_index, step, env.pause_factor,
+            env.coop_index, step, env.pause_factor, env.reopen_at,
         )  # fmt: skip
 
     def store(self) -> tuple[float, float]:
@@ -133,7 +134,7 @@ class CompiledSteps:
         paces, motion = env.paces, env.motion
         (
             paces.p, paces.a, paces.p_dot, time, t_a, t_h, em_int, pace_int, max_speed,
-            pos, t, sa, mark, _, slot, _, coop_i, _, _,
+            pos, t, sa, mark, _, slot, _, coop_i, _, _, _,
         ) = es[_LOADED].tolist()  # fmt: skip
         env.speech.take_state(pos, t, sa, mark, slot)
         env.take_times(time, t_a, t_h, max_speed, int(coop_i))

@@ -30,6 +30,7 @@ from langenv.speech.choice import duration_factor
 from langenv.speech.graph import PhraseGraph, graph_path
 from langenv.speech.hearing import Ear
 from langenv.speech.legs import LegPlan, leg_plan
+from langenv.speech.repeat import MAX_REOPENS, REOPEN_AFTER
 from langenv.speech.shared import shared_clips, shared_graph
 from langenv.speech.timeline import SpeechTimeline
 from langenv.task import reward
@@ -551,6 +552,16 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         """The pause rule's target over ``t_x`` for this step (the target action's factor)."""
         return self._pause_factor
 
+    @property
+    def reopen_at(self) -> float:
+        """From when the speech may go on after its end (:mod:`langenv.speech.repeat`: the
+        motion went back; s, ``inf``: not in this session now): the compiled ticks hand that
+        tick to Python, which decides (:meth:`_reopen_due`)."""
+        end = self.t_speech_end
+        if end is None or self.speech.graph.reopen is None or self._reopens >= MAX_REOPENS:
+            return math.inf
+        return end + REOPEN_AFTER
+
     def take_times(
         self, time: float, t_a: float, t_h: float, max_speed: float, coop_index: int
     ) -> None:
@@ -628,6 +639,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         self._coop_hist = np.ones(max(1, round(TREND_WINDOW / self.dt)))
         self._coop_i = 0
         self._max_speed = self.motion.hand_speed
+        self._reopens = 0
 
     def _tick(self, p_cmd: float, a_cmd: float) -> tuple[float, float]:
         """One 2 ms tick; returns the instantaneous misalignment and pace penalty."""
@@ -646,6 +658,11 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
             self._terminated = True
             return 0.0, 0.0
         hz = self._horizons()  # the motion's, after its tick: for the speech and its ETC
+        if speech.done and self._reopen_due():
+            assert speech.graph.reopen is not None
+            speech.reopen(speech.graph.reopen, self.time)
+            self.t_speech_end = None
+            self._reopens += 1
         if not speech.done:
             speech.step(self.dt, a, self._choose, hz, pause_factor=self._pause_factor)
         self.time += self.dt
@@ -662,6 +679,16 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         if not motion_on and not speech_on:
             self._end_episode()
         return em, pace
+
+    def _reopen_due(self) -> bool:
+        """Whether the speech goes on now (:mod:`langenv.speech.repeat`): :data:`REOPEN_AFTER`
+        s after it ended the motion goes on, and its time to go holds the shortest words from
+        the graph's reopen vertex to the end."""
+        return (
+            self.time >= self.reopen_at
+            and not self.motion.motion_done
+            and self.motion.t_x >= self.speech.graph.t_min(self.speech.graph.reopen)  # type: ignore[arg-type]
+        )
 
     def _listen(self, a: float) -> None:
         """Tell a person who listens (:class:`~langenv.users.Listener`) the words heard in this

@@ -70,6 +70,7 @@ ENV_STATE = field_table(
     coop_i:int    cooperation samples taken (the history's write index)
     user_step     the user's force table's step (s)
     pause_factor  the pause rule's target over t_x (the target action's factor)
+    reopen_at     from when Python looks whether the speech goes on after its end (s; inf: never)
     f_user[3]     the person's force in the last tick (N)
     """
 )
@@ -146,7 +147,8 @@ def run(s: np.ndarray, p_cmd: float, a_cmd: float, n: int) -> tuple[int, int, in
 
     Returns:
         ``(ticks done, answer, code)``: :data:`R_DONE` after ``n`` ticks; :data:`R_PYTHON`: the
-        next tick is Python's (nothing of it done); :data:`R_CONTROL`: the last tick's control
+        next tick is Python's (nothing of it done: a phrase's end, or the motion going on from
+        ``es[reopen_at]`` after the speech's end); :data:`R_CONTROL`: the last tick's control
         part answered ``code`` (pacing and the user's force ``es[f_user]`` done, the rest is
         Python's); :data:`R_STOP`: the last tick ended in a protective stop (``code``: the
         limit); :data:`R_OVER`: motion and speech are over after the last tick.
@@ -159,6 +161,8 @@ def run(s: np.ndarray, p_cmd: float, a_cmd: float, n: int) -> tuple[int, int, in
     pow_fn = i8(s, _S.ptr)[P_POW]
     size = hist.shape[0]
     for i in range(n):
+        if u < 0 and es[_E.time] >= es[_E.reopen_at] and math.isnan(ws[_T.t_end]):
+            return i, R_PYTHON, 0  # the speech may go on after its end: Python decides
         p_new, p_dot, a = pace_step(
             es[_E.p], es[_E.a], p_cmd, a_cmd, dt, es[_E.k_p], es[_E.k_a], es[_E.p_min],
             es[_E.p_max], es[_E.a_min], es[_E.a_max],

@@ -101,6 +101,8 @@ class SpeechStream:
             self._a = np.concatenate([self._a, np.ones(self._a.size)])
         self._t[self._n], self._a[self._n] = t, a
         self._n += 1
+        if self._voc.finished and self._pushed < len(path):  # the speech goes on after its end
+            self._resume(t, a)
         while self._pushed < len(path):
             phrase = path[self._pushed]
             if phrase in self.graph.pauses:  # a pause vertex: its silence, as it elapses
@@ -130,6 +132,15 @@ class SpeechStream:
             self._pushed += 1
         if speech_done and not self._voc.finished:
             self._voc.finish()
+
+    def _resume(self, t: float, a: float) -> None:
+        """The vocoder takes content again (the speech went on after its end at ``t``): first
+        the silence from the output already rendered to ``t`` at pace ``a``, at least a frame
+        (no frame already emitted may reach the new words)."""
+        self._voc.resume()
+        rendered = float(self._t[0]) + (self.next_sample - self.start_sample) / self.sr
+        n = max(self._voc.n_fft, round(a * (t - rendered) * self.sr))
+        self._push(np.zeros(n, np.float32))
 
     def _push(self, y: np.ndarray) -> None:
         self._voc.push(y)

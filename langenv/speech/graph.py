@@ -55,6 +55,7 @@ from langenv.speech.repeat import (
     Repeat,
     expand,
     is_gap,
+    reopen_vertex,
 )
 from langenv.speech.voice import Voice
 
@@ -210,6 +211,9 @@ class PhraseGraph:
         """The pauses open above their bounds: the silences before the last phrase and the
         gates between legs (:mod:`langenv.speech.legs`)."""
         self._build_tables(table)
+        self.reopen: str | None = reopen_vertex(self)
+        """Where the speech goes on when the motion goes back after its end (None: it does
+        not; :func:`~langenv.speech.repeat.reopen_vertex`)."""
 
     def _segment(
         self, table: dict[str, Phrase], reps: Mapping[str, Repeat], own: Mapping[str, str]

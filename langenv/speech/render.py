@@ -21,7 +21,7 @@ timeline: a pause vertex sounds as the length chosen for it (:attr:`SpeechTimeli
 from __future__ import annotations
 
 import itertools
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from typing import Any, Protocol
 
 import numpy as np
@@ -152,17 +152,24 @@ def silence(seconds: float, sr: int) -> np.ndarray:
 
 
 def _content(
-    graph: PhraseGraph, clips: ClipLibrary, ids: Sequence[str], pauses: Sequence[float]
+    graph: PhraseGraph,
+    clips: ClipLibrary,
+    ids: Sequence[str],
+    pauses: Sequence[float],
+    reopened: Mapping[int, float] | None = None,
 ) -> Iterator[tuple[np.ndarray, float | None]]:
     """Base-pace content, piece by piece: each clip, with the graph's pause after a clip that has
     a successor in the graph (also where a history cut short ends with it, as the live stream
     pushes it); each pause vertex as its silence (``pauses``: their lengths, in order). A clip
     with a successor comes with the seconds of silence after it (where a natural voice may wait,
     :meth:`NaturalVoice.clip <langenv.speech.voice.NaturalVoice.clip>`), every other piece with
-    None."""
+    None. ``reopened`` gives the silence (s) before the words where the speech goes on after
+    its end."""
     gap = silence(graph.pause, clips.sr)
     lengths = iter(pauses)
-    for u in ids:
+    for k, u in enumerate(ids):
+        if reopened and k in reopened:
+            yield silence(reopened[k], clips.sr), None
         if u in graph.pauses:
             yield silence(next(lengths), clips.sr), None
             continue
@@ -227,7 +234,9 @@ def render_history(
     # content kept pushed ahead of the vocoder's read position: its window plus two blocks
     lookahead = 4.0 * (vocoder_kw or {}).get("n_fft", 1024) / sr + 3.0 * _BLOCK / sr
     voice = NaturalVoice(sr) if graph.voice == "natural" else None
-    feeder = _Feeder(voc, _content(graph, clips, ids, pauses), sr, lookahead, voice)
+    reopened = _reopen_silences(graph, history, ids, tt, aa)
+    total += sum(reopened.values())
+    feeder = _Feeder(voc, _content(graph, clips, ids, pauses, reopened), sr, lookahead, voice)
     n_trace = round((tt[-1] - tt[0]) * sr)
     # the speech may outlast the trace: at most its content at the last pace, plus slack
     n_cap = n_trace + int((total / float(aa[-1]) + 1.0) * sr)
@@ -269,14 +278,39 @@ def _pause_lengths(
     return lengths
 
 
+def _reopens(graph: PhraseGraph, ids: Sequence[str], k: int) -> bool:
+    """Whether the speech goes on at ``ids[k]`` after it ended at ``ids[k - 1]`` (the motion
+    went back: :mod:`langenv.speech.repeat`)."""
+    return k > 0 and graph.is_terminal(ids[k - 1]) and ids[k] == graph.reopen
+
+
+def _reopen_silences(
+    graph: PhraseGraph, history: Sequence[Any], ids: Sequence[str], tt: np.ndarray, aa: np.ndarray
+) -> dict[int, float]:
+    """Base-pace seconds of silence before each vertex where the speech goes on after its end:
+    the trace's ``∫ a dt`` from the end of the words before to the start of the words after
+    (0 for a history of ids without times)."""
+    cum = np.concatenate([[0.0], np.cumsum(0.5 * (aa[1:] + aa[:-1]) * np.diff(tt))])
+    out: dict[int, float] = {}
+    for k in range(1, len(ids)):
+        if not _reopens(graph, ids, k):
+            continue
+        a, b = getattr(history[k - 1], "t_end", None), getattr(history[k], "t_start", None)
+        out[k] = (
+            0.0 if a is None or b is None else float(np.interp(b, tt, cum) - np.interp(a, tt, cum))
+        )
+    return out
+
+
 def _check_path(graph: PhraseGraph, ids: Sequence[str]) -> None:
-    """Raise unless ``ids`` is a path of ``graph`` from its start phrase."""
+    """Raise unless ``ids`` is a path of ``graph`` from its start phrase (where the speech goes
+    on after its end, its reopen vertex may follow a last phrase)."""
     for k, u in enumerate(ids):
         if u not in graph.phrases:
             raise ConfigError(f"history[{k}]: {u!r} is not a phrase of {graph.path}")
         if k == 0 and u != graph.start:
             raise ConfigError(f"history[0]: {u!r} is not the start phrase {graph.start!r}")
-        if k and u not in graph.children(ids[k - 1]):
+        if k and u not in graph.children(ids[k - 1]) and not _reopens(graph, ids, k):
             raise ConfigError(f"history[{k}]: {u!r} does not follow {ids[k - 1]!r} in the graph")
 
 

@@ -29,6 +29,15 @@ for a pause), so the choices, ``t_min``/``t_max`` and the rule's mids are those 
 a short planned silence: only the silence before the last phrase stretches beyond that. A
 script needs no line for it.
 
+**The motion goes back after the last phrase** (graphs whose last phrase waits). A person may
+push the hand back once the last words have begun ("And you're done." said, then seconds of
+motion again). When the motion is still going :data:`REOPEN_AFTER` s after the speech ended,
+and its time to go can hold the shortest words from there to the end, the speech goes on from
+:func:`reopen_vertex` (the shortest first saying of a repeat that leads to the last phrase's
+wait: "Keep going.", then, by the same rules, more sayings or the wait and the last phrase
+again), at most :data:`MAX_REOPENS` times a session. A session whose motion ends within
+:data:`REOPEN_AFTER` s of its speech is not touched.
+
 A plan says a repeat once: ``t_min``/``t_max`` of a vertex (and so the choice rule's mids) leave
 out its gap children, so a repeat whose ``times`` is large does not make every earlier wording
 look short; another saying is chosen, at each saying's end, when the motion's time to go is
@@ -48,7 +57,9 @@ from langenv.errors import PhraseGraphError
 
 __all__ = [
     "DEFAULT_GAP",
+    "MAX_REOPENS",
     "MAX_REPEAT",
+    "REOPEN_AFTER",
     "SEP",
     "WAIT_MAX",
     "WAIT_PLAN",
@@ -56,6 +67,7 @@ __all__ = [
     "expand",
     "is_gap",
     "parse_repeats",
+    "reopen_vertex",
     "repeat_problems",
 ]
 
@@ -71,6 +83,11 @@ WAIT_PLAN = 1.5
 aims the words about half of it before the motion's end. Overshooting costs more
 than stopping short: a wait fills a short speech, while the paper's law slows the voice, never
 speeds it, when the person resists as the motion ends."""
+REOPEN_AFTER = 1.0
+"""Seconds of motion after the speech's end before the speech goes on (the module docstring):
+the bar of ``|AM|``, so that a session the bar passes is never changed."""
+MAX_REOPENS = 3
+"""The most times a session's speech goes on after its end."""
 SEP = "#"
 """Separator of the ids of unrolled vertices (``keep_going#2``, ``encourage#gap1``,
 ``done#wait``); a graph file's own ids may not contain it."""
@@ -285,6 +302,24 @@ def expand(
     table.update(extra)
     opened = _add_waits(table, dur, make) if final_wait else set()
     return table, {u: d for u, d in dur.items() if u in table}, frozenset(opened)
+
+
+def reopen_vertex(graph: Any) -> str | None:
+    """Where the speech goes on after its end (module docstring) in ``graph`` (a
+    :class:`~langenv.speech.graph.PhraseGraph`): among the first sayings of a repeat that lead
+    to a last phrase's wait, the shortest (the first in the graph's order on a tie); None when
+    the last phrase does not wait or no repeat leads to it (the speech then ends as before)."""
+    if not graph.final_wait:
+        return None
+    waits = {u for u in graph.order if u.endswith(SEP + "wait")}
+    found = [
+        u
+        for u in graph.order
+        if SEP not in u
+        and waits.intersection(graph.children(u))
+        and any(is_gap(k) for k in graph.children(u))
+    ]
+    return min(found, key=lambda u: graph.duration[u]) if found else None
 
 
 def is_gap(vertex: str) -> bool:

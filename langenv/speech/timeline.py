@@ -221,6 +221,31 @@ class SpeechTimeline:
             return
         self._advance(dt, a, adv, choice, t_x, pause)
 
+    def reopen(self, v: str, t: float) -> None:
+        """Go on speaking from the vertex ``v`` (a content vertex) at time ``t`` (s), after
+        the speech ended (:func:`~langenv.speech.repeat.reopen_vertex`: the motion went back);
+        the next :meth:`step` says it. The utterances so far stay; :attr:`t_end` is None again.
+
+        Raises:
+            ConfigError: if the speech has not ended, or ``v`` is a pause or not a vertex.
+        """
+        if not self._done:
+            raise ConfigError("SpeechTimeline.reopen: the speech has not ended")
+        if not t >= self._t:
+            raise ConfigError(f"SpeechTimeline.reopen: t must be >= {self._t}, got {t!r}")
+        if v not in self._dur or v in self._pauses:
+            raise ConfigError(f"SpeechTimeline.reopen: {v!r} is not a phrase of the graph")
+        self._done = False
+        self._t_end = None
+        self._phrase = v
+        self._path.append(v)
+        self._pos = 0.0
+        self._in_pause = False
+        self._elastic = False
+        self._t = self._t_start = float(t)
+        self._cur_slot = self._slot[v]
+        self._mark = self._dur[v]
+
     def _factored(self, t_x: float | Sequence[float], factor: float | None) -> PauseTarget:
         """The pause rule's targets from the horizons: each segment's times ``factor`` (the
         gates' untouched), as a mapping from vertex to target, or one number for one segment."""

@@ -221,6 +221,17 @@ class VariableRateVocoder:
         """Declare that no more content will be pushed (the output then ends with the content)."""
         self._finished = True
 
+    def resume(self) -> None:
+        """Take content again after :meth:`finish` (a speech that goes on after its end): what
+        is pushed next follows the content pushed so far; push a frame of silence first, so
+        that no frame already emitted overlaps the new content. What the last frames left in
+        the overlap-add (beyond the output emitted) is dropped, and the phase starts afresh."""
+        self._finished = False
+        self._acc[:] = 0.0
+        self._wsum[:] = 0.0
+        self._used = 0
+        self._count[0] = -1
+
     def pull(self, n: int, a: float) -> np.ndarray:
         """Render up to ``n`` output samples at pace ``a``.
 

@@ -1,0 +1,153 @@
+"""The speech goes on after its end when the motion goes back (langenv.speech.repeat's
+REOPEN_AFTER): where, when, the same in Python and compiled ticks, heard live and offline."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import langenv
+from langenv.errors import ConfigError
+from langenv.exercise.script import speak
+from langenv.speech.audio import ClipLibrary
+from langenv.speech.graph import PhraseGraph, graph_path
+from langenv.speech.phrase import Phrase
+from langenv.speech.render import render_history
+from langenv.speech.repeat import REOPEN_AFTER, Repeat, reopen_vertex
+from langenv.speech.timeline import SpeechTimeline, Utterance
+from policies.analytic import make_analytic
+
+# A forearm_rotation person (validation seeds) who pushes the hand back by about 3 s of motion
+# after "And you're done." has begun: before the speech went on, LC ended 3.7 s apart.
+PUSHED_BACK = 800092
+
+
+def test_the_reopen_vertex_is_the_shortest_first_saying_leading_to_the_last_phrase() -> None:
+    assert PhraseGraph.load(graph_path("default")).reopen == "keep_going_3"
+    assert PhraseGraph.load(graph_path("study")).reopen is None  # the paper's graph: unchanged
+
+
+def _graph(clips: ClipLibrary, final_wait: bool = True, repeat: bool = True) -> PhraseGraph:
+    phrases = [
+        Phrase("go", "Move your hand away from your body.", None, ("keep", "slow", "done")),
+        Phrase("keep", "Keep going.", None, ("done",)),
+        Phrase("slow", "Nice and slow, you are doing really well.", None, ("done",)),
+        Phrase("done", "And you're done.", None, ()),
+    ]
+    dur = {p.id: clips.duration(p) for p in phrases}
+    reps = [Repeat("enc", ("keep", "slow"), 3, (0.3, 0.6))] if repeat else []
+    return PhraseGraph(
+        phrases, "go", dur, pause=0.25, voice="natural", repeats=reps, final_wait=final_wait
+    )
+
+
+def test_no_reopen_without_a_waiting_last_phrase_or_a_repeat(clips: ClipLibrary) -> None:
+    assert _graph(clips).reopen == "keep"  # the shorter of the two first sayings
+    assert reopen_vertex(_graph(clips, final_wait=False)) is None
+    assert reopen_vertex(_graph(clips, repeat=False)) is None
+
+
+def test_the_timeline_goes_on_from_the_vertex_at_the_time_given(clips: ClipLibrary) -> None:
+    graph = _graph(clips)
+    tl = SpeechTimeline(graph)
+    with pytest.raises(ConfigError, match="has not ended"):
+        tl.reopen("keep", 0.0)
+    while not tl.done:
+        tl.step(0.01, 1.0, choice="done#wait", t_x=0.0, pause=0.0)
+    end = tl.t_end
+    assert end is not None
+    with pytest.raises(ConfigError, match="not a phrase"):
+        tl.reopen("done#wait", end + 1.0)
+    with pytest.raises(ConfigError, match="t must be >="):
+        tl.reopen("keep", end - 1.0)
+    said = len(tl.utterances())
+    tl.reopen("keep", end + 1.5)
+    assert not tl.done and tl.t_end is None and tl.phrase == "keep"
+    while not tl.done:
+        tl.step(0.01, 1.0, choice="done#wait", t_x=0.0, pause=0.0)
+    again = tl.utterances()[said:]
+    assert again[0].phrase == "keep" and again[0].t_start == pytest.approx(end + 1.5)
+    assert again[-1].phrase == "done" and tl.t_end == again[-1].t_end
+
+
+def _session(compiled: bool) -> tuple[Any, dict[str, np.ndarray], list[Utterance]]:
+    policy = make_analytic("lc")
+    spoken = speak(policy, "forearm_rotation", None)
+    env: Any = gym.make(
+        langenv.ENV_ID,
+        phrase_graph=spoken.ref,
+        decision_hz=policy.decision_hz,
+        exercise="forearm_rotation",
+        max_episode_steps=60 * policy.decision_hz,
+        **policy.env_kwargs,
+    ).unwrapped
+    if not compiled:
+        env._steps = None  # every tick in Python: the reference
+    obs, _ = env.reset(seed=PUSHED_BACK)
+    policy.reset()
+    rows: dict[str, list[float]] = {"time": [], "a": [], "p": [], "speech_done": []}
+    terminated = False
+    while not terminated:
+        obs, _, terminated, truncated, info = env.step(policy.act(obs))
+        assert not truncated
+        for name in rows:
+            rows[name].append(float(info[name]))
+    return info, {k: np.array(v) for k, v in rows.items()}, env.speech.utterances()
+
+
+def test_a_person_who_pushes_back_hears_more_words_and_both_end_together() -> None:
+    info, rows, said = _session(compiled=True)
+    words = [u.phrase for u in said if u.length is None]
+    assert words.count("done") == 2  # "And you're done." once more, after "Keep going."
+    k = words.index("done")
+    assert words[k + 1] == "keep_going_3"
+    first_end = next(u.t_end for u in said if u.phrase == "done")
+    again = next(u.t_start for u in said if u.phrase == "keep_going_3" and u.t_start > first_end)
+    assert again == pytest.approx(first_end + REOPEN_AFTER, abs=0.003)
+    assert abs(info["am"]) <= 1.0  # 3.7 s apart before
+    went_on = np.flatnonzero(np.diff(rows["speech_done"]) < 0)
+    assert went_on.size == 1
+
+
+def test_the_compiled_ticks_go_on_as_the_python_ones() -> None:
+    info_c, rows_c, said_c = _session(compiled=True)
+    info_p, rows_p, said_p = _session(compiled=False)
+    for name in rows_c:
+        np.testing.assert_array_equal(rows_c[name], rows_p[name], err_msg=name)
+    assert said_c == said_p
+    assert info_c["am"] == info_p["am"]
+
+
+def test_the_speech_that_goes_on_is_heard_live_and_offline(clips: ClipLibrary) -> None:
+    from langenv.live.stream import BLOCK, SpeechStream
+
+    graph = _graph(clips)
+    tl, stream = SpeechTimeline(graph), SpeechStream(graph, clips)
+    t, dt, trace, live, reopened = 0.0, 0.002, [], [], False
+    while t < 20.0 and (not tl.done or not reopened or t < tl.t + 0.5):
+        stream.record(t, 1.0, tl.path, tl.done, tl.pause_lengths)
+        trace.append(t)
+        live.append(stream.render(t, 4 * BLOCK))
+        if tl.done and not reopened and tl.t_end is not None and t >= tl.t_end + REOPEN_AFTER:
+            tl.reopen("keep", t)
+            reopened = True
+        if not tl.done:
+            tl.step(dt, 1.0, choice="done#wait", t_x=0.0, pause=0.0)
+        t += dt
+    heard = np.concatenate(live)
+    tt = np.asarray(trace)
+    offline = render_history(graph, clips, tl.utterances(), tt, np.ones_like(tt))
+    restart = next(u for u in tl.utterances() if u.phrase == "keep")
+    after = slice(
+        round((restart.t_start + 0.1) * clips.sr), round((restart.t_end - 0.1) * clips.sr)
+    )
+    before = slice(
+        round((restart.t_start - 0.8) * clips.sr), round((restart.t_start - 0.1) * clips.sr)
+    )
+    for audio in (heard, offline):
+        assert np.abs(audio[after]).max() > 0.01  # the words that go on are heard
+        assert np.abs(audio[before]).max() < 1e-3  # after a silence
+    assert stream.starved == 0
