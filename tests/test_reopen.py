@@ -151,3 +151,25 @@ def test_the_speech_that_goes_on_is_heard_live_and_offline(clips: ClipLibrary) -
         assert np.abs(audio[after]).max() > 0.01  # the words that go on are heard
         assert np.abs(audio[before]).max() < 1e-3  # after a silence
     assert stream.starved == 0
+
+
+def test_a_batch_goes_on_as_the_single_env() -> None:
+    from langenv.batch import LangCtrlVectorEnv
+
+    policy = make_analytic("lc")
+    spoken = speak(policy, "forearm_rotation", None)
+    kwargs = {"phrase_graph": spoken.ref, "exercise": "forearm_rotation", **policy.env_kwargs}
+    venv = LangCtrlVectorEnv(1, decision_hz=policy.decision_hz, **kwargs)
+    obs, _ = venv.reset(seed=PUSHED_BACK)
+    policy.reset()
+    a = []
+    while True:
+        obs, _, term, trunc, info = venv.step(policy.act(obs[0])[None, :])
+        assert not trunc[0]
+        a.append(float(info["a"][0]))
+        if term[0]:
+            break
+    venv.close()
+    single, rows, _ = _session(compiled=True)
+    assert info["am"][0] == single["am"]
+    np.testing.assert_array_equal(np.array(a), rows["a"])
