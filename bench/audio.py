@@ -20,7 +20,9 @@ SR = 22050
 _VOWELS = np.array([[730, 1090, 2440], [270, 2290, 3010], [530, 1840, 2480], [570, 840, 2410]])
 
 
-def speech_like_signal(seconds: float, rng: np.random.Generator, sr: int = SR) -> np.ndarray:
+def speech_like_signal(
+    seconds: float, rng: np.random.Generator, sr: int = SR, *, bursts: bool = True
+) -> np.ndarray:
     """Synthetic speech: a glottal pulse train through moving formants, in syllables.
 
     The pitch glides between about 120 and 190 Hz, the three formants move between four vowels
@@ -30,6 +32,8 @@ def speech_like_signal(seconds: float, rng: np.random.Generator, sr: int = SR) -
         seconds: Duration (s), > 0.
         rng: Source of the vowel sequence and of the noise.
         sr: Sample rate (Hz).
+        bursts: Whether the syllables' noise bursts are there (False: voiced only; the noise is
+            drawn either way).
 
     Returns:
         Mono float32 audio, shape ``(round(seconds * sr),)``, peak 0.5.
@@ -54,8 +58,8 @@ def speech_like_signal(seconds: float, rng: np.random.Generator, sr: int = SR) -
             out, state[j] = scipy.signal.lfilter([1 - r], den, source[s:e], zi=state[j])
             y[s:e] += out / (j + 1)
     envelope = np.clip(1.3 * np.sin(np.pi * (t % syllable) / syllable), 0.0, 1.0) ** 0.7
-    bursts = np.sin(np.pi * (t % (3 * syllable)) / (3 * syllable)) > 0.95
-    y = y * envelope + 0.05 * np.max(np.abs(y), initial=0.0) * rng.standard_normal(n) * bursts
+    noisy = (np.sin(np.pi * (t % (3 * syllable)) / (3 * syllable)) > 0.95) & bursts
+    y = y * envelope + 0.05 * np.max(np.abs(y), initial=0.0) * rng.standard_normal(n) * noisy
     peak = np.max(np.abs(y), initial=0.0)
     return (0.5 * y / peak if peak > 0 else y).astype(np.float32)
 

@@ -30,7 +30,7 @@ from langenv.control.pacing_kernels import law_commands
 from langenv.control.pacing_kernels import step as pace_step
 from langenv.kernels import kernel
 from langenv.kernels.mjc import P_POW
-from langenv.kernels.views import ArrayField, Record, f8, f8_2, i8
+from langenv.kernels.views import Record, array_table, f8, f8_2, i8
 from langenv.layout import Layout, field_table
 from langenv.motion import tick_kernels as mk
 from langenv.speech.graph_kernels import eta, fill
@@ -112,17 +112,19 @@ _N_ROW = len(ROW_FIELDS)
 SESSION = Record(
     "session",
     mk.TICK_ARRAYS,
-    (
-        ArrayField("es", doc="the env's ticks' array (:data:`ENV_STEPS`)"),
-        ArrayField("hist", doc="the cooperation history (a ring)"),
-        ArrayField("table", doc="the user's force table"),
-        ArrayField("mid", doc="the graph's mid-lengths"),
-        ArrayField("slot", doc="the graph's slots (n, 3)"),
-        ArrayField("kid_ptr", "int64", "the graph's children offsets"),
-        ArrayField("kids", "int64", "the graph's children"),
-        ArrayField("lg", doc="the graph's legs (``LegPlan.packed``)"),
-        ArrayField("tails", "float32", "the observation's child blocks per vertex and the end's"),
-        ArrayField("dur", doc="each vertex's clip length at a = 1 (s)"),
+    array_table(
+        """
+        es             the env's ticks' array (:data:`ENV_STEPS`)
+        hist           the cooperation history (a ring)
+        table          the user's force table
+        mid            the graph's mid-lengths
+        slot           the graph's slots (n, 3)
+        kid_ptr:int64  the graph's children offsets
+        kids:int64     the graph's children
+        lg             the graph's legs (``LegPlan.packed``)
+        tails:float32  the observation's child blocks per vertex and the end's
+        dur            each vertex's clip length at a = 1 (s)
+        """
     ),
 )
 """A session's arrays, reached by address (:mod:`langenv.kernels.views`): the tick's

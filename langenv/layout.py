@@ -45,10 +45,10 @@ import numpy as np
 
 from langenv.errors import ConfigError
 
-__all__ = ["Field", "Layout", "field_table"]
+__all__ = ["Field", "Layout", "field_table", "table_rows"]
 
 _KINDS = ("float", "int", "bool", "index")
-_HEAD = re.compile(r"(?P<name>[A-Za-z_][A-Za-z0-9_]*)(?:\[(?P<size>\d+)\])?(?::(?P<kind>\w+))?$")
+_HEAD = re.compile(r"(?P<name>[A-Za-z_]\w*)(?:\[(?P<size>\d+)\])?(?::(?P<kind>\w+))?$")
 
 
 @dataclass(frozen=True)
@@ -225,27 +225,35 @@ def field_table(table: str) -> tuple[Field, ...]:
         ConfigError: naming the line, for a malformed name or a continuation before any field
             (and :class:`Field`'s own checks: a size below 1, an unknown kind).
     """
-    rows: list[list[str]] = []
+    fields = []
+    for m, doc in table_rows(table, _HEAD, "NAME[SIZE]:KIND"):
+        fields.append(Field(m["name"], int(m["size"] or 1), m["kind"] or "float", doc))
+    return tuple(fields)
+
+
+def table_rows(table: str, head: re.Pattern[str], form: str) -> list[tuple[re.Match[str], str]]:
+    """The rows of a declaration's table (:func:`field_table`): each line's first word matched
+    by ``head`` and the rest of the line, with the deeper-indented lines below it.
+
+    Raises:
+        ConfigError: naming the line, for a first word ``head`` does not match (``form`` says
+            what it should be) or a continuation before any row.
+    """
+    rows: list[tuple[re.Match[str], list[str]]] = []
     for k, line in enumerate(textwrap.dedent(table).splitlines(), 1):
         if not line.strip():
             continue
         if line[0].isspace():
             if not rows:
                 raise ConfigError(f"fields table line {k}: a continuation before any field")
-            rows[-1][1] += " " + line.strip()
+            rows[-1][1].append(line.strip())
             continue
-        head, _, doc = line.partition(" ")
-        if _HEAD.match(head) is None:
-            raise ConfigError(f"fields table line {k}: {head!r} is not NAME[SIZE]:KIND")
-        rows.append([head, doc.strip()])
-    return tuple(_field(head, doc) for head, doc in rows)
-
-
-def _field(head: str, doc: str) -> Field:
-    m = _HEAD.match(head)
-    assert m is not None  # checked by field_table()
-    size = int(m["size"]) if m["size"] else 1
-    return Field(m["name"], size, m["kind"] or "float", doc)
+        word, _, doc = line.partition(" ")
+        m = head.match(word)
+        if m is None:
+            raise ConfigError(f"fields table line {k}: {word!r} is not {form}")
+        rows.append((m, [doc.strip()]))
+    return [(m, " ".join(parts)) for m, parts in rows]
 
 
 def _camel(name: str) -> str:

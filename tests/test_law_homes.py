@@ -41,6 +41,8 @@ from langenv.task.observation import T_SCALE
 from tests.compiled_graph import c_eta, c_fill
 from tests.test_graph_pauses import pause_dags
 
+Vec3 = tuple[float, float, float]
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -264,9 +266,9 @@ def test_motion_etc_estimate(
     leg: int,
     where: float,
     done: bool,
-    dx: tuple[float, float, float],
-    v: tuple[float, float, float],
-    c: tuple[float, float, float],
+    dx: Vec3,
+    v: Vec3,
+    c: Vec3,
 ) -> None:
     """The query (the projection, the behind-the-start tables, the closed form to the switch,
     the rest table) from states near the path, behind a leg's start and past its end too."""

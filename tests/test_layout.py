@@ -87,3 +87,17 @@ def test_any_table_places_its_fields_end_to_end(spec: list[tuple[int, str]]) -> 
     starts = np.cumsum([0] + [size for size, _ in spec])
     assert [lay.slot(f"f{k}") for k in range(len(spec))] == list(starts[:-1])
     assert lay.size == starts[-1]
+
+
+def test_a_record_table_gives_each_array_its_dtype() -> None:
+    from langenv.kernels.views import ArrayField, array_table
+
+    got = array_table("es  the env's array\nkids:int64  the children\n  of each vertex")
+    assert got == (
+        ArrayField("es", "float64", "the env's array"),
+        ArrayField("kids", "int64", "the children of each vertex"),
+    )
+    with pytest.raises(ConfigError, match="dtype must be one of"):
+        array_table("kids:int8  the children")
+    with pytest.raises(ConfigError, match="line 1: 'kids\\[2\\]' is not NAME:DTYPE"):
+        array_table("kids[2]  the children")

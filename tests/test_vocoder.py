@@ -18,6 +18,7 @@ import scipy.signal
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from bench.audio import speech_like_signal
 from langenv.errors import ActionError, ConfigError
 from langenv.speech.vocoder import VariableRateVocoder, periodic_hann, time_stretch
 
@@ -58,31 +59,9 @@ def chirp(seconds: float) -> np.ndarray:
 
 
 def speech_like(seconds: float, rng: np.random.Generator, *, bursts: bool = True) -> np.ndarray:
-    """Glottal pulse train (f0 120-190 Hz) through moving formants, syllables, noise bursts."""
-    n = int(seconds * SR)
-    t = np.arange(n) / SR
-    f0 = 155.0 + 30.0 * np.sin(2 * np.pi * 0.7 * t) + 8.0 * np.sin(2 * np.pi * 4.5 * t)
-    pulses = np.diff(np.floor(np.cumsum(f0) / SR), prepend=0.0)
-    source = scipy.signal.lfilter([1.0], [1.0, -0.97], pulses)
-    vowels = np.array([[730, 1090, 2440], [270, 2290, 3010], [530, 1840, 2480], [570, 840, 2410]])
-    syllable = 0.22
-    index = (t / syllable).astype(int)
-    choice = rng.integers(0, len(vowels), size=int(index.max()) + 2)
-    y = np.zeros(n)
-    state = [np.zeros(2) for _ in range(3)]
-    for s in range(0, n, 256):
-        e = min(n, s + 256)
-        frac = (t[s] % syllable) / syllable
-        formants = (1 - frac) * vowels[choice[index[s]]] + frac * vowels[choice[index[s] + 1]]
-        for j, (fc, bw) in enumerate(zip(formants, (80.0, 100.0, 120.0), strict=True)):
-            r = np.exp(-np.pi * bw / SR)
-            den = [1.0, -2 * r * np.cos(2 * np.pi * fc / SR), r * r]
-            out, state[j] = scipy.signal.lfilter([1 - r], den, source[s:e], zi=state[j])
-            y[s:e] += out / (j + 1)
-    envelope = np.clip(1.3 * np.sin(np.pi * (t % syllable) / syllable), 0.0, 1.0) ** 0.7
-    noisy = np.sin(np.pi * (t % (3 * syllable)) / (3 * syllable)) > 0.95
-    y = y * envelope + 0.05 * np.max(np.abs(y)) * rng.standard_normal(n) * (noisy & bursts)
-    return _fade(0.5 * y / np.max(np.abs(y)))
+    """Glottal pulse train (f0 120-190 Hz) through moving formants, syllables, noise bursts
+    (the benchmark's signal), faded in and out."""
+    return _fade(speech_like_signal(seconds, rng, SR, bursts=bursts))
 
 
 @functools.cache

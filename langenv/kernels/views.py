@@ -14,6 +14,7 @@ shapes unchanged while the views are used.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -25,9 +26,9 @@ from numba.np.arrayobj import make_array, populate_array
 
 from langenv.errors import ConfigError
 from langenv.kernels import inline
-from langenv.layout import Field, Layout
+from langenv.layout import Field, Layout, table_rows
 
-__all__ = ["ArrayField", "Record", "address", "f4_2", "f8", "f8_2", "i8"]
+__all__ = ["ArrayField", "Record", "address", "array_table", "f4_2", "f8", "f8_2", "i8"]
 
 _DTYPES = ("float64", "float32", "int64")
 
@@ -53,6 +54,22 @@ class ArrayField:
             raise ConfigError(
                 f"ArrayField {self.name!r}: dtype must be one of {_DTYPES}, got {self.dtype!r}"
             )
+
+
+_ARRAY_HEAD = re.compile(r"(?P<name>[A-Za-z_]\w*)(?::(?P<dtype>\w+))?$")
+
+
+def array_table(table: str) -> tuple[ArrayField, ...]:
+    """The arrays of a record written as a table, one a line: ``NAME  MEANING``, ``NAME`` with
+    its dtype after a colon where it is not float64 (``kids:int64``); a deeper-indented line
+    continues the meaning (:func:`langenv.layout.field_table`'s form).
+
+    Raises:
+        ConfigError: naming the line, for a malformed name, a continuation before any array or
+            an unknown dtype.
+    """
+    rows = table_rows(table, _ARRAY_HEAD, "NAME:DTYPE")
+    return tuple(ArrayField(m["name"], m["dtype"] or "float64", doc) for m, doc in rows)
 
 
 class Record:

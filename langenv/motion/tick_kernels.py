@@ -36,7 +36,7 @@ from langenv.control.trajectory_kernels import locate, point
 from langenv.kernels import inline, kernel, mjc
 from langenv.kernels.blas import mul_mat_vec
 from langenv.kernels.pymath import dist3, hypot3
-from langenv.kernels.views import ArrayField, Record, f8, f8_2, i8
+from langenv.kernels.views import Record, array_table, f8, f8_2, i8
 from langenv.layout import Layout, field_table
 from langenv.robot import arm_kernels
 from langenv.robot.force_sensor import SENSOR_SETTINGS, SENSOR_STATE
@@ -101,21 +101,23 @@ TICK = Layout(
 
 TICK_ARRAYS = Record(
     "tick_arrays",
-    (
-        ArrayField("ws", doc="the tick's work array (:data:`TICK`, the legs, the bounds)"),
-        ArrayField("path", doc="the packed trajectory (rows of ``trajectory.SEGMENT``)"),
-        ArrayField("aw", doc="the arm controller's array (:data:`~langenv.robot.arm.ARM`)"),
-        ArrayField("ai", "int64", "the arm's joint addresses"),
-        ArrayField("jac", doc="the handle's Jacobian (6 nv)"),
-        ArrayField("xpos", doc="the handle site's position"),
-        ArrayField("xmat", doc="the handle site's orientation"),
-        ArrayField("qpos", doc="``mjData.qpos``"),
-        ArrayField("qvel", doc="``mjData.qvel``"),
-        ArrayField("ctrl", doc="``mjData.ctrl``"),
-        ArrayField("qfrc", doc="``mjData.qfrc_applied``"),
-        ArrayField("prm", doc="FastETC's parameters"),
-        ArrayField("tab", doc="FastETC's tables"),
-        ArrayField("ptr", "int64", "MuJoCo's pointers (:func:`langenv.kernels.mjc.pointers`)"),
+    array_table(
+        """
+        ws         the tick's work array (:data:`TICK`, the legs, the bounds)
+        path       the packed trajectory (rows of ``trajectory.SEGMENT``)
+        aw         the arm controller's array (:data:`~langenv.robot.arm.ARM`)
+        ai:int64   the arm's joint addresses
+        jac        the handle's Jacobian (6 nv)
+        xpos       the handle site's position
+        xmat       the handle site's orientation
+        qpos       ``mjData.qpos``
+        qvel       ``mjData.qvel``
+        ctrl       ``mjData.ctrl``
+        qfrc       ``mjData.qfrc_applied``
+        prm        FastETC's parameters
+        tab        FastETC's tables
+        ptr:int64  MuJoCo's pointers (:func:`langenv.kernels.mjc.pointers`)
+        """
     ),
 )
 """The tick's arrays, reached by address (:mod:`langenv.kernels.views`): what :func:`tick`,
