@@ -65,19 +65,9 @@ PACE_BOUNDS = (0.6, 1.4)
 # Okabe-Ito colour-blind-safe palette; the paper's controllers get fixed colours.
 _FIXED = {"ac": "#E69F00", "lc-noap": "#56B4E9", "lc": "#009E73"}
 _CYCLE = ("#CC79A7", "#0072B2", "#D55E00", "#F0E442", "#000000", "#999999")
-_PHRASE_COLORS = (
-    "#a6cee3",
-    "#b2df8a",
-    "#fdbf6f",
-    "#cab2d6",
-    "#fb9a99",
-    "#ffff99",
-    "#8dd3c7",
-    "#bebada",
-    "#80b1d3",
-    "#fccde5",
-    "#d9d9d9",
-    "#ccebc5",
+_PHRASE_COLORS = tuple(  # light ColorBrewer tones (Paired, Set3), one per phrase
+    "#a6cee3 #b2df8a #fdbf6f #cab2d6 #fb9a99 #ffff99"
+    " #8dd3c7 #bebada #80b1d3 #fccde5 #d9d9d9 #ccebc5".split()
 )
 _PNG_INFO = PngImagePlugin.PngInfo()
 _PNG_INFO.add_text("Software", f"LangCtrl eval.plots (Matplotlib {matplotlib.__version__})")

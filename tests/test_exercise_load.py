@@ -208,3 +208,27 @@ def test_exercises_in_code_are_checked_at_construction() -> None:
         Leg("arc", "arc", center=start)
     with pytest.raises(ExerciseError, match=r"tool\.axis"):
         Leg("line", "line", end=start, tool_turn=0.3)
+
+
+@pytest.mark.parametrize(
+    ("leg", "message"),
+    [
+        (
+            "arc: {center: [-0.2, -0.55, 0.06], axis: [0, 0, 1], angle: 400}",
+            "arc.angle must satisfy 0 < |angle| <= 360 deg, got 400",
+        ),
+        (
+            "arc: {center: [-0.2, -0.55, 0.06], axis: [0, 0, 1], angle: 0}",
+            "arc.angle must satisfy 0 < |angle| <= 360 deg, got 0",
+        ),
+        (
+            "line: {to: start}\n    tool: {turn: -400}",
+            "tool.turn must lie in [-360, 360] deg, got -400",
+        ),
+    ],
+)
+def test_an_angle_out_of_its_range_is_named(tmp_path: Path, leg: str, message: str) -> None:
+    with pytest.raises(ExerciseError) as info:
+        load_exercise(_write(tmp_path, GOOD.replace("line: {to: start}", leg)))
+    assert [p.kind for p in info.value.problems] == ["bad_value"]
+    assert message in str(info.value)

@@ -11,6 +11,7 @@ format and the path's shape only; whether the arm can follow it safely is
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -370,16 +371,12 @@ def _arc(body: dict[str, Any], name: str, found: _Problems, at: Where) -> dict[s
             found.add("degenerate", "arc.axis must be non-zero", name, at=(*at, "axis"))
         out["axis"] = axis
     if "angle" in body:
-        angle = _number(body["angle"], "arc.angle (deg)", found, name, (*at, "angle"))
-        if angle is not None and not 0.0 < abs(angle) <= 360.0:
-            found.add(
-                "bad_value",
-                f"arc.angle must satisfy 0 < |angle| <= 360 deg, got {angle}",
-                name,
-                at=(*at, "angle"),
-            )
+        rule = "satisfy 0 < |angle| <= 360"
+        angle = _degrees(
+            body, "angle", "arc.angle", (rule, lambda v: 0.0 < abs(v) <= 360.0), found, name, at
+        )
         if angle is not None:
-            out["angle"] = math.radians(angle)
+            out["angle"] = angle
     return out
 
 
@@ -405,6 +402,26 @@ def _spline(body: dict[str, Any], name: str, found: _Problems, at: Where) -> dic
     return out
 
 
+def _degrees(
+    body: dict[str, Any],
+    key: str,
+    what: str,
+    rule: tuple[str, Callable[[float], bool]],
+    found: _Problems,
+    name: str,
+    at: Where,
+) -> float | None:
+    """``body[key]``, an angle in degrees (``what`` names it), in radians; None with a
+    ``bad_value`` problem when it does not hold ``rule`` (what it must do, and the test)."""
+    value = _number(body[key], f"{what} (deg)", found, name, (*at, key))
+    if value is None:
+        return None
+    if not rule[1](value):
+        found.add("bad_value", f"{what} must {rule[0]} deg, got {value}", name, at=(*at, key))
+        return None
+    return math.radians(value)
+
+
 def _tool(raw: Any, name: str, found: _Problems, at: Where) -> dict[str, Any]:
     if raw is None:
         return {}
@@ -415,16 +432,12 @@ def _tool(raw: Any, name: str, found: _Problems, at: Where) -> dict[str, Any]:
         found.unknown(key, _TOOL, at, name, what="tool: ")
     out: dict[str, Any] = {}
     if "turn" in raw:
-        turn = _number(raw["turn"], "tool.turn (deg)", found, name, (*at, "turn"))
-        if turn is not None and abs(turn) > 360.0:
-            found.add(
-                "bad_value",
-                f"tool.turn must lie in [-360, 360] deg, got {turn}",
-                name,
-                at=(*at, "turn"),
-            )
-        elif turn is not None:
-            out["tool_turn"] = math.radians(turn)
+        rule = "lie in [-360, 360]"
+        turn = _degrees(
+            raw, "turn", "tool.turn", (rule, lambda v: abs(v) <= 360.0), found, name, at
+        )
+        if turn is not None:
+            out["tool_turn"] = turn
     if "axis" in raw:
         axis = _vector(raw["axis"], "tool.axis", found, name, (*at, "axis"))
         if axis is not None and float(np.linalg.norm(axis)) < 1e-9:

@@ -33,6 +33,7 @@ the rule compares with the motion's time to completion ``t_x``. The rule never l
 
 from __future__ import annotations
 
+import copy
 import itertools
 import math
 from collections.abc import Iterable, Mapping, Sequence
@@ -57,7 +58,7 @@ from langenv.speech.repeat import (
     is_gap,
     reopen_vertex,
 )
-from langenv.speech.voice import Voice
+from langenv.speech.voice import VOICES, Voice
 
 __all__ = [
     "GRAPHS_DIR",
@@ -362,19 +363,13 @@ class PhraseGraph:
         """
         if voice == self.voice:
             return self
-        return PhraseGraph(
-            self.source_phrases,
-            self.start,
-            self.duration,
-            pause=self.pause,
-            voice=voice,
-            path=self.path,
-            repeats=self.repeats,
-            final_wait=self.final_wait,
-            legs=self.legs,
-            leg_of=self.leg_of,
-            intents=self.intent_of,
-        )
+        if voice not in VOICES:
+            raise PhraseGraphError(
+                f"{self._label}: voice must be one of {list(VOICES)}, got {voice!r}"
+            )
+        graph = copy.copy(self)  # the voice changes no vertex, slot or table
+        graph.voice = voice
+        return graph
 
     # ------------------------------------------------------------------ structure
     def children(self, u: str) -> tuple[str, ...]:
