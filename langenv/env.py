@@ -30,7 +30,7 @@ from langenv.speech.choice import duration_factor
 from langenv.speech.graph import PhraseGraph, graph_path
 from langenv.speech.hearing import Ear
 from langenv.speech.legs import LegPlan, leg_plan
-from langenv.speech.repeat import MAX_REOPENS, REOPEN_AFTER
+from langenv.speech.repeat import reopen_time
 from langenv.speech.shared import shared_clips, shared_graph
 from langenv.speech.timeline import SpeechTimeline
 from langenv.task import reward
@@ -554,13 +554,9 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
 
     @property
     def reopen_at(self) -> float:
-        """From when the speech may go on after its end (:mod:`langenv.speech.repeat`: the
-        motion went back; s, ``inf``: not in this session now): the compiled ticks hand that
-        tick to Python, which decides (:meth:`_reopen_due`)."""
-        end = self.t_speech_end
-        if end is None or self.speech.graph.reopen is None or self._reopens >= MAX_REOPENS:
-            return math.inf
-        return end + REOPEN_AFTER
+        """From when the speech may go on after its end (s; ``repeat.reopen_time``): the
+        compiled ticks hand that tick to Python (:meth:`_reopen_due`)."""
+        return reopen_time(self.speech.graph, self.t_speech_end, self._reopens)
 
     def take_times(
         self, time: float, t_a: float, t_h: float, max_speed: float, coop_index: int
@@ -681,9 +677,8 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         return em, pace
 
     def _reopen_due(self) -> bool:
-        """Whether the speech goes on now (:mod:`langenv.speech.repeat`): :data:`REOPEN_AFTER`
-        s after it ended the motion goes on, and its time to go holds the shortest words from
-        the graph's reopen vertex to the end."""
+        """Whether the speech goes on now: the motion goes on, with time for the shortest words
+        from the graph's reopen vertex to the end (:mod:`langenv.speech.repeat`)."""
         return (
             self.time >= self.reopen_at
             and not self.motion.motion_done

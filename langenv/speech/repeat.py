@@ -67,6 +67,7 @@ __all__ = [
     "expand",
     "is_gap",
     "parse_repeats",
+    "reopen_time",
     "reopen_vertex",
     "repeat_problems",
 ]
@@ -302,6 +303,14 @@ def expand(
     table.update(extra)
     opened = _add_waits(table, dur, make) if final_wait else set()
     return table, {u: d for u, d in dur.items() if u in table}, frozenset(opened)
+
+
+def reopen_time(graph: Any, t_end: float | None, reopens: int) -> float:
+    """From when a session's speech that ended at ``t_end`` (s; None: it goes on) may go on
+    after ``reopens`` times already (module docstring); ``inf``: not now."""
+    if t_end is None or graph.reopen is None or reopens >= MAX_REOPENS:
+        return math.inf
+    return t_end + REOPEN_AFTER
 
 
 def reopen_vertex(graph: Any) -> str | None:
