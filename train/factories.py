@@ -11,7 +11,7 @@ the same run. Subprocess workers leave Ctrl-C to the learner (:class:`_SubprocVe
 from __future__ import annotations
 
 import signal
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
@@ -128,7 +128,7 @@ def _training_env(run: Run, per_env: list[dict[str, Any]], cls: Any) -> Any:
         )
     else:  # make_vec_env gives every env the same kwargs: its loop, exercise i mod k
         fns: list[Any] = [
-            _EnvFn(a.env_id, per_env[i % len(per_env)], run.wrapper, a.seed, i)
+            _EnvFn(run.wrapper, a.seed, i, env_id=a.env_id, kwargs=per_env[i % len(per_env)])
             for i in range(run.n_envs)
         ]
         env = cls(fns)
@@ -172,7 +172,8 @@ def _make_world_envs(run: Run, cls: Any) -> tuple[Any, Any]:
     a, split = run.args, run.worlds
     split.check()
     fns: list[Any] = [
-        _WorldFn(split, "train", run.env_kwargs, run.wrapper, a.seed, i) for i in range(run.n_envs)
+        _WorldFn(run.wrapper, a.seed, i, split=split, env_kwargs=run.env_kwargs)
+        for i in range(run.n_envs)
     ]
     env = cls(fns)
     env.seed(a.seed)
@@ -194,30 +195,34 @@ def _make_world_envs(run: Run, cls: Any) -> tuple[Any, Any]:
 
 
 @dataclass(frozen=True)
-class _WorldFn:
-    """One training env across worlds (picklable for subprocesses): a
-    :class:`~langenv.worlds.WorldEnv` with its TimeLimit's steps, a Monitor and the wrappers."""
+class _Finished:
+    """What a training env factory (picklable for subprocesses) does last, as ``make_vec_env``
+    finishes each of its envs: the action space seeded ``seed + rank``, a Monitor, then
+    ``wrapper`` (:func:`_monitored`)."""
 
-    split: Any
-    role: str
-    env_kwargs: dict[str, Any]
     wrapper: Any
     seed: int | None
     rank: int
 
+    def finish(self, env: Any) -> Any:
+        if self.seed is not None:
+            env.action_space.seed(self.seed + self.rank)
+        return _monitored(env, self.wrapper)
+
+
+@dataclass(frozen=True)
+class _WorldFn(_Finished):
+    """One training env across worlds: a :class:`~langenv.worlds.WorldEnv` with its
+    TimeLimit's steps, finished (:class:`_Finished`)."""
+
+    split: Any = None
+    role: str = "train"
+    env_kwargs: dict[str, Any] = field(default_factory=dict)
+
     def __call__(self) -> Any:
         from langenv.worlds import WorldEnv
 
-        env = WorldEnv(self.split, self.role, self.env_kwargs)
-        return _seeded_monitored(env, self.wrapper, self.seed, self.rank)
-
-
-def _seeded_monitored(env: Any, wrapper: Any, seed: int | None, rank: int) -> Any:
-    """``env`` as ``make_vec_env`` finishes each of its envs: the action space seeded
-    ``seed + rank``, a Monitor, then ``wrapper`` (:func:`_monitored`)."""
-    if seed is not None:
-        env.action_space.seed(seed + rank)
-    return _monitored(env, wrapper)
+        return self.finish(WorldEnv(self.split, self.role, self.env_kwargs))
 
 
 def exercise_kwargs(env_kwargs: dict[str, Any]) -> list[dict[str, Any]]:
@@ -249,22 +254,17 @@ def exercise_kwargs(env_kwargs: dict[str, Any]) -> list[dict[str, Any]]:
 
 
 @dataclass(frozen=True)
-class _EnvFn:
+class _EnvFn(_Finished):
     """One training env of a list of exercises, made as ``make_vec_env`` makes each of its own
-    (the action space seeded ``seed + rank``, a Monitor, the wrappers); picklable for
-    subprocesses."""
+    and finished (:class:`_Finished`)."""
 
-    env_id: str
-    kwargs: dict[str, Any]
-    wrapper: Any
-    seed: int | None
-    rank: int
+    env_id: str = ""
+    kwargs: dict[str, Any] = field(default_factory=dict)
 
     def __call__(self) -> Any:
         import gymnasium as gym
 
-        env = gym.make(self.env_id, **{"render_mode": "rgb_array", **self.kwargs})
-        return _seeded_monitored(env, self.wrapper, self.seed, self.rank)
+        return self.finish(gym.make(self.env_id, **{"render_mode": "rgb_array", **self.kwargs}))
 
 
 def residual_section(env: Any) -> dict[str, Any]:
