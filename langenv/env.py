@@ -656,7 +656,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         hz = self._horizons()  # the motion's, after its tick: for the speech and its ETC
         if speech.done and self._reopen_due():
             assert speech.graph.reopen is not None
-            speech.reopen(speech.graph.reopen, self.time)
+            speech.reopen(speech.graph.reopen, self.time, hz, self._pause_factor)
             self.t_speech_end = None
             self._reopens += 1
         if not speech.done:

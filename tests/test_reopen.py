@@ -44,10 +44,12 @@ def _graph(clips: ClipLibrary, final_wait: bool = True, repeat: bool = True) -> 
     )
 
 
-def test_no_reopen_without_a_waiting_last_phrase_or_a_repeat(clips: ClipLibrary) -> None:
+def test_without_a_repeat_the_last_phrase_is_said_again_and_the_paper_s_end_never(
+    clips: ClipLibrary,
+) -> None:
     assert _graph(clips).reopen == "keep"  # the shorter of the two first sayings
+    assert reopen_vertex(_graph(clips, repeat=False)) == "done#wait"
     assert reopen_vertex(_graph(clips, final_wait=False)) is None
-    assert reopen_vertex(_graph(clips, repeat=False)) is None
 
 
 def test_the_timeline_goes_on_from_the_vertex_at_the_time_given(clips: ClipLibrary) -> None:
@@ -59,8 +61,8 @@ def test_the_timeline_goes_on_from_the_vertex_at_the_time_given(clips: ClipLibra
         tl.step(0.01, 1.0, choice="done#wait", t_x=0.0, pause=0.0)
     end = tl.t_end
     assert end is not None
-    with pytest.raises(ConfigError, match="not a phrase"):
-        tl.reopen("done#wait", end + 1.0)
+    with pytest.raises(ConfigError, match="not a vertex"):
+        tl.reopen("nope", end + 1.0)
     with pytest.raises(ConfigError, match="t must be >="):
         tl.reopen("keep", end - 1.0)
     said = len(tl.utterances())
@@ -71,6 +73,24 @@ def test_the_timeline_goes_on_from_the_vertex_at_the_time_given(clips: ClipLibra
     again = tl.utterances()[said:]
     assert again[0].phrase == "keep" and again[0].t_start == pytest.approx(end + 1.5)
     assert again[-1].phrase == "done" and tl.t_end == again[-1].t_end
+
+
+def test_a_wait_reopened_is_planned_so_that_the_last_phrase_ends_with_the_motion(
+    clips: ClipLibrary,
+) -> None:
+    graph = _graph(clips, repeat=False)
+    tl = SpeechTimeline(graph)
+    while not tl.done:
+        tl.step(0.01, 1.0, choice="done#wait", t_x=0.0, pause=0.0)
+    end = tl.t_end
+    assert end is not None
+    tl.reopen("done#wait", end + 1.0, t_x=3.0)  # the motion ends 3 s from now
+    t_x = 3.0
+    while not tl.done:
+        tl.step(0.01, 1.0, t_x=t_x)
+        t_x -= 0.01
+    assert [u.phrase for u in tl.utterances()[-2:]] == ["done#wait", "done"]
+    assert tl.t_end == pytest.approx(end + 1.0 + 3.0, abs=0.02)
 
 
 def _session(compiled: bool) -> tuple[Any, dict[str, np.ndarray], list[Utterance]]:

@@ -35,7 +35,8 @@ motion again). When the motion is still going :data:`REOPEN_AFTER` s after the s
 and its time to go can hold the shortest words from there to the end, the speech goes on from
 :func:`reopen_vertex` (the shortest first saying of a repeat that leads to the last phrase's
 wait: "Keep going.", then, by the same rules, more sayings or the wait and the last phrase
-again), at most :data:`MAX_REOPENS` times a session. A session whose motion ends within
+again; a script without such a line: the wait and the last phrase again), at most
+:data:`MAX_REOPENS` times a session. A session whose motion ends within
 :data:`REOPEN_AFTER` s of its speech is not touched.
 
 A plan says a repeat once: ``t_min``/``t_max`` of a vertex (and so the choice rule's mids) leave
@@ -316,19 +317,22 @@ def reopen_time(graph: Any, t_end: float | None, reopens: int) -> float:
 def reopen_vertex(graph: Any) -> str | None:
     """Where the speech goes on after its end (module docstring) in ``graph`` (a
     :class:`~langenv.speech.graph.PhraseGraph`): among the first sayings of a repeat that lead
-    to a last phrase's wait, the shortest (the first in the graph's order on a tie); None when
-    the last phrase does not wait or no repeat leads to it (the speech then ends as before)."""
+    to a last phrase's wait, the shortest (the first in the graph's order on a tie); without
+    one, that wait itself (the last phrase said again, timed to end with the motion); None when
+    the last phrase does not wait (the speech then ends as before)."""
     if not graph.final_wait:
         return None
-    waits = {u for u in graph.order if u.endswith(SEP + "wait")}
+    waits = [u for u in graph.order if u.endswith(SEP + "wait")]
     found = [
         u
         for u in graph.order
         if SEP not in u
-        and waits.intersection(graph.children(u))
+        and set(waits).intersection(graph.children(u))
         and any(is_gap(k) for k in graph.children(u))
     ]
-    return min(found, key=lambda u: graph.duration[u]) if found else None
+    if found:
+        return min(found, key=lambda u: graph.duration[u])
+    return waits[0] if waits else None
 
 
 def is_gap(vertex: str) -> bool:

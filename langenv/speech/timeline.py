@@ -221,30 +221,42 @@ class SpeechTimeline:
             return
         self._advance(dt, a, adv, choice, t_x, pause)
 
-    def reopen(self, v: str, t: float) -> None:
-        """Go on speaking from the vertex ``v`` (a content vertex) at time ``t`` (s), after
-        the speech ended (:func:`~langenv.speech.repeat.reopen_vertex`: the motion went back);
-        the next :meth:`step` says it. The utterances so far stay; :attr:`t_end` is None again.
+    def reopen(
+        self, v: str, t: float, t_x: Horizons = None, pause_factor: float | None = None
+    ) -> None:
+        """Go on speaking from the vertex ``v`` at time ``t`` (s) after the speech ended
+        (:func:`~langenv.speech.repeat.reopen_vertex`: the motion went back); the next
+        :meth:`step` goes on from there. A pause ``v`` is entered as :meth:`step` enters one
+        (``t_x`` and ``pause_factor`` as there; without them, its minimum). The utterances so
+        far stay; :attr:`t_end` is None again.
 
         Raises:
-            ConfigError: if the speech has not ended, or ``v`` is a pause or not a vertex.
+            ConfigError: if the speech has not ended, ``t`` is before the timeline's time, or
+                ``v`` is not a vertex.
         """
         if not self._done:
             raise ConfigError("SpeechTimeline.reopen: the speech has not ended")
         if not t >= self._t:
             raise ConfigError(f"SpeechTimeline.reopen: t must be >= {self._t}, got {t!r}")
-        if v not in self._dur or v in self._pauses:
-            raise ConfigError(f"SpeechTimeline.reopen: {v!r} is not a phrase of the graph")
+        if v not in self._dur:
+            raise ConfigError(f"SpeechTimeline.reopen: {v!r} is not a vertex of the graph")
         self._done = False
         self._t_end = None
         self._phrase = v
         self._path.append(v)
         self._pos = 0.0
-        self._in_pause = False
-        self._elastic = False
         self._t = self._t_start = float(t)
-        self._cur_slot = self._slot[v]
-        self._mark = self._dur[v]
+        self._in_pause = v in self._pauses
+        if self._in_pause:
+            pause = None if t_x is None else self._factored(t_x, pause_factor)
+            self._cur_slot = self._pause_length(v, pause, t_x, 0.0, True)
+            lo, hi = self._graph.slot_range(v)
+            self._elastic = lo < hi
+            self._mark = self._cur_slot
+        else:
+            self._elastic = False
+            self._cur_slot = self._slot[v]
+            self._mark = self._dur[v]
 
     def _factored(self, t_x: float | Sequence[float], factor: float | None) -> PauseTarget:
         """The pause rule's targets from the horizons: each segment's times ``factor`` (the
