@@ -137,7 +137,7 @@ class EpisodeLog:
             end because the motion went back: :mod:`langenv.speech.repeat`).
         utterances: Phrases said, ordered by start time.
         t_motion: Time at which the motion ended (s).
-        t_speech: Time at which the speech ended (s).
+        t_speech: Time at which the speech ended (s; its last end where it went on).
         ret: Episode return (sum of rewards).
         qpos: Joint positions of the arm model, shape ``(n, nq)`` (rad), float32; None when not
             recorded. With ``f_user`` it replays the scene (:mod:`eval.video`).
@@ -696,17 +696,18 @@ class EpisodeRecorder:
     def _end_time(
         self, given: float | None, key: str, flag: str, v: Mapping[str, np.ndarray]
     ) -> float:
-        """An end time: ``given``, else the last sample's ``key``, else the time of the first
-        sample whose ``flag`` trace (in ``v``, with ``t``) is set."""
+        """An end time: ``given``, else the last sample's ``key``, else the time from which the
+        ``flag`` trace (in ``v``, with ``t``) stays set (a speech may end, then go on)."""
         if given is not None:
             return float(given)
         last = self._last.get(key)
         if last is not None and math.isfinite(float(last)):
             return float(last)
         done = v[flag].astype(bool)
-        if not done.any():
-            raise ConfigError(f"EpisodeRecorder.build: {key} unknown ({flag} never set)")
-        return float(v["t"][int(np.argmax(done))])
+        if not done.size or not done[-1]:
+            raise ConfigError(f"EpisodeRecorder.build: {key} unknown ({flag} not set at the end)")
+        unset = np.flatnonzero(~done)
+        return float(v["t"][int(unset[-1]) + 1 if unset.size else 0])
 
     def _phrase_runs(self, t: np.ndarray, texts: Mapping[str, str]) -> list[Utterance]:
         """One utterance per run of samples with the same non-empty phrase id."""

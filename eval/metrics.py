@@ -62,7 +62,7 @@ import numpy as np
 from eval.episode import EpisodeLog
 from eval.legs import leg_metrics
 from langenv.errors import ConfigError
-from langenv.speech.voice import voice_rate, words_heard
+from langenv.speech.voice import voice_rate, waiting_spans, words_heard
 
 __all__ = [
     "A_TOLERANCE",
@@ -333,15 +333,13 @@ def voice_trace(log: EpisodeLog) -> tuple[np.ndarray, np.ndarray]:
 
     A stretched voice (``log.voice == "stretch"``) is heard at the speech pace ``a``. A natural
     voice (:mod:`langenv.speech.voice`) says every clip but the last at ``max(a, 0.9)`` and then
-    waits at rate 1 until the clip's slot ends (:func:`langenv.speech.voice.voice_rate`); the
-    last clip of a finished speech follows ``a``.
+    waits at rate 1 until the clip's slot ends (:func:`langenv.speech.voice.voice_rate`); a
+    clip the speech ends with follows ``a`` (:func:`~langenv.speech.voice.waiting_spans`).
     """
     if log.voice != "natural":
         return log.a, np.zeros(log.n, dtype=bool)
-    clips = [u for u in log.utterances if not u.is_pause]
-    if clips and bool(log.speech_done[-1]):
-        clips = clips[:-1]  # the final clip ends with the speech: it follows a
-    return voice_rate(log.t, log.a, [(u.t_start, u.t_end) for u in clips])
+    clips = [(u.t_start, u.t_end) for u in log.utterances if not u.is_pause]
+    return voice_rate(log.t, log.a, waiting_spans(log.t, log.speech_done, clips))
 
 
 def episode_metrics(log: EpisodeLog) -> dict[str, float | str]:

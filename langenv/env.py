@@ -161,7 +161,8 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
 
     ## Episode end
 
-    Terminates when both speech and motion are over, or at a **protective stop** (below).
+    Terminates when both speech and motion are over, or at a **protective stop** (below). A speech
+    over while the hand, pushed back, still moves 1 s later goes on (:mod:`langenv.speech.repeat`).
     Truncates at the session's length, ``max_seconds`` (60 s), whatever the decision rate: the
     step that reaches it returns ``truncated=True`` (``info["am"]`` is then None). A
     ``max_episode_steps`` given to ``gymnasium.make`` adds Gymnasium's step-counting limit on top.
@@ -677,8 +678,7 @@ class LangCtrlEnv(gym.Env[np.ndarray, np.ndarray]):
         return em, pace
 
     def _reopen_due(self) -> bool:
-        """Whether the speech goes on now: the motion goes on, with time for the shortest words
-        from the graph's reopen vertex to the end (:mod:`langenv.speech.repeat`)."""
+        """Whether the speech goes on now (the motion on, with time for the reopen's words)."""
         return (
             self.time >= self.reopen_at
             and not self.motion.motion_done

@@ -3,6 +3,7 @@ REOPEN_AFTER): where, when, the same in Python and compiled ticks, heard live an
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -23,6 +24,10 @@ from policies.analytic import make_analytic
 # A forearm_rotation person (validation seeds) who pushes the hand back by about 3 s of motion
 # after "And you're done." has begun: before the speech went on, LC ended 3.7 s apart.
 PUSHED_BACK = 800092
+# A person of the new user's two-leg reach (a plain script, no repeat line) who pushes the hand
+# back 0.2 m after "And you're done." began: -14.4 s before.
+PUSHED_BACK_PLAIN = 7811
+DATA = Path(__file__).parent / "data" / "exercises"
 
 
 def test_the_reopen_vertex_is_the_shortest_first_saying_leading_to_the_last_phrase() -> None:
@@ -50,6 +55,24 @@ def test_without_a_repeat_the_last_phrase_is_said_again_and_the_paper_s_end_neve
     assert _graph(clips).reopen == "keep"  # the shorter of the two first sayings
     assert reopen_vertex(_graph(clips, repeat=False)) == "done#wait"
     assert reopen_vertex(_graph(clips, final_wait=False)) is None
+
+
+def test_a_pause_line_before_the_last_phrase_and_a_filler_before_it() -> None:
+    """A pause line that leads only to the last phrase is its wait: the speech goes on from it;
+    with ``{okay|so} Done.`` from the wait straight before the last phrase, not the filler's."""
+    paused = [
+        Phrase("a", "Go.", None, ("p",)),
+        Phrase("p", None, None, ("b",), "pause", (0.2, 1.0)),
+        Phrase("b", "Done.", None, ()),
+    ]
+    assert PhraseGraph(paused, "a", {"a": 1.0, "b": 0.5}, final_wait=True).reopen == "p"
+    filled = [
+        Phrase("a", "Go.", None, ("f", "b")),
+        Phrase("f", "okay", None, ("b",), "filler"),
+        Phrase("b", "Done.", None, ()),
+    ]
+    g = PhraseGraph(filled, "a", {"a": 1.0, "f": 0.3, "b": 0.5}, final_wait=True)
+    assert {"f#wait", "b#wait"} <= set(g.phrases) and g.reopen == "b#wait"
 
 
 def test_the_timeline_goes_on_from_the_vertex_at_the_time_given(clips: ClipLibrary) -> None:
@@ -93,20 +116,22 @@ def test_a_wait_reopened_is_planned_so_that_the_last_phrase_ends_with_the_motion
     assert tl.t_end == pytest.approx(end + 1.0 + 3.0, abs=0.02)
 
 
-def _session(compiled: bool) -> tuple[Any, dict[str, np.ndarray], list[Utterance]]:
+def _session(
+    compiled: bool, exercise: str = "forearm_rotation", seed: int = PUSHED_BACK
+) -> tuple[Any, dict[str, np.ndarray], list[Utterance]]:
     policy = make_analytic("lc")
-    spoken = speak(policy, "forearm_rotation", None)
+    spoken = speak(policy, exercise, None)
     env: Any = gym.make(
         langenv.ENV_ID,
         phrase_graph=spoken.ref,
         decision_hz=policy.decision_hz,
-        exercise="forearm_rotation",
+        exercise=exercise,
         max_episode_steps=60 * policy.decision_hz,
         **policy.env_kwargs,
     ).unwrapped
     if not compiled:
         env._steps = None  # every tick in Python: the reference
-    obs, _ = env.reset(seed=PUSHED_BACK)
+    obs, _ = env.reset(seed=seed)
     policy.reset()
     rows: dict[str, list[float]] = {"time": [], "a": [], "p": [], "speech_done": []}
     terminated = False
@@ -171,6 +196,18 @@ def test_the_speech_that_goes_on_is_heard_live_and_offline(clips: ClipLibrary) -
         assert np.abs(audio[after]).max() > 0.01  # the words that go on are heard
         assert np.abs(audio[before]).max() < 1e-3  # after a silence
     assert stream.starved == 0
+
+
+def test_a_wait_reopened_in_compiled_ticks_as_in_python_ones() -> None:
+    """The new user's plain script (no repeat line): the speech goes on from the last phrase's
+    wait, which the compiled ticks then plan as Python does."""
+    exercise = str(DATA / "new_user" / "two_leg_reach.yaml")
+    info_c, rows_c, said_c = _session(compiled=True, exercise=exercise, seed=PUSHED_BACK_PLAIN)
+    info_p, rows_p, said_p = _session(compiled=False, exercise=exercise, seed=PUSHED_BACK_PLAIN)
+    for name in rows_c:
+        np.testing.assert_array_equal(rows_c[name], rows_p[name], err_msg=name)
+    assert said_c == said_p and info_c["am"] == info_p["am"]
+    assert [u.phrase for u in said_c].count("done#wait") == 2 and abs(info_c["am"]) <= 1.0
 
 
 def test_a_batch_goes_on_as_the_single_env() -> None:

@@ -64,7 +64,7 @@ from gymnasium import spaces
 from langenv.control.pacing import PaceLaw
 from langenv.errors import ConfigError
 from langenv.speech.in_step import boundaries, graph_legs, in_step, said_words
-from langenv.speech.voice import voice_rate, words_heard
+from langenv.speech.voice import voice_rate, waiting_spans, words_heard
 from langenv.task import observation as ob
 from policies.analytic import FILL_ANTICIPATE, FILL_K_C, FILL_MARGIN, FILL_PAUSE_SCALE
 from policies.coach import ChildIntents
@@ -138,8 +138,8 @@ def session_speech(
     """
     clips = [u for u in utterances if u.length is None]  # not a pause vertex
     if graph.voice == "natural":
-        waits = clips[:-1] if bool(speech_done[-1]) else clips  # the last clip follows a
-        v, waiting = voice_rate(t, a, [(u.t_start, u.t_end) for u in waits])
+        spans = waiting_spans(t, speech_done, [(u.t_start, u.t_end) for u in clips])
+        v, waiting = voice_rate(t, a, spans)
     else:
         v, waiting = a, np.zeros(t.shape, dtype=bool)
     w = np.append(np.diff(t), t[-1] - t[-2])

@@ -134,9 +134,10 @@ class SpeechStream:
             self._voc.finish()
 
     def _resume(self, t: float, a: float) -> None:
-        """The vocoder takes content again (the speech went on after its end at ``t``): first
-        the silence from the output already rendered to ``t`` at pace ``a``, at least a frame
-        (no frame already emitted may reach the new words)."""
+        """The vocoder takes content again (the speech went on after its end; ``t``: the step's
+        time, when the new words are recorded, up to a step after they start): first the
+        silence from the output already rendered to ``t`` at pace ``a``, at least a frame (no
+        frame already emitted may reach the new words)."""
         self._voc.resume()
         rendered = float(self._t[0]) + (self.next_sample - self.start_sample) / self.sr
         n = max(self._voc.n_fft, round(a * (t - rendered) * self.sr))

@@ -318,21 +318,25 @@ def reopen_vertex(graph: Any) -> str | None:
     """Where the speech goes on after its end (module docstring) in ``graph`` (a
     :class:`~langenv.speech.graph.PhraseGraph`): among the first sayings of a repeat that lead
     to a last phrase's wait, the shortest (the first in the graph's order on a tie); without
-    one, that wait itself (the last phrase said again, timed to end with the motion); None when
-    the last phrase does not wait (the speech then ends as before)."""
+    one, that wait itself (the last phrase said again, timed to end with the motion; a wait
+    straight before a last phrase rather than one before its filler); None when the last
+    phrase does not wait (the speech then ends as before)."""
     if not graph.final_wait:
         return None
-    waits = [u for u in graph.order if u.endswith(SEP + "wait")]
+    # the silences before a last phrase: the waits added, or a pause line opened into one
+    waits = [u for u in graph.order if u in graph.opened and not graph.is_gate(u)]
     found = [
         u
         for u in graph.order
         if SEP not in u
+        and u not in graph.pauses
         and set(waits).intersection(graph.children(u))
         and any(is_gap(k) for k in graph.children(u))
     ]
     if found:
         return min(found, key=lambda u: graph.duration[u])
-    return waits[0] if waits else None
+    plain = [w for w in waits if any(graph.is_terminal(k) for k in graph.children(w))]
+    return (plain or waits or [None])[0]  # a wait straight before a last phrase, not a filler
 
 
 def is_gap(vertex: str) -> bool:

@@ -224,13 +224,15 @@ class VariableRateVocoder:
     def resume(self) -> None:
         """Take content again after :meth:`finish` (a speech that goes on after its end): what
         is pushed next follows the content pushed so far; push a frame of silence first, so
-        that no frame already emitted overlaps the new content. What the last frames left in
-        the overlap-add (beyond the output emitted) is dropped, and the phase starts afresh."""
+        that no frame already emitted overlaps the new content. Once the output has emitted
+        all the content (:attr:`done`), what the last frames left in the overlap-add is dropped
+        and the phase starts afresh; before, nothing is dropped."""
+        if self.done:
+            self._acc[:] = 0.0
+            self._wsum[:] = 0.0
+            self._used = 0
+            self._count[0] = -1
         self._finished = False
-        self._acc[:] = 0.0
-        self._wsum[:] = 0.0
-        self._used = 0
-        self._count[0] = -1
 
     def pull(self, n: int, a: float) -> np.ndarray:
         """Render up to ``n`` output samples at pace ``a``.

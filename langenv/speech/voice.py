@@ -41,6 +41,7 @@ __all__ = [
     "Voice",
     "check_voice",
     "voice_rate",
+    "waiting_spans",
     "words_heard",
 ]
 
@@ -178,6 +179,24 @@ class NaturalVoice:
     def _upto(self, n: int, content: float, pace: float) -> int:
         """Samples (1..n) that cover ``content`` seconds of content at ``pace``."""
         return min(n, max(1, math.ceil(content * self.sr / pace - 1e-6)))
+
+
+def waiting_spans(
+    t: np.ndarray, speech_done: np.ndarray, clips: Sequence[tuple[float, float]]
+) -> list[tuple[float, float]]:
+    """The ``(t_start, t_end)`` of the clips a natural voice may wait after: every clip but one
+    the speech ends with (at the first sample from its end the speech is over; a last phrase,
+    once more if the speech went on after its end), which follows ``a``.
+
+    Args:
+        t: Sample times (s), shape ``(n,)``, increasing.
+        speech_done: Whether the speech is over at those times, shape ``(n,)``.
+        clips: The session's clips' spans, in order.
+    """
+    t = np.asarray(t, dtype=np.float64)
+    done = np.asarray(speech_done, dtype=bool)
+    at = np.searchsorted(t, [end for _, end in clips])
+    return [c for c, k in zip(clips, at.tolist(), strict=True) if not (k < t.size and done[k])]
 
 
 def voice_rate(
