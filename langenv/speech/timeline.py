@@ -240,23 +240,15 @@ class SpeechTimeline:
             raise ConfigError(f"SpeechTimeline.reopen: t must be >= {self._t}, got {t!r}")
         if v not in self._dur:
             raise ConfigError(f"SpeechTimeline.reopen: {v!r} is not a vertex of the graph")
+        length = 0.0
+        if v in self._pauses:
+            pause = None if t_x is None else self._factored(t_x, pause_factor)
+            length = self._pause_length(v, pause, t_x, 0.0, True)
         self._done = False
         self._t_end = None
-        self._phrase = v
-        self._path.append(v)
-        self._pos = 0.0
-        self._t = self._t_start = float(t)
-        self._in_pause = v in self._pauses
-        if self._in_pause:
-            pause = None if t_x is None else self._factored(t_x, pause_factor)
-            self._cur_slot = self._pause_length(v, pause, t_x, 0.0, True)
-            lo, hi = self._graph.slot_range(v)
-            self._elastic = lo < hi
-            self._mark = self._cur_slot
-        else:
-            self._elastic = False
-            self._cur_slot = self._slot[v]
-            self._mark = self._dur[v]
+        self._t = float(t)
+        self._enter(v, self._t, length)
+        self._mark = self._cur_slot if self._in_pause else self._dur[v]
 
     def _factored(self, t_x: float | Sequence[float], factor: float | None) -> PauseTarget:
         """The pause rule's targets from the horizons: each segment's times ``factor`` (the
@@ -357,28 +349,31 @@ class SpeechTimeline:
                 if nxt in self._pauses:
                     nxt_len = self._pause_length(nxt, pause, t_x, tau, True)
             self._content_done += slot
-            self._phrase = nxt
-            self._path.append(nxt)
-            self._pos = 0.0
-            self._t_start = t0 + tau
-            if nxt in self._pauses:
-                self._in_pause = True
-                self._cur_slot = nxt_len
-                lo, hi = self._graph.slot_range(nxt)
-                self._elastic = lo < hi
-                if rem >= nxt_len and self._gate_waits(nxt):
-                    # A gate that ends in the step it begins (its leg has begun) ends with the
-                    # step: the first words of its leg are the next step's choice, not the rule's.
-                    self._pos = nxt_len
-                    break
-            else:
-                self._in_pause = False
-                self._cur_slot = self._slot[nxt]
-                self._elastic = False
+            self._enter(nxt, t0 + tau, nxt_len)
+            if self._in_pause and rem >= nxt_len and self._gate_waits(nxt):
+                # A gate that ends in the step it begins (its leg has begun) ends with the
+                # step: the first words of its leg are the next step's choice, not the rule's.
+                self._pos = nxt_len
+                break
             nxt = None
         self._t = t0 + dt
         if self._phrase is not None:
             self._mark = self._cur_slot if self._in_pause else self._dur[self._phrase]
+
+    def _enter(self, v: str, t_start: float, pause_length: float) -> None:
+        """Make ``v`` the current vertex from ``t_start`` (a pause: ``pause_length`` long)."""
+        self._phrase = v
+        self._path.append(v)
+        self._pos = 0.0
+        self._t_start = t_start
+        self._in_pause = v in self._pauses
+        if self._in_pause:
+            self._cur_slot = pause_length
+            lo, hi = self._graph.slot_range(v)
+            self._elastic = lo < hi
+        else:
+            self._cur_slot = self._slot[v]
+            self._elastic = False
 
     def _gate_waits(self, v: str) -> bool:
         """Whether the gate ``v`` holds the rest of the step in which it is entered: a gate
