@@ -290,11 +290,12 @@ def _reopen_silences(
     """Base-pace seconds of silence before each vertex where the speech goes on after its end:
     the trace's ``∫ a dt`` from the end of the words before to the start of the words after
     (0 for a history of ids without times)."""
+    at = [k for k in range(1, len(ids)) if _reopens(graph, ids, k)]
+    if not at:
+        return {}
     cum = np.concatenate([[0.0], np.cumsum(0.5 * (aa[1:] + aa[:-1]) * np.diff(tt))])
     out: dict[int, float] = {}
-    for k in range(1, len(ids)):
-        if not _reopens(graph, ids, k):
-            continue
+    for k in at:
         a, b = getattr(history[k - 1], "t_end", None), getattr(history[k], "t_start", None)
         out[k] = (
             0.0 if a is None or b is None else float(np.interp(b, tt, cum) - np.interp(a, tt, cum))

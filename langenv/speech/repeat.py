@@ -325,12 +325,13 @@ def reopen_vertex(graph: Any) -> str | None:
         return None
     # the silences before a last phrase: the waits added, or a pause line opened into one
     waits = [u for u in graph.order if u in graph.opened and not graph.is_gate(u)]
+    opened = set(waits)
     found = [
         u
         for u in graph.order
         if SEP not in u
         and u not in graph.pauses
-        and set(waits).intersection(graph.children(u))
+        and opened.intersection(graph.children(u))
         and any(is_gap(k) for k in graph.children(u))
     ]
     if found:
