@@ -51,16 +51,7 @@ class AlignmentShaping:
     am_scale: float = 0.02
 
     def __post_init__(self) -> None:
-        for name in ("w_em", "w_adev", "w_am_fine"):
-            w = getattr(self, name)
-            if not (math.isfinite(w) and w >= 0.0):
-                raise ConfigError(f"AlignmentReward: {name} must be finite and >= 0, got {w!r}")
-        if not (math.isfinite(self.am_scale) and self.am_scale > 0.0):
-            raise ConfigError(
-                f"AlignmentReward: am_scale must be finite and > 0, got {self.am_scale!r}"
-            )
-        for f in fields(self):
-            object.__setattr__(self, f.name, float(getattr(self, f.name)))
+        _check_weights(self, "AlignmentReward")
 
     @classmethod
     def from_kwargs(cls, kwargs: Mapping[str, Any]) -> AlignmentShaping:
@@ -139,16 +130,7 @@ class ChoiceReward:
     w_length: float = 0.0
 
     def __post_init__(self) -> None:
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if f.name == "am_scale":
-                if not (math.isfinite(value) and value > 0.0):
-                    raise ConfigError(
-                        f"ChoicePoints: am_scale must be finite and > 0, got {value!r}"
-                    )
-            elif not (math.isfinite(value) and value >= 0.0):
-                raise ConfigError(f"ChoicePoints: {f.name} must be finite and >= 0, got {value!r}")
-            object.__setattr__(self, f.name, float(value))
+        _check_weights(self, "ChoicePoints")
 
     @classmethod
     def from_kwargs(cls, kwargs: Mapping[str, Any]) -> ChoiceReward:
@@ -181,6 +163,18 @@ class ChoiceReward:
         terms["reward_am"] = -self.w_am * am - self.w_am_fine * math.log1p(am / self.am_scale)
         terms["reward_am_far"] = -self.w_am_far if am > 1.0 else 0.0
         return terms
+
+
+def _check_weights(weights: Any, who: str) -> None:
+    """Each field of the frozen dataclass ``weights`` made a float: ``am_scale`` finite and > 0,
+    every other finite and >= 0; else a ConfigError naming ``who`` and the field."""
+    for f in fields(weights):
+        value = getattr(weights, f.name)
+        scale = f.name == "am_scale"
+        if not (math.isfinite(value) and (value > 0.0 if scale else value >= 0.0)):
+            bound = "> 0" if scale else ">= 0"
+            raise ConfigError(f"{who}: {f.name} must be finite and {bound}, got {value!r}")
+        object.__setattr__(weights, f.name, float(value))
 
 
 def _known(cls: type, kwargs: Mapping[str, Any], who: str) -> Mapping[str, Any]:
