@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
-from typing import Any
+from typing import Any, ClassVar, Self
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -24,7 +24,38 @@ __all__ = ["AlignmentShaping", "ChoiceReward"]
 
 
 @dataclass(frozen=True)
-class AlignmentShaping:
+class _Weights:
+    """Reward weights, checked where they are built: every field made a float, ``am_scale``
+    finite and > 0, every other finite and >= 0 (a ConfigError naming :attr:`who` and the
+    field otherwise)."""
+
+    who: ClassVar[str] = ""
+    """What the errors name (the config's wrapper)."""
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            scale = f.name == "am_scale"
+            if not (math.isfinite(value) and (value > 0.0 if scale else value >= 0.0)):
+                bound = "> 0" if scale else ">= 0"
+                raise ConfigError(f"{self.who}: {f.name} must be finite and {bound}, got {value!r}")
+            object.__setattr__(self, f.name, float(value))
+
+    @classmethod
+    def from_kwargs(cls, kwargs: Mapping[str, Any]) -> Self:
+        """The weights of a config's keyword arguments.
+
+        Raises:
+            ConfigError: for an argument it does not take, or a bad value.
+        """
+        unknown = sorted(set(kwargs) - {f.name for f in fields(cls)})
+        if unknown:
+            raise ConfigError(f"{cls.who}: unknown argument(s) {', '.join(unknown)}")
+        return cls(**kwargs)
+
+
+@dataclass(frozen=True)
+class AlignmentShaping(_Weights):
     """The evaluation's metrics as reward terms (the weights of ``AlignmentReward``).
 
     Per decision step of length ``dt`` (s):
@@ -45,22 +76,11 @@ class AlignmentShaping:
         ConfigError: for a negative or non-finite weight, or ``am_scale <= 0``.
     """
 
+    who: ClassVar[str] = "AlignmentReward"
     w_em: float = 0.5
     w_adev: float = 0.5
     w_am_fine: float = 1.0
     am_scale: float = 0.02
-
-    def __post_init__(self) -> None:
-        _check_weights(self, "AlignmentReward")
-
-    @classmethod
-    def from_kwargs(cls, kwargs: Mapping[str, Any]) -> AlignmentShaping:
-        """The shaping of a config's ``AlignmentReward: {...}`` keyword arguments.
-
-        Raises:
-            ConfigError: for an argument it does not take, or a bad value.
-        """
-        return cls(**_known(cls, kwargs, "AlignmentReward"))
 
     def terms(
         self,
@@ -97,7 +117,7 @@ class AlignmentShaping:
 
 
 @dataclass(frozen=True)
-class ChoiceReward:
+class ChoiceReward(_Weights):
     """The learned chooser's reward, paid once when the episode ends
     (:class:`train.choices.ChoicePoints`; the terms in its module docstring).
 
@@ -118,6 +138,7 @@ class ChoiceReward:
         ConfigError: naming the weight, for a negative or non-finite one, or ``am_scale <= 0``.
     """
 
+    who: ClassVar[str] = "ChoicePoints"
     w_content: float = 10.0
     w_voice: float = 5.0
     w_legs: float = 0.0
@@ -128,14 +149,6 @@ class ChoiceReward:
     w_em: float = 1.0
     w_stop: float = 10.0
     w_length: float = 0.0
-
-    def __post_init__(self) -> None:
-        _check_weights(self, "ChoicePoints")
-
-    @classmethod
-    def from_kwargs(cls, kwargs: Mapping[str, Any]) -> ChoiceReward:
-        """The reward of ``ChoicePoints``' weight arguments (errors as the shaping's)."""
-        return cls(**_known(cls, kwargs, "ChoicePoints"))
 
     def terms(
         self,
@@ -163,23 +176,3 @@ class ChoiceReward:
         terms["reward_am"] = -self.w_am * am - self.w_am_fine * math.log1p(am / self.am_scale)
         terms["reward_am_far"] = -self.w_am_far if am > 1.0 else 0.0
         return terms
-
-
-def _check_weights(weights: Any, who: str) -> None:
-    """Each field of the frozen dataclass ``weights`` made a float: ``am_scale`` finite and > 0,
-    every other finite and >= 0; else a ConfigError naming ``who`` and the field."""
-    for f in fields(weights):
-        value = getattr(weights, f.name)
-        scale = f.name == "am_scale"
-        if not (math.isfinite(value) and (value > 0.0 if scale else value >= 0.0)):
-            bound = "> 0" if scale else ">= 0"
-            raise ConfigError(f"{who}: {f.name} must be finite and {bound}, got {value!r}")
-        object.__setattr__(weights, f.name, float(value))
-
-
-def _known(cls: type, kwargs: Mapping[str, Any], who: str) -> Mapping[str, Any]:
-    """``kwargs``, if ``cls`` has a field for each; else a ConfigError naming ``who`` and them."""
-    unknown = sorted(set(kwargs) - {f.name for f in fields(cls)})
-    if unknown:
-        raise ConfigError(f"{who}: unknown argument(s) {', '.join(unknown)}")
-    return kwargs
