@@ -230,3 +230,20 @@ def test_a_batch_goes_on_as_the_single_env() -> None:
     single, rows, _ = _session(compiled=True)
     assert info["am"][0] == single["am"]
     np.testing.assert_array_equal(np.array(a), rows["a"])
+
+
+def test_the_law_run_in_compiled_code_goes_on_as_the_policy_stepping(tmp_path: Path) -> None:
+    """``langctrl compare`` runs LC's pace law in compiled code (``LangCtrlEnv.run_law``): the
+    pushed-back person's session ends as the policy stepping the env ends it."""
+    import eval.compare as compare
+
+    policy = make_analytic("lc")
+    assert policy.decision_hz == 500 and policy.pace_law() is not None  # the run_law path
+    job = compare.Job(
+        policy="lc", phrase_graph=None, user="s0", seed=PUSHED_BACK, session=None,
+        out_dir=str(tmp_path), audio=False, figures=False, decision_hz=None,
+        exercise="forearm_rotation", save_log=False,
+    )  # fmt: skip
+    row = compare.run_episode(job)
+    info, _, _ = _session(compiled=True)
+    assert float(row["am"]) == info["am"] and abs(info["am"]) <= 1.0
